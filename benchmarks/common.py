@@ -1,0 +1,55 @@
+"""Shared helpers of the benchmark scripts: machine description and table output."""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+RESULTS = Path(__file__).parent / "results"
+
+
+def cpu_name() -> str:
+    """The CPU model name from /proc/cpuinfo (Linux) or platform.processor()."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def machine_description(gl_renderer: str | None = None) -> str:
+    """One line naming the machine: CPU, usable cores and, if given, the GL renderer."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    text = f"{cpu_name()}, {cores} cores, Python {platform.python_version()}"
+    if gl_renderer:
+        text += f", GL: {gl_renderer}"
+    return text
+
+
+def write_table(name: str, columns: list[str], rows: list[list], machine: str) -> str:
+    """Print a Markdown table and save it (and a JSON copy) under benchmarks/results/.
+
+    Returns the Markdown text. Files: ``results/{name}.md`` and ``results/{name}.json``.
+    """
+    def fmt(value):
+        if isinstance(value, float):
+            return f"{value:,.3g}" if abs(value) < 1000 else f"{value:,.0f}"
+        if isinstance(value, int):
+            return f"{value:,}"
+        return str(value)
+
+    lines = [f"Machine: {machine}", f"Date: {time.strftime('%Y-%m-%d')}", "",
+             "| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    lines += ["| " + " | ".join(fmt(v) for v in row) + " |" for row in rows]
+    text = "\n".join(lines)
+    print(text)
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / f"{name}.md").write_text(text + "\n")
+    (RESULTS / f"{name}.json").write_text(json.dumps(
+        {"machine": machine, "date": time.strftime("%Y-%m-%d"), "columns": columns, "rows": rows}, indent=1))
+    return text
