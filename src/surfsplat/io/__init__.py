@@ -1,0 +1,137 @@
+"""Reading point clouds and meshes, writing PLY.
+
+- :func:`load`: ``.ply`` (point cloud, surfel model or triangle mesh), ``.obj``
+  (triangle mesh), ``.las`` / ``.laz`` (LiDAR, needs ``surfsplat[las]``) ->
+  validated :class:`~surfsplat.cloud.SplatCloud`.
+- :func:`save_ply`: a SplatCloud -> PLY with every array it holds; ``load``
+  reads it back identically.
+- :func:`load_mesh`: ``.ply`` with faces or ``.obj`` -> :class:`Mesh` (the
+  ground truth that splats are sampled from, see
+  ``surfsplat.geometry.sampling.sample_mesh``).
+
+Every failure raises :class:`~surfsplat.errors.InputError` naming the file.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from .. import progress
+from ..cloud import SplatCloud
+from ..errors import InputError
+from .mesh import Mesh, area_weighted_normals, read_obj
+from .ply import read_ply, read_ply_mesh, write_ply
+
+#: File extensions :func:`load` understands (lower case).
+CLOUD_EXTENSIONS = (".ply", ".obj", ".las", ".laz")
+#: File extensions :func:`load_mesh` understands (lower case).
+MESH_EXTENSIONS = (".ply", ".obj")
+
+
+def load(path: str | os.PathLike) -> SplatCloud:
+    """Read a point cloud or mesh file as a validated SplatCloud.
+
+    Dispatches on the extension:
+
+    - ``.ply``: see :mod:`surfsplat.io.ply` for the vertex properties read
+      (positions, normals, colors, splat axes or radius, normal field, clip
+      lines). With a ``face`` element the vertices become the points; stored
+      normals are kept, else vertices get area-weighted face normals and
+      vertices used by no face are dropped (counted in the warning).
+    - ``.obj``: triangle mesh read with trimesh: vertices become points with
+      the file's normals (or area-weighted ones) and vertex colors if any.
+    - ``.las`` / ``.laz``: positions and RGB (optional dependency laspy).
+
+    Returns a SplatCloud: positions (N, 3) float32 model space (the file's
+    units); normals (N, 3) unit, colors (N, 3) in [0, 1], u, v (N, 3) model
+    units, normal_field (N, 2), clip_lines (N, 2, 3) where present. The cloud
+    went through ``SplatCloud.validated``: invalid rows (non-finite values,
+    zero normals, degenerate axes) are dropped with an
+    :class:`~surfsplat.cloud.InvalidPointsWarning` giving counts.
+
+    Raises:
+        InputError: missing file, unknown extension, malformed file, or no
+            valid point; the message names the file.
+    """
+    path = _existing(path, CLOUD_EXTENSIONS)
+    suffix = path.suffix.lower()
+    with progress.stage(f"reading {path.name}"):
+        if suffix == ".ply":
+            cloud = read_ply(path)
+        elif suffix == ".obj":
+            cloud = _mesh_to_cloud(read_obj(path).validated(str(path)))
+        else:
+            from .las import read_las
+
+            cloud = read_las(path)
+    return cloud.validated(source=str(path))
+
+
+def load_mesh(path: str | os.PathLike) -> Mesh:
+    """Read a triangle mesh (``.ply`` with a face element, or ``.obj``).
+
+    Returns a validated :class:`Mesh`: vertices (V, 3) float32 model space,
+    faces (F, 3) int64 (polygons fan-triangulated), vertex_normals (V, 3)
+    float32 or None (None when the file stores none), vertex_colors (V, 3)
+    float32 in [0, 1] or None.
+
+    Raises:
+        InputError naming the file: missing file, unknown extension, malformed
+        file, no faces, non-finite vertices, face indices out of range.
+    """
+    path = _existing(path, MESH_EXTENSIONS)
+    with progress.stage(f"reading {path.name}"):
+        mesh = read_ply_mesh(path) if path.suffix.lower() == ".ply" else read_obj(path)
+    return mesh.validated(str(path))
+
+
+def save_ply(cloud: SplatCloud, path: str | os.PathLike, *, binary: bool = True,
+             overwrite: bool = False) -> Path:
+    """Write every array of ``cloud`` to a PLY file and return the Path written.
+
+    One ``vertex`` element with the properties, in this order, of the arrays
+    present: ``x y z``, ``nx ny nz``, ``red green blue``, ``ux uy uz vx vy vz``
+    (u and v both present), ``alpha beta`` (normal field), ``clip0_a clip0_b
+    clip0_c clip1_a clip1_b clip1_c`` (clip lines). All float32, except colors:
+    uchar when every color is exactly a float32 ``k / 255`` (as read from 8-bit
+    files), else float32 in [0, 1]. Colors are clipped to [0, 1] first; for any
+    other cloud ``load(save_ply(cloud, p))`` returns equal arrays.
+
+    Args:
+        cloud: the splats to write.
+        path: destination file (conventionally ``.ply``).
+        binary: binary_little_endian (default) or ascii.
+        overwrite: replace an existing file; without it an existing file
+            raises InputError.
+    """
+    path = Path(path)
+    if not isinstance(cloud, SplatCloud):
+        raise InputError(f"{path}: save_ply needs a SplatCloud, got {type(cloud).__name__}")
+    with progress.stage(f"writing {path.name}", count=len(cloud)):
+        return write_ply(cloud, path, binary=binary, overwrite=overwrite)
+
+
+def _existing(path: str | os.PathLike, extensions: tuple[str, ...]) -> Path:
+    """``path`` as a Path after checking that it is a file with a known extension."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in extensions:
+        raise InputError(f"{path}: unknown file type {suffix or '(no extension)'!r}; "
+                         f"expected one of {', '.join(extensions)}")
+    if not path.exists():
+        raise InputError(f"{path}: no such file")
+    if path.is_dir():
+        raise InputError(f"{path}: is a directory, not a file")
+    return path
+
+
+def _mesh_to_cloud(mesh: Mesh) -> SplatCloud:
+    """The mesh's vertices as points, with its normals or area-weighted ones."""
+    normals = mesh.vertex_normals
+    if normals is None:
+        normals = area_weighted_normals(mesh.vertices, mesh.faces)
+    return SplatCloud(positions=mesh.vertices, normals=normals, colors=mesh.vertex_colors)
+
+
+__all__ = ["load", "load_mesh", "save_ply", "Mesh", "CLOUD_EXTENSIONS", "MESH_EXTENSIONS"]

@@ -1,0 +1,366 @@
+"""PLY point clouds, surfel models and triangle meshes (read and write, with plyfile).
+
+Reading accepts ascii, binary_little_endian and binary_big_endian files. The
+``vertex`` element's properties map to :class:`~surfsplat.cloud.SplatCloud`
+arrays as follows (every group but ``x y z`` is optional, and a group must be
+complete):
+
+=================================================  =======================================
+PLY vertex properties                              SplatCloud
+=================================================  =======================================
+``x y z``                                          ``positions``
+``nx ny nz``                                       ``normals``
+``red green blue`` (``alpha`` ignored)             ``colors`` (see :func:`color_scale`)
+``ux uy uz vx vy vz``                              ``u``, ``v`` (elliptical splat axes)
+``radius``                                         ``u``, ``v`` of a circular splat
+``alpha beta``                                     ``normal_field``
+``clip0_a clip0_b clip0_c [clip1_a clip1_b clip1_c]``  ``clip_lines``
+=================================================  =======================================
+
+``alpha`` alone is a color's opacity and is ignored; ``alpha`` together with
+``beta`` is the linear normal field. Other properties (``confidence``,
+``intensity``, ...) are ignored.
+
+A ``face`` element (list property ``vertex_indices`` or ``vertex_index``,
+polygons triangulated as fans) makes the file a mesh; its vertices become the
+splat centers. When a mesh stores no normals, each vertex gets the
+area-weighted normal of its faces; vertices used by no face then have no
+normal and are dropped by validation (the warning counts them as points with
+zero-length normals).
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+from plyfile import PlyData, PlyElement, PlyElementParseError, PlyParseError
+
+from ..cloud import NO_CLIP, SplatCloud
+from ..errors import InputError
+from .mesh import Mesh, area_weighted_normals, check_face_indices
+
+#: Names of the face element's list property, in order of preference.
+FACE_LIST_NAMES = ("vertex_indices", "vertex_index")
+
+_CLIP_NAMES = tuple(f"clip{k}_{c}" for k in (0, 1) for c in "abc")
+
+
+# -- reading ---------------------------------------------------------------
+
+
+def read_plydata(path: Path) -> PlyData:
+    """Parse a PLY file with plyfile, turning every parse failure into InputError.
+
+    Binary triangle meshes are memory-mapped (fast); files whose faces are not
+    all triangles fall back to plyfile's row-by-row reader.
+    """
+    source = str(path)
+    try:
+        known = {"face": {name: 3 for name in FACE_LIST_NAMES}}
+        try:
+            return PlyData.read(source, known_list_len=known)
+        except PlyElementParseError as exc:
+            if exc.message != "unexpected list length":
+                raise
+            return PlyData.read(source)  # polygons: variable-length lists
+    except PlyParseError as exc:
+        raise InputError(f"{source}: malformed PLY file: {exc}") from exc
+    except MemoryError:
+        raise
+    except OSError as exc:
+        raise InputError(f"{source}: cannot read PLY file: {exc.strerror or exc}") from exc
+    except Exception as exc:  # ValueError, EOFError, UnicodeDecodeError, struct errors, ...
+        raise InputError(f"{source}: malformed PLY file: {type(exc).__name__}: {exc}") from exc
+
+
+def read_ply(path: Path) -> SplatCloud:
+    """Read a PLY point cloud, surfel model or mesh as an (unvalidated) SplatCloud.
+
+    See the module docstring for the property names. Returns positions
+    (N, 3) float32 model space, and where the file has them normals (N, 3),
+    colors (N, 3) in [0, 1], u, v (N, 3) model units, normal_field (N, 2),
+    clip_lines (N, 2, 3). The caller runs ``validated``.
+    """
+    source = str(path)
+    ply = read_plydata(path)
+    vertex = _vertex_element(ply, source)
+    data = vertex.data
+    names = set(data.dtype.names or ())
+
+    positions = _group(data, names, ("x", "y", "z"), source, required=True)
+    normals = _group(data, names, ("nx", "ny", "nz"), source)
+    colors = read_colors(data, names, source)
+
+    faces = read_faces(ply, len(data), source)
+    if normals is None and faces is not None and len(faces):
+        normals = area_weighted_normals(positions, faces)
+
+    u = _group(data, names, ("ux", "uy", "uz"), source)
+    v = _group(data, names, ("vx", "vy", "vz"), source)
+    if (u is None) != (v is None):
+        missing = "vx vy vz" if v is None else "ux uy uz"
+        raise InputError(f"{source}: vertex has {'ux uy uz' if v is None else 'vx vy vz'} "
+                         f"but not {missing}; splat axes need both")
+    if u is None and "radius" in names:
+        if normals is None:
+            warnings.warn(f"{source}: 'radius' ignored because the points have no normals "
+                          "(a circular splat needs a normal to orient it)", UserWarning, stacklevel=3)
+        else:
+            u, v = circular_axes(normals, _column(data, "radius"))
+
+    normal_field = None
+    if "beta" in names:
+        normal_field = _group(data, names, ("alpha", "beta"), source)
+
+    clip_lines = None
+    if names & set(_CLIP_NAMES):
+        lines = []
+        for k in (0, 1):
+            line = _group(data, names, tuple(f"clip{k}_{c}" for c in "abc"), source)
+            lines.append(np.broadcast_to(NO_CLIP, (len(data), 3)) if line is None else line)
+        clip_lines = np.stack(lines, axis=1)
+
+    return SplatCloud(positions=positions, normals=normals, colors=colors, u=u, v=v,
+                      normal_field=normal_field, clip_lines=clip_lines)
+
+
+def read_ply_mesh(path: Path) -> Mesh:
+    """Read a PLY file with a ``face`` element as an (unvalidated) :class:`Mesh`.
+
+    Vertices from ``x y z``, normals from ``nx ny nz`` (None if absent), colors
+    from ``red green blue`` (None if absent), faces fan-triangulated. Raises
+    InputError naming the file when it has no faces.
+    """
+    source = str(path)
+    ply = read_plydata(path)
+    vertex = _vertex_element(ply, source)
+    data = vertex.data
+    names = set(data.dtype.names or ())
+    vertices = _group(data, names, ("x", "y", "z"), source, required=True)
+    faces = read_faces(ply, len(data), source)
+    if faces is None or len(faces) == 0:
+        raise InputError(f"{source}: PLY file has no faces; it is a point cloud, not a mesh")
+    return Mesh(vertices=vertices, faces=faces,
+                vertex_normals=_group(data, names, ("nx", "ny", "nz"), source),
+                vertex_colors=read_colors(data, names, source))
+
+
+def read_faces(ply: PlyData, n_vertices: int, source: str) -> np.ndarray | None:
+    """(F, 3) int64 triangles from the ``face`` element, or None without one.
+
+    Polygons with k > 3 corners become k - 2 triangles ``(p0, p_i, p_i+1)``.
+    Raises InputError for faces with fewer than 3 corners or out-of-range
+    indices.
+    """
+    if "face" not in ply:
+        return None
+    face = ply["face"]
+    names = face.data.dtype.names or ()
+    prop = next((name for name in FACE_LIST_NAMES if name in names), None)
+    if prop is None:
+        raise InputError(f"{source}: face element has no 'vertex_indices' (or 'vertex_index') "
+                         f"list property (it has: {', '.join(names) or 'none'})")
+    column = face.data[prop]
+    if len(column) == 0:
+        return np.zeros((0, 3), dtype=np.int64)
+    if column.dtype != object:  # memory-mapped fixed-length lists: (F, 3)
+        triangles = np.asarray(column, dtype=np.int64).reshape(len(column), -1)
+    else:
+        lengths = np.fromiter(map(len, column), dtype=np.int64, count=len(column))
+        short = lengths < 3
+        if short.any():
+            row = int(np.argmax(short))
+            raise InputError(f"{source}: face {row} has {lengths[row]} vertices; faces need at least 3 "
+                             f"({int(short.sum())} such faces)")
+        flat = np.concatenate(list(column)).astype(np.int64)
+        triangles = fan_triangulate(flat, lengths)
+    check_face_indices(triangles, n_vertices, source)
+    return triangles
+
+
+def fan_triangulate(flat: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """Triangulate polygons as fans, vectorized.
+
+    Args:
+        flat: (sum(lengths),) int64 concatenated polygon corner indices.
+        lengths: (P,) int64 corner counts, each >= 3.
+
+    Returns:
+        (sum(lengths - 2), 3) int64 triangles ``(p0, p_i, p_i+1)``, i = 1..k-2,
+        polygon by polygon.
+    """
+    starts = np.concatenate([[0], np.cumsum(lengths)[:-1]])
+    per = lengths - 2
+    if np.all(per == 1):
+        return flat.reshape(-1, 3)
+    owner_start = np.repeat(starts, per)
+    tri_first = np.concatenate([[0], np.cumsum(per)[:-1]])
+    i = np.arange(int(per.sum())) - np.repeat(tri_first, per) + 1  # 1 .. k-2 within each polygon
+    return np.column_stack([flat[owner_start], flat[owner_start + i], flat[owner_start + i + 1]])
+
+
+def color_scale(values: np.ndarray) -> float:
+    """The divisor that maps a PLY color column to [0, 1].
+
+    - uchar (uint8): 255; ushort (uint16): 65535.
+    - other integer types: 255 if the largest value is <= 255, 65535 if it is
+      <= 65535, else the type's maximum.
+    - float: 1 (colors already in [0, 1]), except that a largest finite value
+      above 1 means the file stores 0..255 floats, so 255.
+    """
+    dtype = values.dtype
+    if dtype.kind in "ui":
+        if dtype.itemsize == 1 and dtype.kind == "u":
+            return 255.0
+        if dtype.itemsize == 2 and dtype.kind == "u":
+            return 65535.0
+        top = int(values.max()) if len(values) else 0
+        if top <= 255:
+            return 255.0
+        if top <= 65535:
+            return 65535.0
+        return float(np.iinfo(dtype).max)
+    finite = values[np.isfinite(values)]
+    return 255.0 if finite.size and float(finite.max()) > 1.0 else 1.0
+
+
+def read_colors(data: np.ndarray, names: set[str], source: str) -> np.ndarray | None:
+    """(N, 3) float32 colors from ``red green blue`` (or ``diffuse_red ...``), or None.
+
+    The divisor is chosen once for the three channels by :func:`color_scale`
+    on the first channel's type (and the largest value over all three).
+    """
+    for group in (("red", "green", "blue"), ("diffuse_red", "diffuse_green", "diffuse_blue")):
+        if any(name in names for name in group):
+            break
+    else:
+        return None
+    _require(names, group, source)
+    stacked = np.column_stack([np.asarray(data[name]) for name in group])
+    kinds = {np.asarray(data[name]).dtype for name in group}
+    if len(kinds) == 1:
+        scale = color_scale(stacked.ravel())
+    else:  # mixed types: decide on the common float values
+        scale = color_scale(stacked.astype(np.float64).ravel())
+    return (stacked.astype(np.float64) / scale).astype(np.float32)
+
+
+def circular_axes(normals: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Tangent axes u, v of circular splats: (N, 3) float32 each, |u| = |v| = radius.
+
+    ``u``, ``v`` and the unit normal form a right-handed orthogonal frame
+    (``u x v`` along ``n``). The frame starts from the coordinate axis least
+    aligned with ``n`` (robust for every direction). Zero-length normals give
+    NaN axes and non-positive or non-finite radii give zero axes; validation
+    drops both.
+    """
+    n = np.asarray(normals, dtype=np.float64)
+    r = np.asarray(radius, dtype=np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        n = n / np.linalg.norm(n, axis=1, keepdims=True)
+        axis = np.argmin(np.abs(np.nan_to_num(n)), axis=1)
+        helper = np.eye(3)[axis]
+        t1 = np.cross(n, helper)
+        t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+        t2 = np.cross(n, t1)
+    r = np.where(np.isfinite(r) & (r > 0), r, 0.0)[:, None]
+    return (t1 * r).astype(np.float32), (t2 * r).astype(np.float32)
+
+
+def _vertex_element(ply: PlyData, source: str) -> PlyElement:
+    if "vertex" not in ply:
+        present = ", ".join(e.name for e in ply.elements) or "none"
+        raise InputError(f"{source}: PLY file has no 'vertex' element (elements: {present})")
+    return ply["vertex"]
+
+
+def _column(data: np.ndarray, name: str) -> np.ndarray:
+    return np.asarray(data[name], dtype=np.float64)
+
+
+def _require(names: set[str], group: tuple[str, ...], source: str) -> None:
+    missing = [name for name in group if name not in names]
+    if missing:
+        have = [name for name in group if name in names]
+        raise InputError(f"{source}: vertex has {' '.join(have) or 'none of ' + ' '.join(group)} but is "
+                         f"missing {' '.join(missing)}")
+
+
+def _group(data: np.ndarray, names: set[str], group: tuple[str, ...], source: str,
+           required: bool = False) -> np.ndarray | None:
+    """(N, len(group)) float32 from scalar vertex properties, or None if absent."""
+    if not required and not any(name in names for name in group):
+        return None
+    _require(names, group, source)
+    for name in group:
+        if data.dtype[name].kind not in "uif":
+            raise InputError(f"{source}: vertex property {name!r} must be a number, not a list")
+    return np.column_stack([_column(data, name) for name in group]).astype(np.float32)
+
+
+# -- writing ---------------------------------------------------------------
+
+
+def write_ply(cloud: SplatCloud, path: Path, *, binary: bool = True, overwrite: bool = False) -> Path:
+    """Write ``cloud`` as a PLY ``vertex`` element; see ``surfsplat.io.save_ply``."""
+    path = Path(path)
+    columns = ply_columns(cloud)
+    dtype = [(name, values.dtype.str.lstrip("<>=|")) for name, values in columns]
+    records = np.empty(len(cloud), dtype=dtype)
+    for name, values in columns:
+        records[name] = values
+    element = PlyElement.describe(records, "vertex")
+    ply = PlyData([element], text=not binary, byte_order="<",
+                  comments=["written by surfsplat"])
+    if path.is_dir():
+        raise InputError(f"{path}: is a directory, not a file")
+    try:
+        with open(path, "wb" if overwrite else "xb") as stream:
+            if binary:
+                ply.write(stream)
+            else:  # plyfile writes ascii row by row with one savetxt call each: slow
+                stream.write(ply.header.encode("ascii") + b"\n")
+                fmt = ["%d" if values.dtype.kind == "u" else "%.9g" for _, values in columns]
+                np.savetxt(stream, np.column_stack([values.astype(np.float64) for _, values in columns]),
+                           fmt=fmt, delimiter=" ", newline="\n")
+    except FileExistsError as exc:
+        raise InputError(f"{path}: file exists; pass overwrite=True to replace it") from exc
+    except OSError as exc:
+        raise InputError(f"{path}: cannot write PLY file: {exc.strerror or exc}") from exc
+    return path
+
+
+def ply_columns(cloud: SplatCloud) -> list[tuple[str, np.ndarray]]:
+    """The (name, (N,) array) columns :func:`write_ply` writes, in file order.
+
+    Colors are clipped to [0, 1] and written as uchar when every value is
+    exactly ``k / 255`` as float32 (so reading divides back to the same
+    float32), else as float32. Everything else is float32.
+    """
+    f32 = lambda a: np.ascontiguousarray(a, dtype=np.float32)  # noqa: E731
+    columns = [(name, f32(cloud.positions[:, k])) for k, name in enumerate("xyz")]
+    if cloud.normals is not None:
+        columns += [(name, f32(cloud.normals[:, k])) for k, name in enumerate(("nx", "ny", "nz"))]
+    if cloud.colors is not None:
+        colors = np.clip(cloud.colors, 0.0, 1.0)
+        with np.errstate(invalid="ignore"):
+            k255 = np.rint(np.nan_to_num(colors) * 255.0)
+        exact = np.array_equal((k255.astype(np.float64) / 255.0).astype(np.float32), colors)
+        if exact:
+            columns += [(name, k255[:, k].astype(np.uint8)) for k, name in enumerate(("red", "green", "blue"))]
+        else:
+            columns += [(name, f32(colors[:, k])) for k, name in enumerate(("red", "green", "blue"))]
+    if cloud.u is not None and cloud.v is not None:
+        columns += [(name, f32(cloud.u[:, k])) for k, name in enumerate(("ux", "uy", "uz"))]
+        columns += [(name, f32(cloud.v[:, k])) for k, name in enumerate(("vx", "vy", "vz"))]
+    if cloud.normal_field is not None:
+        columns += [("alpha", f32(cloud.normal_field[:, 0])), ("beta", f32(cloud.normal_field[:, 1]))]
+    if cloud.clip_lines is not None:
+        columns += [(f"clip{k}_{c}", f32(cloud.clip_lines[:, k, j])) for k in (0, 1) for j, c in enumerate("abc")]
+    return columns
+
+
+__all__ = ["read_ply", "read_ply_mesh", "read_plydata", "read_faces", "write_ply",
+           "fan_triangulate", "color_scale", "read_colors", "circular_axes", "ply_columns"]

@@ -1,0 +1,18 @@
+"""Technique ``ewa``: screen-space EWA surface splatting (Guennebaud & Paulin 2003).
+
+The affine approximation of the projection at each splat center (eq. 8), the
+resampling variance ``J V_r J^T + I`` (eq. 6) with the splat's ellipse as the
+cutoff contour, Gaussian weights, visibility splatting with per-fragment depth
+correction (sec. 5), accumulation and per-pixel normalization (sec. 7).
+"""
+
+from .technique import Technique, register
+
+EWA = register(Technique(
+    name="ewa",
+    vertex="ewa.vert",
+    fragment="ewa.frag",
+    blended=True,
+    uniforms=lambda o: {"u_cutoff": o.cutoff, "u_prefilter": 1.0 if o.prefilter else 1e-4},
+    description="screen-space EWA splatting, three passes (Guennebaud & Paulin 2003)",
+))

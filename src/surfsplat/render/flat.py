@@ -1,0 +1,15 @@
+"""Technique ``flat``: opaque elliptical disks, ray-cast per pixel, z-buffer only.
+
+The baseline: one pass, no blending, per-splat lighting; exact per-pixel depth
+from the ray/plane intersection.
+"""
+
+from .technique import Technique, register
+
+FLAT = register(Technique(
+    name="flat",
+    vertex="flat.vert",
+    fragment="flat.frag",
+    blended=False,
+    description="opaque elliptical disks, one pass (baseline)",
+))

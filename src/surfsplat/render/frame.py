@@ -1,0 +1,58 @@
+"""Frame: a rendered image as NumPy arrays, with saving and notebook display."""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..camera import Camera
+from ..errors import InputError
+
+
+@dataclass
+class Frame:
+    """One rendered view. Row 0 of every array is the top of the image.
+
+    Attributes:
+        color: (H, W, 3) float32 in [0, 1], background included.
+        depth: (H, W) float32 camera-space depth (model units along the view
+            axis), weight-averaged over the blended splats; inf where empty.
+        weight: (H, W) float32 accumulated splat weight; 0 where empty.
+        camera: the camera it was rendered with.
+    """
+
+    color: np.ndarray
+    depth: np.ndarray
+    weight: np.ndarray
+    camera: Camera
+
+    @property
+    def mask(self) -> np.ndarray:
+        """(H, W) bool: pixels covered by at least one splat."""
+        return self.weight > 0
+
+    def image(self) -> np.ndarray:
+        """(H, W, 3) uint8 sRGB-agnostic 8-bit image (values clamped, rounded)."""
+        return np.round(np.clip(self.color, 0.0, 1.0) * 255.0).astype(np.uint8)
+
+    def save(self, path) -> Path:
+        """Write the color image as PNG (or any format Pillow knows from the suffix); returns the path."""
+        from PIL import Image
+
+        path = Path(path)
+        if path.suffix.lower() not in {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}:
+            raise InputError(f"{path}: unsupported image format {path.suffix!r}; use .png")
+        if path.parent and not path.parent.exists():
+            raise InputError(f"{path}: folder {path.parent} does not exist")
+        Image.fromarray(self.image()).save(path)
+        return path
+
+    def _repr_png_(self) -> bytes:
+        from PIL import Image
+
+        buffer = io.BytesIO()
+        Image.fromarray(self.image()).save(buffer, format="PNG")
+        return buffer.getvalue()

@@ -1,0 +1,27 @@
+// Camera uniforms and the projection helpers shared by every splat shader.
+// Mirrors surfsplat/reference.py: window pixels with y up, camera looks down -z.
+uniform mat4 u_view;        // world -> camera
+uniform vec2 u_viewport;    // width, height in pixels
+uniform float u_focal;      // focal length in pixels: (height / 2) / tan(fov / 2)
+uniform vec2 u_near_far;    // clip distances along -z, model units
+
+vec2 project_px(vec3 p) {
+    return 0.5 * u_viewport + u_focal * p.xy / (-p.z);
+}
+
+// Camera-space direction (z = -1) of the viewing ray through a window pixel.
+vec3 pixel_ray(vec2 px) {
+    return vec3((px - 0.5 * u_viewport) / u_focal, -1.0);
+}
+
+// Linear stored depth: every splat shader writes gl_FragDepth itself.
+float window_depth(float z) {
+    return (z - u_near_far.x) / (u_near_far.y - u_near_far.x);
+}
+
+vec4 px_to_clip(vec2 px) {
+    return vec4(px / u_viewport * 2.0 - 1.0, 0.0, 1.0);
+}
+
+// Outside every clip volume: the instance draws nothing.
+const vec4 CULLED = vec4(2.0, 2.0, 2.0, 1.0);

@@ -1,0 +1,26 @@
+// Technique "ewa": evaluate the resampling kernel (Guennebaud 2003, sec. 6).
+#include "camera.glsl"
+#include "splat_fragment.glsl"
+#include "disk_fragment.glsl"
+
+uniform float u_cutoff;
+flat in vec2 v_center_px;
+flat in vec3 v_conic;
+flat in float v_scale;
+flat in vec3 v_color;
+flat in vec3 v_normal;
+
+void main() {
+#if PASS == 1
+    vec3 ray = pixel_ray(gl_FragCoord.xy);
+    float z;
+    if (!ray_disk(ray, z)) discard;
+    emit(ray, z, 1.0, v_color, v_normal);
+#else
+    vec2 d = gl_FragCoord.xy - v_center_px;
+    float beta = 0.5 * (v_conic.x * d.x * d.x + 2.0 * v_conic.y * d.x * d.y + v_conic.z * d.y * d.y);
+    if (beta > u_cutoff) discard;
+    vec3 ray = pixel_ray(gl_FragCoord.xy);
+    emit(ray, fragment_depth(ray), v_scale * exp(-beta), v_color, v_normal);
+#endif
+}

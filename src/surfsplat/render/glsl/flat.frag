@@ -1,0 +1,14 @@
+// Technique "flat": exact ray/disk test per pixel, opaque.
+#include "camera.glsl"
+#include "splat_fragment.glsl"
+#include "disk_fragment.glsl"
+
+flat in vec3 v_color;
+flat in vec3 v_normal;
+
+void main() {
+    vec3 ray = pixel_ray(gl_FragCoord.xy);
+    float z;
+    if (!ray_disk(ray, z)) discard;
+    emit(ray, z, 1.0, v_color, v_normal);
+}

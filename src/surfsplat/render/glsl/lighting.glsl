@@ -1,0 +1,19 @@
+// Two-sided Blinn-Phong with up to 4 directional lights (surfsplat/lighting.py).
+uniform bool u_lighting;
+uniform int u_num_lights;
+uniform vec3 u_light_dirs[4];   // camera space, unit, toward the lights
+uniform vec4 u_material;        // ka, kd, ks, shininess
+
+vec3 shade(vec3 albedo, vec3 n, vec3 view) {
+    if (!u_lighting) return albedo;
+    if (dot(n, view) < 0.0) n = -n;
+    float diffuse = 0.0;
+    float specular = 0.0;
+    for (int i = 0; i < u_num_lights; ++i) {
+        vec3 l = u_light_dirs[i];
+        diffuse += max(0.0, dot(n, l));
+        vec3 h = normalize(l + view);
+        specular += pow(max(0.0, dot(n, h)), u_material.w);
+    }
+    return albedo * (u_material.x + u_material.y * diffuse) + u_material.z * specular;
+}

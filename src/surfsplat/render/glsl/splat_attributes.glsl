@@ -1,0 +1,7 @@
+// Per-instance splat attributes (one instance = one splat) and the quad corner.
+in vec2 in_corner;      // (-1,-1) .. (1,1): which corner of the bounding quad
+in vec3 in_position;    // model space
+in vec3 in_normal;      // unit
+in vec3 in_color;       // linear RGB albedo
+in vec3 in_u;           // scaled tangent axis
+in vec3 in_v;           // scaled tangent axis, orthogonal to in_u

@@ -1,0 +1,37 @@
+// Per-splat vertex work shared by the techniques: camera-space splat, plane,
+// depth range and per-splat lighting (Guennebaud 2003, sec. 6: lighting in
+// the vertex program). Requires camera.glsl, lighting.glsl, splat_attributes.glsl.
+flat out vec3 v_plane;
+flat out vec2 v_zrange;
+flat out float v_radius;
+flat out vec3 v_color;
+flat out vec3 v_normal;
+
+struct Splat {
+    vec3 p;   // center, camera space
+    vec3 n;   // unit normal, camera space, facing the eye
+    vec3 u;   // scaled tangent axes, camera space
+    vec3 v;
+};
+
+// Fills s and the flat outputs; false when the splat lies outside [near, far]
+// or is seen exactly edge-on through the eye (it covers no area).
+bool camera_splat(out Splat s) {
+    s.p = (u_view * vec4(in_position, 1.0)).xyz;
+    mat3 r = mat3(u_view);
+    s.n = normalize(r * in_normal);
+    s.u = r * in_u;
+    s.v = r * in_v;
+    float np = dot(s.n, s.p);
+    if (np > 0.0) { s.n = -s.n; np = -np; }
+    float z = -s.p.z;
+    float zext = length(vec2(s.u.z, s.v.z));   // half depth range of the ellipse
+    if (z + zext < u_near_far.x || z - zext > u_near_far.y) return false;
+    if (-np <= 1e-7 * length(s.p)) return false;
+    v_radius = max(length(s.u), length(s.v));
+    v_plane = s.n / np;
+    v_zrange = vec2(max(z - zext, u_near_far.x), min(z + zext, u_near_far.y));
+    v_color = shade(in_color, s.n, normalize(-s.p));
+    v_normal = s.n;
+    return true;
+}

@@ -1,0 +1,220 @@
+"""The renderer: GPU buffers of a SplatCloud and the pipeline's passes (DESIGN.md).
+
+1. visibility: depth only, offset by epsilon along the viewing rays, with the
+   exact per-fragment depth of each splat's plane (Guennebaud 2003, sec. 5);
+2. accumulation: depth test against pass 1 without depth writes, additive
+   blending of ``(w * color, w)`` and ``(w * depth, w * normal)`` into float targets;
+3. normalization: a full-screen pass dividing by the accumulated weight (eq. 18).
+
+Opaque techniques draw once with a plain z-buffer and share pass 3.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import moderngl
+import numpy as np
+
+from ..camera import Camera
+from ..cloud import SplatCloud
+from ..errors import InputError, RenderError
+from ..lighting import MAX_LIGHTS, Lights
+from .context import headless_context
+from .frame import Frame
+from .shaders import build_source
+from .technique import RenderOptions, Technique, get_technique
+
+PASS_OPAQUE, PASS_VISIBILITY, PASS_ACCUMULATION = 0, 1, 2
+
+
+@dataclass
+class GpuSplats:
+    """A SplatCloud uploaded to the GPU: one buffer per attribute, float32."""
+
+    buffers: dict[str, moderngl.Buffer]
+    count: int
+    bounds: tuple[np.ndarray, np.ndarray]
+    max_radius: float
+    _vaos: dict = field(default_factory=dict)
+
+    def release(self) -> None:
+        """Free the GPU buffers."""
+        for vao in self._vaos.values():
+            vao.release()
+        for buffer in self.buffers.values():
+            buffer.release()
+        self._vaos.clear()
+        self.buffers.clear()
+
+
+class Renderer:
+    """Renders SplatClouds with any registered technique into Frames.
+
+    Owns shader programs and render targets of one OpenGL context (the
+    process-wide headless one unless a context is given, e.g. a window's).
+    """
+
+    def __init__(self, ctx: moderngl.Context | None = None):
+        self.ctx = ctx or headless_context()
+        self._programs: dict[tuple, moderngl.Program] = {}
+        self._quad = self.ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], dtype="f4"))
+        self._targets: dict | None = None
+        self._fullscreen = self.ctx.vertex_array(self._program("fullscreen.vert", "normalize.frag", ()), [])
+
+    # -- resources ---------------------------------------------------------
+
+    def _program(self, vertex: str, fragment: str, defines: tuple) -> moderngl.Program:
+        key = (vertex, fragment, defines)
+        if key not in self._programs:
+            d = dict(defines)
+            try:
+                self._programs[key] = self.ctx.program(
+                    vertex_shader=build_source(vertex, d), fragment_shader=build_source(fragment, d))
+            except moderngl.Error as exc:
+                raise RenderError(f"shader {vertex}/{fragment} failed to build: {exc}") from None
+        return self._programs[key]
+
+    def upload(self, cloud: SplatCloud) -> GpuSplats:
+        """Copy a preprocessed SplatCloud (normals and tangent axes present) to the GPU."""
+        if not cloud.has_splats:
+            raise InputError("the SplatCloud has no normals or splat axes; run surfsplat.preprocess() first")
+        if len(cloud) == 0:
+            raise InputError("the SplatCloud is empty")
+        arrays = {"position": cloud.positions, "normal": cloud.normals, "color": cloud.albedo,
+                  "u": cloud.u, "v": cloud.v}
+        buffers = {name: self.ctx.buffer(np.ascontiguousarray(a, dtype="f4")) for name, a in arrays.items()}
+        return GpuSplats(buffers, len(cloud), cloud.bounds(), float(cloud.radii.max()))
+
+    def _vao(self, splats: GpuSplats, program: moderngl.Program, technique: Technique) -> moderngl.VertexArray:
+        key = id(program)
+        if key not in splats._vaos:
+            content = [(self._quad, "2f", "in_corner")]
+            content += [(splats.buffers[name], "3f/i", f"in_{name}") for name in technique.attributes
+                        if f"in_{name}" in program]
+            splats._vaos[key] = self.ctx.vertex_array(program, content)
+        return splats._vaos[key]
+
+    def _ensure_targets(self, width: int, height: int) -> dict:
+        if self._targets is None or self._targets["size"] != (width, height):
+            if self._targets is not None:
+                for item in self._targets.values():
+                    if hasattr(item, "release"):
+                        item.release()
+            ctx, size = self.ctx, (width, height)
+            accum = ctx.texture(size, 4, dtype="f4")
+            aux = ctx.texture(size, 4, dtype="f4")
+            depth = ctx.depth_texture(size)
+            out = ctx.texture(size, 4, dtype="f4")
+            for tex in (accum, aux, out):
+                tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            self._targets = {
+                "size": size, "accum": accum, "aux": aux, "depth": depth, "out": out,
+                "fbo_visibility": ctx.framebuffer(depth_attachment=depth),
+                "fbo_accum": ctx.framebuffer([accum, aux], depth),
+                "fbo_out": ctx.framebuffer([out]),
+            }
+        return self._targets
+
+    # -- drawing -----------------------------------------------------------
+
+    def _set_uniforms(self, program: moderngl.Program, values: dict) -> None:
+        for name, value in values.items():
+            if name in program:
+                program[name].value = value
+
+    def _frame_uniforms(self, camera: Camera, lights: Lights, options: RenderOptions) -> dict:
+        view = camera.view_matrix
+        dirs = lights.world_directions(camera) @ view[:3, :3].T
+        padded = np.zeros((MAX_LIGHTS, 3))
+        padded[: len(dirs)] = dirs
+        return {
+            "u_view": tuple(view.T.astype("f4").ravel()),  # column-major for GLSL
+            "u_viewport": (float(camera.width), float(camera.height)),
+            "u_focal": float(camera.focal_px),
+            "u_near_far": (float(camera.near), float(camera.far)),
+            "u_lighting": bool(lights.enabled),
+            "u_num_lights": len(dirs),
+            "u_light_dirs": [tuple(map(float, d)) for d in padded],
+            "u_material": (lights.ambient, lights.diffuse, lights.specular, lights.shininess),
+            "u_depth_epsilon": float(options.depth_epsilon),
+        }
+
+    def draw(self, splats: GpuSplats, camera: Camera, technique: Technique | str = "ewa",
+             lights: Lights = Lights(), options: RenderOptions = RenderOptions(),
+             background=(1.0, 1.0, 1.0), output: moderngl.Framebuffer | None = None) -> None:
+        """Run the passes of ``technique`` and write the normalized image to ``output``.
+
+        ``output`` defaults to the renderer's float color target (read by
+        :meth:`render`); a window passes its own framebuffer.
+        """
+        technique = get_technique(technique) if isinstance(technique, str) else technique
+        if camera.near is None or camera.far is None:
+            camera = camera.with_clip_from_bounds(*splats.bounds, margin=splats.max_radius)
+        ctx = self.ctx
+        targets = self._ensure_targets(camera.width, camera.height)
+        uniforms = self._frame_uniforms(camera, lights, options) | technique.uniforms(options)
+        passes = [PASS_VISIBILITY, PASS_ACCUMULATION] if technique.blended else [PASS_OPAQUE]
+
+        targets["fbo_accum"].use()
+        targets["fbo_accum"].depth_mask = True
+        targets["fbo_accum"].clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE)
+        for pass_id in passes:
+            program = self._program(technique.vertex, technique.fragment, (("PASS", pass_id),))
+            self._set_uniforms(program, uniforms)
+            if pass_id == PASS_ACCUMULATION:
+                fbo = targets["fbo_accum"]
+                fbo.use()
+                fbo.depth_mask = False
+                ctx.depth_func = "<="
+                ctx.enable(moderngl.BLEND)
+                ctx.blend_equation = moderngl.FUNC_ADD
+                ctx.blend_func = moderngl.ONE, moderngl.ONE
+            else:
+                fbo = targets["fbo_visibility" if pass_id == PASS_VISIBILITY else "fbo_accum"]
+                fbo.use()
+                fbo.depth_mask = True
+                ctx.depth_func = "<"
+                ctx.disable(moderngl.BLEND)
+            self._vao(splats, program, technique).render(moderngl.TRIANGLE_STRIP, vertices=4,
+                                                         instances=splats.count)
+        targets["fbo_accum"].depth_mask = True
+        ctx.disable(moderngl.BLEND)
+        ctx.disable(moderngl.DEPTH_TEST)
+
+        # Pass 3: normalization (Guennebaud 2003, eq. 18).
+        out = output or targets["fbo_out"]
+        out.use()
+        normalize = self._fullscreen.program
+        targets["accum"].use(location=0)
+        self._set_uniforms(normalize, {"u_accum": 0, "u_background": tuple(map(float, background))})
+        self._fullscreen.render(moderngl.TRIANGLES, vertices=3)
+
+    def render(self, splats: GpuSplats | SplatCloud, camera: Camera, technique: Technique | str = "ewa",
+               lights: Lights = Lights(), options: RenderOptions = RenderOptions(),
+               background=(1.0, 1.0, 1.0)) -> Frame:
+        """Render into a :class:`Frame` (color, depth, weight as NumPy arrays)."""
+        uploaded = None
+        if isinstance(splats, SplatCloud):
+            splats = uploaded = self.upload(splats)
+        try:
+            if camera.near is None or camera.far is None:
+                camera = camera.with_clip_from_bounds(*splats.bounds, margin=splats.max_radius)
+            self.draw(splats, camera, technique, lights, options, background)
+            targets = self._targets
+            w, h = camera.width, camera.height
+            color = np.frombuffer(targets["out"].read(), dtype="f4").reshape(h, w, 4)[::-1, :, :3]
+            accum = np.frombuffer(targets["accum"].read(), dtype="f4").reshape(h, w, 4)[::-1]
+            aux = np.frombuffer(targets["aux"].read(), dtype="f4").reshape(h, w, 4)[::-1]
+            weight = accum[..., 3].copy()
+            with np.errstate(divide="ignore", invalid="ignore"):
+                depth = np.where(weight > 0, aux[..., 0] / weight, np.inf).astype("f4")
+            error = self.ctx.error
+            if error != "GL_NO_ERROR":
+                raise RenderError(f"OpenGL reported {error} while rendering")
+            return Frame(np.ascontiguousarray(color), depth, weight, camera)
+        finally:
+            if uploaded is not None:
+                uploaded.release()

@@ -1,0 +1,78 @@
+"""The technique interface: what a rendering technique tells the renderer.
+
+A technique is a small module (``ewa.py``, ``flat.py``, ...) that builds a
+:class:`Technique`: its shader files, whether it blends (three passes:
+visibility, accumulation, normalization) or draws opaque (one pass), the splat
+attributes it reads and its uniforms from the render options. Techniques are
+found by name in :data:`TECHNIQUES`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+from ..errors import InputError
+
+
+@dataclass(frozen=True)
+class Technique:
+    """A rendering technique.
+
+    Attributes:
+        name: the name users pass (``--technique NAME``).
+        vertex, fragment: shader files in ``glsl/``.
+        blended: True for the three-pass pipeline, False for one opaque pass.
+        attributes: splat attributes the vertex shader reads (``in_<name>``).
+        uniforms: options -> uniform values, called per frame.
+        description: one line for help texts.
+    """
+
+    name: str
+    vertex: str
+    fragment: str
+    blended: bool
+    attributes: tuple[str, ...] = ("position", "normal", "color", "u", "v")
+    uniforms: Callable[["RenderOptions"], dict] = field(default=lambda options: {})
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class RenderOptions:
+    """Options shared by the techniques (each reads the ones it uses).
+
+    Attributes:
+        cutoff: EWA cutoff c of the kernel exponent (Guennebaud 2003, sec. 6).
+        prefilter: apply the one-pixel EWA prefilter H = I.
+        depth_epsilon: visibility-pass offset along the viewing rays, in units
+            of each splat's largest semi-axis (Guennebaud 2003, sec. 5).
+    """
+
+    cutoff: float = 1.0
+    prefilter: bool = True
+    depth_epsilon: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not (self.cutoff > 0):
+            raise InputError(f"cutoff must be positive, got {self.cutoff}")
+        if not (self.depth_epsilon >= 0):
+            raise InputError(f"depth epsilon must be non-negative, got {self.depth_epsilon}")
+
+
+TECHNIQUES: dict[str, Technique] = {}
+
+
+def register(technique: Technique) -> Technique:
+    """Add a technique to the registry (by its name) and return it."""
+    TECHNIQUES[technique.name] = technique
+    return technique
+
+
+def get_technique(name: str) -> Technique:
+    """The technique called ``name``; InputError listing the known ones otherwise."""
+    from . import ewa, flat  # noqa: F401  (modules register themselves)
+
+    try:
+        return TECHNIQUES[name]
+    except KeyError:
+        raise InputError(f"unknown technique {name!r}; choose one of {', '.join(sorted(TECHNIQUES))}") from None
