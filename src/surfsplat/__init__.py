@@ -1,7 +1,38 @@
-"""surfsplat: high-quality surface splatting of point clouds and surfel models."""
+"""surfsplat: high-quality surface splatting of point clouds and surfel models.
 
+Quick start::
+
+    import surfsplat
+    frame = surfsplat.render("bunny.ply", technique="ewa", width=800, height=800)
+    frame.save("bunny.png")
+"""
+
+from .api import as_splats, auto_camera, render
+from .camera import Camera
 from .cloud import SplatCloud
 from .errors import InputError, RenderError, SurfsplatError
+from .lighting import Lights
+from .render.frame import Frame
+from .render.technique import RenderOptions
+from .scenes import demo_scene
 
 __version__ = "0.1.0"
-__all__ = ["SplatCloud", "InputError", "RenderError", "SurfsplatError", "__version__"]
+
+
+def load(path) -> SplatCloud:
+    """Read a point cloud, splat model or triangle mesh (PLY, OBJ, LAS) into a SplatCloud."""
+    from .io import load as _load
+
+    return _load(path)
+
+
+def preprocess(cloud: SplatCloud, **kwargs) -> SplatCloud:
+    """Estimate normals and splat ellipses; see :func:`surfsplat.geometry.preprocess.preprocess`."""
+    from .geometry.preprocess import preprocess as _preprocess
+
+    return _preprocess(cloud, **kwargs)
+
+
+__all__ = ["Camera", "Frame", "InputError", "Lights", "RenderError", "RenderOptions", "SplatCloud",
+           "SurfsplatError", "as_splats", "auto_camera", "demo_scene", "load", "preprocess", "render",
+           "__version__"]

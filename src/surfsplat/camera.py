@@ -116,16 +116,19 @@ class Camera:
 
 def frame_bounds(lo, hi, *, width: int = 512, height: int = 512, fov: float = 40.0,
                  direction=(0.4, 0.35, 1.0), up=(0.0, 1.0, 0.0), fill: float = 0.9,
-                 margin: float = 0.0) -> Camera:
+                 margin: float = 0.0, radius: float | None = None) -> Camera:
     """A camera that frames the box [lo, hi] (model units) from ``direction``.
 
     The eye looks at the box center from ``direction`` (world, toward the eye)
-    at the distance where the box's bounding sphere fills ``fill`` of the
-    smaller field of view. near/far enclose the box (grown by ``margin``).
+    at the distance where a sphere around the center fills ``fill`` of the
+    smaller field of view; the sphere's ``radius`` defaults to the box's half
+    diagonal (pass the points' largest distance to the center for a tighter
+    view). near/far enclose the box (grown by ``margin``).
     """
     lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
     center = 0.5 * (lo + hi)
-    radius = 0.5 * float(np.linalg.norm(hi - lo)) or 1.0
+    if radius is None or not radius > 0:
+        radius = 0.5 * float(np.linalg.norm(hi - lo)) or 1.0
     d = _vec3(direction, "direction")
     d /= np.linalg.norm(d)
     half_v = np.radians(fov) / 2.0

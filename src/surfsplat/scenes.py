@@ -95,7 +95,7 @@ def torus(n_major: int = 400, n_minor: int = 160, major: float = 1.0, minor: flo
     along_phi = np.cross(normals, along_theta)
     scale = 1.15 / np.sqrt(2.0)
     u = along_theta * (scale * ring * 2 * np.pi / n_major)[:, None]
-    v = along_phi * (scale * minor * 2 * np.pi / n_minor)[:, None]
+    v = along_phi * (scale * minor * 2 * np.pi / n_minor)
     colors = checker_color(theta / (2 * np.pi), np.zeros_like(theta), stripes, (0.2, 0.45, 0.8), (0.95, 0.75, 0.3))
     return SplatCloud(positions, normals, colors, u, v)
 

@@ -10,6 +10,8 @@
   ``surfsplat.geometry.sampling.sample_mesh``).
 
 Every failure raises :class:`~surfsplat.errors.InputError` naming the file.
+These functions print no progress themselves (callers such as the CLI wrap
+them in ``surfsplat.progress.stage``).
 """
 
 from __future__ import annotations
@@ -17,7 +19,6 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from .. import progress
 from ..cloud import SplatCloud
 from ..errors import InputError
 from .mesh import Mesh, area_weighted_normals, read_obj
@@ -56,15 +57,14 @@ def load(path: str | os.PathLike) -> SplatCloud:
     """
     path = _existing(path, CLOUD_EXTENSIONS)
     suffix = path.suffix.lower()
-    with progress.stage(f"reading {path.name}"):
-        if suffix == ".ply":
-            cloud = read_ply(path)
-        elif suffix == ".obj":
-            cloud = _mesh_to_cloud(read_obj(path).validated(str(path)))
-        else:
-            from .las import read_las
+    if suffix == ".ply":
+        cloud = read_ply(path)
+    elif suffix == ".obj":
+        cloud = _mesh_to_cloud(read_obj(path).validated(str(path)))
+    else:
+        from .las import read_las
 
-            cloud = read_las(path)
+        cloud = read_las(path)
     return cloud.validated(source=str(path))
 
 
@@ -81,8 +81,7 @@ def load_mesh(path: str | os.PathLike) -> Mesh:
         file, no faces, non-finite vertices, face indices out of range.
     """
     path = _existing(path, MESH_EXTENSIONS)
-    with progress.stage(f"reading {path.name}"):
-        mesh = read_ply_mesh(path) if path.suffix.lower() == ".ply" else read_obj(path)
+    mesh = read_ply_mesh(path) if path.suffix.lower() == ".ply" else read_obj(path)
     return mesh.validated(str(path))
 
 
@@ -108,8 +107,7 @@ def save_ply(cloud: SplatCloud, path: str | os.PathLike, *, binary: bool = True,
     path = Path(path)
     if not isinstance(cloud, SplatCloud):
         raise InputError(f"{path}: save_ply needs a SplatCloud, got {type(cloud).__name__}")
-    with progress.stage(f"writing {path.name}", count=len(cloud)):
-        return write_ply(cloud, path, binary=binary, overwrite=overwrite)
+    return write_ply(cloud, path, binary=binary, overwrite=overwrite)
 
 
 def _existing(path: str | os.PathLike, extensions: tuple[str, ...]) -> Path:

@@ -62,8 +62,7 @@ def read_las(path: Path) -> SplatCloud:
         spacing = np.spacing(extent.astype(np.float32)).astype(np.float64)
         if np.any(spacing > scales):
             warnings.warn(
-                f"{source}: coordinates up to {extent.max():,.0f} lose precision as float32 "
-                f"(steps of {spacing.max():g} vs the file's resolution {scales.min():g}); "
-                "consider translating the cloud near the origin before saving it",
+                f"{source}: coordinates up to {extent.max():,.0f} are rounded to steps of "
+                f"{spacing.max():g} in float32 positions (the file's resolution is {scales.min():g})",
                 CoordinatePrecisionWarning, stacklevel=3)
     return SplatCloud(positions=xyz.astype(np.float32), colors=colors)

@@ -31,6 +31,7 @@ zero-length normals).
 
 from __future__ import annotations
 
+import io
 import warnings
 from pathlib import Path
 
@@ -50,21 +51,33 @@ _CLIP_NAMES = tuple(f"clip{k}_{c}" for k in (0, 1) for c in "abc")
 # -- reading ---------------------------------------------------------------
 
 
-def read_plydata(path: Path) -> PlyData:
-    """Parse a PLY file with plyfile, turning every parse failure into InputError.
+def read_elements(path: Path) -> dict[str, np.ndarray]:
+    """Parse a PLY file into ``{element name: structured array}``, in file order.
 
-    Binary triangle meshes are memory-mapped (fast); files whose faces are not
-    all triangles fall back to plyfile's row-by-row reader.
+    Every parse failure becomes an InputError naming the file and the problem.
+    Scalar properties are fields of their type; a list property is an object
+    field of arrays, or an (M, k) subarray field when all its lists have length
+    k (binary triangle meshes are memory-mapped this way, and ascii files are
+    read by NumPy's C parser when their rows are regular). Anything the fast
+    readers do not accept is read by plyfile, which gives the error messages.
     """
     source = str(path)
     try:
+        fast = _read_ascii_fast(path)
+    except MemoryError:
+        raise
+    except Exception:  # the fast reader only ever declines; plyfile decides
+        fast = None
+    if fast is not None:
+        return fast
+    try:
         known = {"face": {name: 3 for name in FACE_LIST_NAMES}}
         try:
-            return PlyData.read(source, known_list_len=known)
+            ply = PlyData.read(source, known_list_len=known)
         except PlyElementParseError as exc:
             if exc.message != "unexpected list length":
                 raise
-            return PlyData.read(source)  # polygons: variable-length lists
+            ply = PlyData.read(source)  # polygons: variable-length lists
     except PlyParseError as exc:
         raise InputError(f"{source}: malformed PLY file: {exc}") from exc
     except MemoryError:
@@ -73,6 +86,110 @@ def read_plydata(path: Path) -> PlyData:
         raise InputError(f"{source}: cannot read PLY file: {exc.strerror or exc}") from exc
     except Exception as exc:  # ValueError, EOFError, UnicodeDecodeError, struct errors, ...
         raise InputError(f"{source}: malformed PLY file: {type(exc).__name__}: {exc}") from exc
+    return {element.name: element.data for element in ply.elements}
+
+
+_PLY_TYPES = {
+    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
+    "short": "i2", "int16": "i2", "ushort": "u2", "uint16": "u2",
+    "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
+}
+_LIST_LENGTH_SUFFIX = "\nlen"
+
+
+def _read_ascii_fast(path: Path) -> dict[str, np.ndarray] | None:
+    """Read a regular ascii PLY with ``numpy.loadtxt`` (C speed), or None to decline.
+
+    Declines (returns None) for binary files, any header it does not fully
+    understand, elements with more than one list property or lists of varying
+    length, and any row that does not parse exactly (plyfile then reads the
+    file and reports the problem).
+    """
+    with open(path, "rb") as stream:
+        head = b""
+        while b"end_header" not in head:
+            block = stream.read(1 << 16)
+            if not block or len(head) > (1 << 22):
+                return None
+            head += block
+        end = head.index(b"end_header")
+        eol = head.find(b"\n", end)
+        if eol < 0 or head[end:eol].strip() != b"end_header":
+            return None
+        lines = [line.strip() for line in head[:end].decode("ascii").splitlines()]
+        if len(lines) < 2 or lines[0] != "ply" or lines[1].split() != ["format", "ascii", "1.0"]:
+            return None
+        elements: list[tuple[str, int, list[tuple]]] = []
+        for line in lines[2:]:
+            words = line.split()
+            if not words or words[0] in ("comment", "obj_info"):
+                continue
+            if words[0] == "element" and len(words) == 3 and words[2].isdigit():
+                elements.append((words[1], int(words[2]), []))
+            elif words[0] == "property" and elements and len(words) == 3 and words[1] in _PLY_TYPES:
+                elements[-1][2].append((words[2], _PLY_TYPES[words[1]]))
+            elif (words[0] == "property" and elements and len(words) == 5 and words[1] == "list"
+                  and words[2] in _PLY_TYPES and words[3] in _PLY_TYPES):
+                elements[-1][2].append((words[4], _PLY_TYPES[words[2]], _PLY_TYPES[words[3]]))
+            else:
+                return None
+        stream.seek(0)
+        raw = stream.read()
+    body = eol + 1
+    newlines = _newline_offsets(raw, body)
+    line_end = np.concatenate([newlines, [len(raw)]]) if not raw.endswith(b"\n") else newlines
+    line_start = np.concatenate([[body], line_end[:-1] + 1])
+    out: dict[str, np.ndarray] = {}
+    first = 0  # first line of the current element
+    for name, count, props in elements:
+        if name in out or len({p[0] for p in props}) != len(props):
+            return None
+        lists = [p for p in props if len(p) == 3]
+        if count == 0:
+            out[name] = np.empty(0, dtype=[(p[0], p[1] if len(p) == 2 else object) for p in props])
+            continue
+        if first + count > len(line_start) or len(lists) > 1:
+            return None
+        chunk = raw[int(line_start[first]):int(line_end[first + count - 1])]
+        dtype = []
+        if lists:
+            tokens = len(raw[int(line_start[first]):int(line_end[first])].split())
+            k = tokens - len(props)  # list length: its count token is one of len(props)
+            if k < 1:
+                return None
+            for prop in props:
+                if len(prop) == 3:
+                    dtype += [(prop[0] + _LIST_LENGTH_SUFFIX, prop[1]), (prop[0], prop[2], (k,))]
+                else:
+                    dtype.append(prop)
+        else:
+            dtype = list(props)
+        try:
+            data = np.loadtxt(io.BytesIO(chunk), dtype=np.dtype(dtype), comments=None,
+                              ndmin=1, encoding="ascii")
+        except ValueError:
+            return None
+        if len(data) != count:  # blank lines are skipped by loadtxt, not by PLY
+            return None
+        if lists:
+            length = lists[0][0] + _LIST_LENGTH_SUFFIX
+            if not np.all(data[length] == k):
+                return None
+            data = data[[p[0] for p in props]]
+        out[name] = data
+        first += count
+    return out
+
+
+def _newline_offsets(raw: bytes, start: int) -> np.ndarray:
+    """(L,) int64 offsets of the b"\\n" bytes of ``raw`` from ``start`` on (chunked)."""
+    step = 1 << 26
+    parts = [np.zeros(0, dtype=np.int64)]
+    for offset in range(start, len(raw), step):
+        block = np.frombuffer(raw, dtype=np.uint8, count=min(step, len(raw) - offset), offset=offset)
+        parts.append(np.flatnonzero(block == 10).astype(np.int64) + offset)
+    return np.concatenate(parts)
 
 
 def read_ply(path: Path) -> SplatCloud:
@@ -84,16 +201,15 @@ def read_ply(path: Path) -> SplatCloud:
     clip_lines (N, 2, 3). The caller runs ``validated``.
     """
     source = str(path)
-    ply = read_plydata(path)
-    vertex = _vertex_element(ply, source)
-    data = vertex.data
+    elements = read_elements(path)
+    data = _vertex_element(elements, source)
     names = set(data.dtype.names or ())
 
     positions = _group(data, names, ("x", "y", "z"), source, required=True)
     normals = _group(data, names, ("nx", "ny", "nz"), source)
     colors = read_colors(data, names, source)
 
-    faces = read_faces(ply, len(data), source)
+    faces = read_faces(elements, len(data), source)
     if normals is None and faces is not None and len(faces):
         normals = area_weighted_normals(positions, faces)
 
@@ -134,12 +250,11 @@ def read_ply_mesh(path: Path) -> Mesh:
     InputError naming the file when it has no faces.
     """
     source = str(path)
-    ply = read_plydata(path)
-    vertex = _vertex_element(ply, source)
-    data = vertex.data
+    elements = read_elements(path)
+    data = _vertex_element(elements, source)
     names = set(data.dtype.names or ())
     vertices = _group(data, names, ("x", "y", "z"), source, required=True)
-    faces = read_faces(ply, len(data), source)
+    faces = read_faces(elements, len(data), source)
     if faces is None or len(faces) == 0:
         raise InputError(f"{source}: PLY file has no faces; it is a point cloud, not a mesh")
     return Mesh(vertices=vertices, faces=faces,
@@ -147,35 +262,39 @@ def read_ply_mesh(path: Path) -> Mesh:
                 vertex_colors=read_colors(data, names, source))
 
 
-def read_faces(ply: PlyData, n_vertices: int, source: str) -> np.ndarray | None:
+def read_faces(elements: dict[str, np.ndarray], n_vertices: int, source: str) -> np.ndarray | None:
     """(F, 3) int64 triangles from the ``face`` element, or None without one.
 
     Polygons with k > 3 corners become k - 2 triangles ``(p0, p_i, p_i+1)``.
     Raises InputError for faces with fewer than 3 corners or out-of-range
     indices.
     """
-    if "face" not in ply:
+    if "face" not in elements:
         return None
-    face = ply["face"]
-    names = face.data.dtype.names or ()
+    face = elements["face"]
+    names = face.dtype.names or ()
     prop = next((name for name in FACE_LIST_NAMES if name in names), None)
     if prop is None:
         raise InputError(f"{source}: face element has no 'vertex_indices' (or 'vertex_index') "
                          f"list property (it has: {', '.join(names) or 'none'})")
-    column = face.data[prop]
+    column = face[prop]
     if len(column) == 0:
         return np.zeros((0, 3), dtype=np.int64)
-    if column.dtype != object:  # memory-mapped fixed-length lists: (F, 3)
-        triangles = np.asarray(column, dtype=np.int64).reshape(len(column), -1)
-    else:
+    if column.dtype != object:  # fixed-length lists: (F, k)
+        fixed = np.asarray(column, dtype=np.int64).reshape(len(column), -1)
+        lengths = np.full(len(fixed), fixed.shape[1], dtype=np.int64)
+        flat = fixed.ravel()
+    else:  # plyfile's object array of per-face arrays
         lengths = np.fromiter(map(len, column), dtype=np.int64, count=len(column))
-        short = lengths < 3
-        if short.any():
-            row = int(np.argmax(short))
-            raise InputError(f"{source}: face {row} has {lengths[row]} vertices; faces need at least 3 "
-                             f"({int(short.sum())} such faces)")
+        flat = None
+    short = lengths < 3
+    if short.any():
+        row = int(np.argmax(short))
+        raise InputError(f"{source}: face {row} has {lengths[row]} vertices; faces need at least 3 "
+                         f"({int(short.sum())} such faces)")
+    if flat is None:
         flat = np.concatenate(list(column)).astype(np.int64)
-        triangles = fan_triangulate(flat, lengths)
+    triangles = fan_triangulate(flat, lengths)
     check_face_indices(triangles, n_vertices, source)
     return triangles
 
@@ -269,11 +388,11 @@ def circular_axes(normals: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, 
     return (t1 * r).astype(np.float32), (t2 * r).astype(np.float32)
 
 
-def _vertex_element(ply: PlyData, source: str) -> PlyElement:
-    if "vertex" not in ply:
-        present = ", ".join(e.name for e in ply.elements) or "none"
+def _vertex_element(elements: dict[str, np.ndarray], source: str) -> np.ndarray:
+    if "vertex" not in elements:
+        present = ", ".join(elements) or "none"
         raise InputError(f"{source}: PLY file has no 'vertex' element (elements: {present})")
-    return ply["vertex"]
+    return elements["vertex"]
 
 
 def _column(data: np.ndarray, name: str) -> np.ndarray:
@@ -362,5 +481,5 @@ def ply_columns(cloud: SplatCloud) -> list[tuple[str, np.ndarray]]:
     return columns
 
 
-__all__ = ["read_ply", "read_ply_mesh", "read_plydata", "read_faces", "write_ply",
+__all__ = ["read_ply", "read_ply_mesh", "read_elements", "read_faces", "write_ply",
            "fan_triangulate", "color_scale", "read_colors", "circular_axes", "ply_columns"]

@@ -60,6 +60,7 @@ class Renderer:
         self._programs: dict[tuple, moderngl.Program] = {}
         self._quad = self.ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], dtype="f4"))
         self._targets: dict | None = None
+        self._parking = self.ctx.framebuffer([self.ctx.renderbuffer((1, 1))])
         self._fullscreen = self.ctx.vertex_array(self._program("fullscreen.vert", "normalize.frag", ()), [])
 
     # -- resources ---------------------------------------------------------
@@ -98,9 +99,12 @@ class Renderer:
     def _ensure_targets(self, width: int, height: int) -> dict:
         if self._targets is None or self._targets["size"] != (width, height):
             if self._targets is not None:
-                for item in self._targets.values():
-                    if hasattr(item, "release"):
-                        item.release()
+                # moderngl re-binds the current framebuffer after creating one: park on
+                # a framebuffer that stays alive, then free framebuffers before textures.
+                self._parking.use()
+                for name in sorted(self._targets, key=lambda key: not key.startswith("fbo")):
+                    if hasattr(self._targets[name], "release"):
+                        self._targets[name].release()
             ctx, size = self.ctx, (width, height)
             accum = ctx.texture(size, 4, dtype="f4")
             aux = ctx.texture(size, 4, dtype="f4")

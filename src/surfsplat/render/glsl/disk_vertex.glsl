@@ -1,16 +1,10 @@
-// The splat as an exact elliptical disk, ray-cast per pixel: bounds of its quad.
-// Used by "flat" and by every blended technique's visibility pass.
-flat out vec3 v_center;   // camera space
-flat out vec3 v_udual;    // u / |u|^2: dot(q, v_udual) is the s coordinate of q - center
-flat out vec3 v_vdual;
+// Bounds of the quad of a splat drawn as its exact elliptical disk (ray-cast
+// per pixel): used by "flat" and by every blended technique's visibility pass.
 
 // Window-pixel box of the projected parallelogram p +- u +- v, which contains
 // the ellipse; the whole viewport when a corner is not in front of the near
 // plane. False when the box misses the viewport.
 bool disk_bounds(Splat s, out vec2 lo, out vec2 hi) {
-    v_center = s.p;
-    v_udual = s.u / dot(s.u, s.u);
-    v_vdual = s.v / dot(s.v, s.v);
     lo = vec2(1e30);
     hi = vec2(-1e30);
     bool behind = false;

@@ -1,7 +1,6 @@
 // Technique "ewa": evaluate the resampling kernel (Guennebaud 2003, sec. 6).
 #include "camera.glsl"
 #include "splat_fragment.glsl"
-#include "disk_fragment.glsl"
 
 uniform float u_cutoff;
 flat in vec2 v_center_px;

@@ -1,7 +1,6 @@
 // Technique "flat": exact ray/disk test per pixel, opaque.
 #include "camera.glsl"
 #include "splat_fragment.glsl"
-#include "disk_fragment.glsl"
 
 flat in vec3 v_color;
 flat in vec3 v_normal;

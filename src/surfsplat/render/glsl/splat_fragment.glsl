@@ -1,26 +1,50 @@
-// Fragment outputs shared by the splat techniques.
+// Fragment side shared by the splat techniques: the splat's disk, depth, outputs.
 // PASS 0: opaque (single pass), PASS 1: visibility (depth only), PASS 2: accumulation.
 layout(location = 0) out vec4 out_color;   // (w * rgb, w)
 layout(location = 1) out vec4 out_aux;     // (w * depth, w * normal), camera space
 
 uniform float u_depth_epsilon;   // visibility offset along the viewing ray, in splat radii
 
-flat in vec3 v_plane;     // camera-space normal / dot(normal, center): plane is dot(v_plane, x) = 1
-flat in vec2 v_zrange;    // depth range of the splat, model units
-flat in float v_radius;   // largest semi-axis, model units
+flat in vec3 v_plane;
+flat in vec3 v_center;
+flat in vec3 v_udual;
+flat in vec3 v_vdual;
+flat in vec2 v_uvz;
+flat in float v_radius;
 
-// Depth where the viewing ray of this fragment meets the splat's plane
-// (Guennebaud 2003, eq. 10/13), kept within the splat's own depth range.
+// Normalized (s, t) of the point t * ray on the splat's plane.
+vec2 plane_st(vec3 ray, float t) {
+    vec3 q = t * ray - v_center;
+    return vec2(dot(q, v_udual), dot(q, v_vdual));
+}
+
+// Exact ray/disk test: depth z of the ray's hit with the splat plane; false
+// when the hit lies outside the ellipse or outside [near, far].
+bool ray_disk(vec3 ray, out float z) {
+    z = 1.0 / dot(v_plane, ray);
+    if (!(z >= u_near_far.x && z <= u_near_far.y)) return false;
+    vec2 st = plane_st(ray, z);
+    return dot(st, st) <= 1.0;
+}
+
+// Depth for fragments a footprint filter spreads beyond the disk: the depth of
+// the disk point nearest (in (s, t)) to the ray's hit with the plane, so a
+// fragment is never given a depth the splat does not have (the plane itself
+// runs away from the surface at grazing angles).
 float fragment_depth(vec3 ray) {
     float z = 1.0 / dot(v_plane, ray);
-    if (!(z > 0.0)) z = v_zrange.y;   // ray parallel to or behind the plane (also catches NaN)
-    return clamp(z, v_zrange.x, v_zrange.y);
+    // A ray parallel to the plane, or meeting it behind the eye, goes off to
+    // the plane's horizon: take the direction of its far end there.
+    vec2 st = (z > 0.0) ? plane_st(ray, z) : vec2(dot(ray, v_udual), dot(ray, v_vdual)) * 1e6;
+    float len2 = dot(st, st);
+    if (!(len2 <= 1.0)) st = len2 > 0.0 ? st * inversesqrt(len2) : vec2(0.0);
+    return -(v_center.z + st.x * v_uvz.x + st.y * v_uvz.y);
 }
 
 // Writes depth (offset by epsilon along the ray in the visibility pass) and the outputs.
 void emit(vec3 ray, float z, float w, vec3 color, vec3 normal) {
 #if PASS == 1
-    // Guennebaud 2003 sec. 5: translate along the viewing ray, not along z.
+    // Guennebaud 2003, sec. 5: translate along the viewing ray, not along z.
     z += u_depth_epsilon * v_radius / length(ray);
 #endif
     gl_FragDepth = window_depth(z);

@@ -1,9 +1,12 @@
-// Per-splat vertex work shared by the techniques: camera-space splat, plane,
-// depth range and per-splat lighting (Guennebaud 2003, sec. 6: lighting in
+// Per-splat vertex work shared by the techniques: camera-space splat, its
+// plane and disk, and per-splat lighting (Guennebaud 2003, sec. 6: lighting in
 // the vertex program). Requires camera.glsl, lighting.glsl, splat_attributes.glsl.
-flat out vec3 v_plane;
-flat out vec2 v_zrange;
-flat out float v_radius;
+flat out vec3 v_plane;    // camera-space normal / dot(normal, center): plane is dot(v_plane, x) = 1
+flat out vec3 v_center;   // camera space
+flat out vec3 v_udual;    // u / |u|^2: dot(q, v_udual) is the s coordinate of q - center
+flat out vec3 v_vdual;
+flat out vec2 v_uvz;      // (u.z, v.z): depth change along the axes
+flat out float v_radius;  // largest semi-axis, model units
 flat out vec3 v_color;
 flat out vec3 v_normal;
 
@@ -28,9 +31,12 @@ bool camera_splat(out Splat s) {
     float zext = length(vec2(s.u.z, s.v.z));   // half depth range of the ellipse
     if (z + zext < u_near_far.x || z - zext > u_near_far.y) return false;
     if (-np <= 1e-7 * length(s.p)) return false;
-    v_radius = max(length(s.u), length(s.v));
     v_plane = s.n / np;
-    v_zrange = vec2(max(z - zext, u_near_far.x), min(z + zext, u_near_far.y));
+    v_center = s.p;
+    v_udual = s.u / dot(s.u, s.u);
+    v_vdual = s.v / dot(s.v, s.v);
+    v_uvz = vec2(s.u.z, s.v.z);
+    v_radius = max(length(s.u), length(s.v));
     v_color = shade(in_color, s.n, normalize(-s.p));
     v_normal = s.n;
     return true;

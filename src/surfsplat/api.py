@@ -1,0 +1,80 @@
+"""The high-level Python API: load, preprocess, frame and render in one call each."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .camera import Camera, frame_bounds
+from .cloud import SplatCloud
+from .errors import InputError
+from .lighting import Lights
+from .render.frame import Frame
+from .render.technique import RenderOptions
+
+_renderer = None
+
+
+def default_renderer():
+    """The process-wide headless :class:`~surfsplat.render.renderer.Renderer` (created on first use)."""
+    global _renderer
+    if _renderer is None:
+        from .render.renderer import Renderer
+
+        _renderer = Renderer()
+    return _renderer
+
+
+def auto_camera(cloud: SplatCloud, width: int = 512, height: int = 512, fov: float = 40.0,
+                direction=(0.4, 0.35, 1.0), up=(0.0, 1.0, 0.0)) -> Camera:
+    """A camera framing the whole cloud from ``direction`` (world, toward the eye).
+
+    The bounding sphere of the splat centers (around the bounds' center) fills
+    90% of the smaller field of view; near/far enclose the splats.
+    """
+    lo, hi = cloud.bounds()
+    center = 0.5 * (lo + hi)
+    radius = float(np.sqrt(np.max(np.sum((cloud.positions - center) ** 2, axis=1))))
+    margin = float(cloud.radii.max()) if cloud.u is not None else 0.0
+    return frame_bounds(lo, hi, width=width, height=height, fov=fov, direction=direction, up=up,
+                        radius=radius + margin, margin=margin)
+
+
+def as_splats(source: SplatCloud | str | Path, *, k: int = 8) -> SplatCloud:
+    """A render-ready SplatCloud from a cloud or a file, preprocessed (k neighbours) if needed."""
+    if isinstance(source, (str, Path)):
+        from .io import load
+
+        source = load(source)
+    if not isinstance(source, SplatCloud):
+        raise InputError(f"expected a SplatCloud or a file path, got {type(source).__name__}")
+    if not source.has_splats:
+        from .geometry.preprocess import preprocess
+
+        source = preprocess(source, k=k)
+    return source
+
+
+def render(source: SplatCloud | str | Path, camera: Camera | None = None, *, technique: str = "ewa",
+           width: int = 512, height: int = 512, lights: Lights | None = None, background=(1.0, 1.0, 1.0),
+           prefilter: bool = True, cutoff: float = 1.0, depth_epsilon: float = 1.0, k: int = 8) -> Frame:
+    """Render a SplatCloud or a point file to a :class:`Frame`.
+
+    Args:
+        source: a SplatCloud (preprocessed if it lacks normals or splat axes) or a path.
+        camera: the view; None frames the model automatically at ``width`` x ``height``.
+        technique: "ewa" (three passes, Guennebaud 2003) or "flat" (opaque, one pass).
+        lights: lighting and material; None is a headlight with the default material.
+        background: RGB in [0, 1].
+        prefilter, cutoff, depth_epsilon: see :class:`~surfsplat.render.technique.RenderOptions`.
+        k: neighbours for preprocessing when needed.
+    """
+    cloud = as_splats(source, k=k)
+    background = tuple(float(x) for x in np.asarray(background, dtype=float).reshape(-1))
+    if len(background) != 3 or not all(0.0 <= x <= 1.0 for x in background):
+        raise InputError(f"background must be 3 numbers in [0, 1], got {background}")
+    if camera is None:
+        camera = auto_camera(cloud, width, height)
+    options = RenderOptions(cutoff=cutoff, prefilter=prefilter, depth_epsilon=depth_epsilon)
+    return default_renderer().render(cloud, camera, technique, lights or Lights(), options, background)

@@ -1,0 +1,162 @@
+"""k-nearest neighbours and sampling-density statistics (SciPy cKDTree).
+
+Everything downstream of preprocessing (normals, orientation, splat sizes) is
+computed from the k-nearest-neighbour graph returned by :func:`knn`.
+
+Choice for small inputs: :func:`knn` raises :class:`~surfsplat.errors.InputError`
+when the cloud has fewer than ``k + 1`` points (it cannot return ``k``
+neighbours other than the point itself); :func:`surfsplat.geometry.preprocess`
+instead clamps ``k`` to ``N - 1`` with a warning, so tiny clouds still work.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..errors import InputError
+
+#: Leaf size of the k-d trees. 16 measured fastest for k ~ 8 on 1 M points.
+_LEAFSIZE = 16
+
+
+def _as_points(positions, name: str = "positions") -> np.ndarray:
+    """(N, 3) float64 C-contiguous copy/view of ``positions``; InputError if malformed."""
+    arr = np.asarray(positions)
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise InputError(f"{name} must have shape (N, 3), got {arr.shape}")
+    arr = np.ascontiguousarray(arr, dtype=np.float64)
+    if not np.isfinite(arr).all():
+        bad = int((~np.isfinite(arr).all(axis=1)).sum())
+        raise InputError(f"{name}: {bad} points have non-finite coordinates (validate the cloud first)")
+    return arr
+
+
+def _tree(points: np.ndarray) -> cKDTree:
+    # balanced_tree=False (sliding midpoint) builds ~1.5x faster and queries as fast
+    return cKDTree(points, leafsize=_LEAFSIZE, balanced_tree=False, compact_nodes=False)
+
+
+def spatial_order(positions) -> np.ndarray:
+    """Permutation that sorts points along a Morton (Z-order) curve.
+
+    Args:
+        positions: (N, 3) float array, model units.
+
+    Returns:
+        (N,) int64 permutation ``perm``; ``positions[perm]`` are spatially
+        coherent, so neighbour gathers in later stages hit the cache
+        (measured ~30x faster gathers on 1 M random-order points).
+    """
+    p = np.asarray(positions, dtype=np.float64)
+    if len(p) == 0:
+        return np.zeros(0, dtype=np.int64)
+    lo = p.min(axis=0)
+    extent = float((p.max(axis=0) - lo).max())
+    scale = (2**21 - 1) / extent if extent > 0 else 0.0
+    q = ((p - lo) * scale).astype(np.uint64)
+    code = _part1by2(q[:, 0]) | (_part1by2(q[:, 1]) << np.uint64(1)) | (_part1by2(q[:, 2]) << np.uint64(2))
+    return np.argsort(code).astype(np.int64, copy=False)
+
+
+def _part1by2(x: np.ndarray) -> np.ndarray:
+    """Spread the low 21 bits of ``x`` so that two zero bits separate each bit."""
+    x = x & np.uint64(0x1FFFFF)
+    x = (x | (x << np.uint64(32))) & np.uint64(0x1F00000000FFFF)
+    x = (x | (x << np.uint64(16))) & np.uint64(0x1F0000FF0000FF)
+    x = (x | (x << np.uint64(8))) & np.uint64(0x100F00F00F00F00F)
+    x = (x | (x << np.uint64(4))) & np.uint64(0x10C30C30C30C30C3)
+    x = (x | (x << np.uint64(2))) & np.uint64(0x1249249249249249)
+    return x
+
+
+def knn(positions, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The k nearest neighbours of every point, the point itself excluded.
+
+    Uses a SciPy ``cKDTree`` queried with ``workers=-1`` (all cores), queries
+    issued in the tree's leaf order for cache locality.
+
+    Args:
+        positions: (N, 3) float array, model units; must be finite.
+        k: number of neighbours, ``1 <= k <= N - 1``.
+
+    Returns:
+        ``(distances, indices)``: (N, k) float32 Euclidean distances in model
+        units, ascending along each row, and (N, k) int64 indices into
+        ``positions``. Row ``i`` never contains ``i``; coincident duplicates of
+        ``i`` are ordinary neighbours at distance 0.
+
+    Raises:
+        InputError: malformed or non-finite positions, ``k < 1``, or fewer
+            than ``k + 1`` points.
+    """
+    points = _as_points(positions)
+    n = len(points)
+    k = int(k)
+    if k < 1:
+        raise InputError(f"knn: k must be at least 1, got {k}")
+    if n < k + 1:
+        raise InputError(f"knn: need at least k + 1 = {k + 1} points for k = {k} neighbours, got {n}")
+    tree = _tree(points)
+    order = np.asarray(tree.indices, dtype=np.int64)
+    dist, idx = tree.query(points[order], k=k + 1, workers=-1)
+    is_self = idx == order[:, None]
+    if is_self[:, 0].all():
+        # usual case: the point itself comes first (distance 0, no duplicates)
+        dist, idx = dist[:, 1:], idx[:, 1:]
+    else:
+        # coincident duplicates may come before the point itself, or push it
+        # out of the k + 1 results altogether: drop the point where it is,
+        # else the last (farthest) result. Rows stay sorted.
+        missing = ~is_self.any(axis=1)
+        is_self[missing, -1] = True
+        keep = ~is_self
+        dist = dist[keep].reshape(n, k)
+        idx = idx[keep].reshape(n, k)
+    out_d = np.empty((n, k), dtype=np.float32)
+    out_i = np.empty((n, k), dtype=np.int64)
+    out_d[order] = dist
+    out_i[order] = idx
+    return out_d, out_i
+
+
+def neighbour_spacing(positions, k: int = 1, sample: int | None = None, seed: int = 0) -> dict[str, float]:
+    """Statistics of the distance from a point to its k-th nearest neighbour.
+
+    Args:
+        positions: (N, 3) float array, model units, N >= k + 1.
+        k: which neighbour (1 = nearest, the point itself excluded).
+        sample: if given and smaller than N, only this many randomly chosen
+            points are queried (the tree holds all points): fast estimates
+            for very large clouds.
+        seed: random seed of the sample.
+
+    Returns:
+        dict with float keys ``min``, ``median``, ``mean``, ``max`` (model
+        units) and int ``count`` (points queried) and ``zero`` (queried points
+        with a coincident duplicate, i.e. distance 0).
+    """
+    points = _as_points(positions)
+    n = len(points)
+    k = int(k)
+    if k < 1:
+        raise InputError(f"neighbour_spacing: k must be at least 1, got {k}")
+    if n < k + 1:
+        raise InputError(f"neighbour_spacing: need at least {k + 1} points, got {n}")
+    if sample is not None and sample < n:
+        query = np.sort(np.random.default_rng(seed).choice(n, size=int(sample), replace=False))
+    else:
+        query = np.arange(n)
+    tree = _tree(points)
+    dist, _ = tree.query(points[query], k=k + 1, workers=-1)
+    # the k-th neighbour other than the point itself is result k (0 = itself,
+    # or a duplicate at the same distance 0: either way the k-th other point)
+    d = dist[:, k]
+    return {
+        "min": float(d.min()),
+        "median": float(np.median(d)),
+        "mean": float(d.mean()),
+        "max": float(d.max()),
+        "count": int(len(d)),
+        "zero": int((d == 0).sum()),
+    }

@@ -1,0 +1,453 @@
+"""Normal estimation (PCA of kNN neighbourhoods) and consistent orientation.
+
+Orientation follows Hoppe, DeRose, Duchamp, McDonald & Stuetzle 1992,
+"Surface reconstruction from unorganized points", section 3.3: the
+Riemannian graph over the points (here: the symmetric k-nearest-neighbour
+graph) with edge cost ``1 - |n_i . n_j|``, its minimum spanning tree, and
+sign propagation from a seed along the tree: ``sign(child) = sign(parent) *
+sign(n_child . n_parent)``. One tree per connected component, each seeded at
+its highest point (largest z) whose normal is turned to +z.
+
+Everything is vectorized. The default MST is a NumPy Boruvka that propagates
+the signs while it merges components (``method="boruvka"``); the reference
+path uses ``scipy.sparse.csgraph.minimum_spanning_tree`` + a breadth-first
+order + pointer jumping (``method="scipy"``). Both compute the same unique
+tree: edges are ranked by (weight, position in the row-major kNN array),
+which is exactly SciPy's stable-sort Kruskal order.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import breadth_first_order, connected_components, minimum_spanning_tree
+
+from ..errors import InputError
+
+#: Added to every edge cost ``1 - |n_i . n_j|`` so that parallel normals
+#: (cost 0) are not taken for "no edge" by scipy.sparse.
+EDGE_EPSILON = 1e-6
+
+#: A seed normal with ``|n_z|`` below this is "nearly horizontal" (within
+#: ~5.7 degrees of the horizontal plane): it is then turned away from the
+#: centroid of its component instead of towards +z.
+HORIZONTAL_NZ = 0.1
+
+
+def _check_indices(indices, n: int, name: str = "indices") -> np.ndarray:
+    idx = np.asarray(indices)
+    if idx.ndim != 2 or idx.shape[0] != n or idx.shape[1] < 1:
+        raise InputError(f"{name} must have shape ({n}, k) with k >= 1, got {idx.shape}")
+    if not np.issubdtype(idx.dtype, np.integer):
+        raise InputError(f"{name} must be integers, got {idx.dtype}")
+    idx = np.ascontiguousarray(idx, dtype=np.intp)
+    if idx.size and (idx.min() < 0 or idx.max() >= n):
+        raise InputError(f"{name} must lie in [0, {n}), got values in [{idx.min()}, {idx.max()}]")
+    return idx
+
+
+def _check_vectors(arr, name: str, n: int | None = None) -> np.ndarray:
+    a = np.asarray(arr)
+    if a.ndim != 2 or a.shape[1] != 3 or (n is not None and a.shape[0] != n):
+        want = f"({n}, 3)" if n is not None else "(N, 3)"
+        raise InputError(f"{name} must have shape {want}, got {a.shape}")
+    return np.ascontiguousarray(a, dtype=np.float32)
+
+
+def _columns(points: np.ndarray) -> list[np.ndarray]:
+    return [np.ascontiguousarray(points[:, c]) for c in range(3)]
+
+
+# -- normal estimation ------------------------------------------------------
+
+
+#: Points per block in the vectorized kernels: (k, 8192) float32 temporaries
+#: stay in the L2 cache (measured ~2.5x faster than whole-array passes at 1 M points).
+BLOCK = 8192
+
+
+def _blocks(n: int) -> list[slice]:
+    return [slice(s, min(s + BLOCK, n)) for s in range(0, n, BLOCK)]
+
+
+def _block_offsets(cols: list[np.ndarray], idx: np.ndarray, sl: slice) -> list[np.ndarray]:
+    """Offsets ``p_j - p_i`` of the neighbours of the points in ``sl``: three (k, B) float32 arrays.
+
+    Neighbour slot first (transposed): reductions over the k neighbours are then
+    k - 1 contiguous vector operations instead of N short rows (~10x faster).
+    """
+    it = np.ascontiguousarray(idx[sl].T)
+    out = []
+    for col in cols:
+        d = col[it]
+        d -= col[sl]
+        out.append(d)
+    return out
+
+
+def _block_covariance(d: list[np.ndarray]) -> tuple[np.ndarray, ...]:
+    """Six (B,) float64 covariance entries of k offsets + the point itself (offset 0)."""
+    m = np.float32(d[0].shape[0] + 1)
+    mean = [x.sum(axis=0) / m for x in d]
+    out = []
+    for a, b in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)):
+        # offsets are relative to the point, so the one-pass form loses nothing
+        # to large coordinates: E[d_a d_b] - E[d_a] E[d_b]
+        s = np.einsum("ij,ij->j", d[a], d[b]) / m - mean[a] * mean[b]
+        out.append(s.astype(np.float64))
+    return tuple(out)
+
+
+def neighbourhood_covariance(positions, indices) -> tuple[np.ndarray, ...]:
+    """Covariance of each point's neighbourhood (the point itself included).
+
+    Args:
+        positions: (N, 3) float array, model units.
+        indices: (N, k) integer neighbour indices (e.g. from :func:`knn`).
+
+    Returns:
+        Six (N,) float64 arrays ``(cxx, cxy, cxz, cyy, cyz, czz)``: the
+        entries of the 3x3 covariance ``1/(k+1) sum (p - mean)(p - mean)^T``
+        over the point and its k neighbours, model units squared. Computed in
+        float32 from coordinates relative to the point (no loss from large
+        coordinate offsets).
+    """
+    pts = _check_vectors(positions, "positions")
+    idx = _check_indices(indices, len(pts))
+    cols = _columns(pts)
+    out = [np.empty(len(pts)) for _ in range(6)]
+    for sl in _blocks(len(pts)):
+        for o, c in zip(out, _block_covariance(_block_offsets(cols, idx, sl))):
+            o[sl] = c
+    return tuple(out)
+
+
+def smallest_eigenvectors(cxx, cxy, cxz, cyy, cyz, czz) -> np.ndarray:
+    """Unit eigenvector of the smallest eigenvalue of many symmetric 3x3 matrices.
+
+    Closed form, vectorized (about 10x faster than ``np.linalg.eigh`` on
+    (N, 3, 3)): eigenvalues by the trigonometric method (Smith 1961, "Eigenvalues
+    of a symmetric 3x3 matrix", CACM 4(4)), then the eigenvector as the largest
+    cross product of two rows of ``A - lambda_min I``. Where that matrix has
+    rank < 2 (the two smallest eigenvalues coincide: collinear or coincident
+    points, isotropic blobs) any unit vector orthogonal to its largest row is
+    returned, and (0, 0, 1) where the whole matrix vanishes.
+
+    Args:
+        cxx ... czz: (N,) float arrays, the six distinct matrix entries.
+
+    Returns:
+        (N, 3) float32 unit vectors (sign arbitrary).
+    """
+    a00, a01, a02, a11, a12, a22 = (np.asarray(a, dtype=np.float64) for a in (cxx, cxy, cxz, cyy, cyz, czz))
+    q = (a00 + a11 + a22) / 3.0
+    b00, b11, b22 = a00 - q, a11 - q, a22 - q
+    p1 = a01 * a01 + a02 * a02 + a12 * a12
+    p = np.sqrt((b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * p1) / 6.0)
+    det = b00 * (b11 * b22 - a12 * a12) - a01 * (a01 * b22 - a12 * a02) + a02 * (a01 * a12 - b11 * a02)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.where(p > 0, det / (2.0 * p * p * p), 0.0)
+    phi = np.arccos(np.clip(r, -1.0, 1.0)) / 3.0
+    lam_min = q + 2.0 * p * np.cos(phi + 2.0 * np.pi / 3.0)
+    m00, m11, m22 = a00 - lam_min, a11 - lam_min, a22 - lam_min
+    rows = ((m00, a01, a02), (a01, m11, a12), (a02, a12, m22))
+
+    def cross(r, s):
+        return (r[1] * s[2] - r[2] * s[1], r[2] * s[0] - r[0] * s[2], r[0] * s[1] - r[1] * s[0])
+
+    crosses = [cross(rows[0], rows[1]), cross(rows[0], rows[2]), cross(rows[1], rows[2])]
+    norms2 = np.stack([c[0] ** 2 + c[1] ** 2 + c[2] ** 2 for c in crosses])
+    pick = np.argmax(norms2, axis=0)
+    best2 = np.take_along_axis(norms2, pick[None], axis=0)[0]
+    vec = np.stack([np.choose(pick, [c[j] for c in crosses]) for j in range(3)], axis=1)
+
+    scale2 = m00 * m00 + m11 * m11 + m22 * m22 + 2.0 * p1  # |A - lam I|_F^2
+    degenerate = ~(best2 > 1e-10 * scale2 * scale2)
+    if degenerate.any():
+        # rank <= 1: normal = anything orthogonal to the dominant row (the
+        # direction of a line of points); zero matrix: +z.
+        dsel = np.flatnonzero(degenerate)
+        rn2 = np.stack([r[0][dsel] ** 2 + r[1][dsel] ** 2 + r[2][dsel] ** 2 for r in rows])
+        top = np.argmax(rn2, axis=0)
+        line = np.stack([np.choose(top, [r[j][dsel] for r in rows]) for j in range(3)], axis=1)
+        lnorm = np.linalg.norm(line, axis=1)
+        fallback = np.zeros((len(dsel), 3))
+        fallback[:, 2] = 1.0
+        has_line = lnorm > 0
+        if has_line.any():
+            line = line[has_line] / lnorm[has_line, None]
+            # cross with the coordinate axis least aligned with the line
+            axis = np.zeros_like(line)
+            axis[np.arange(len(line)), np.argmin(np.abs(line), axis=1)] = 1.0
+            fallback[has_line] = np.cross(line, axis)
+        vec[dsel] = fallback
+    vec /= np.linalg.norm(vec, axis=1, keepdims=True)
+    return vec.astype(np.float32)
+
+
+def estimate_normals(positions, indices) -> np.ndarray:
+    """Unit normals by PCA of each k-neighbourhood (the point itself included).
+
+    The normal is the eigenvector of the smallest eigenvalue of the
+    neighbourhood covariance (Hoppe et al. 1992, section 3.2; the least-squares
+    tangent plane). Its sign is arbitrary: see :func:`orient_normals`.
+
+    Args:
+        positions: (N, 3) float array, model units.
+        indices: (N, k) integer neighbour indices (e.g. from :func:`knn`).
+
+    Returns:
+        (N, 3) float32 unit normals. Degenerate neighbourhoods (collinear or
+        coincident points) get some unit vector orthogonal to the line, or +z.
+    """
+    pts = _check_vectors(positions, "positions")
+    idx = _check_indices(indices, len(pts))
+    cols = _columns(pts)
+    out = np.empty((len(pts), 3), dtype=np.float32)
+    for sl in _blocks(len(pts)):
+        out[sl] = smallest_eigenvectors(*_block_covariance(_block_offsets(cols, idx, sl)))
+    return out
+
+
+# -- orientation --------------------------------------------------------------
+
+
+def _edge_costs(normals: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """float32 costs ``1 - |n_i . n_j| + eps`` and int8 signs of ``n_i . n_j`` per kNN edge."""
+    dot = None
+    for col in _columns(normals):
+        term = col[idx]
+        term *= col[:, None]
+        dot = term if dot is None else np.add(dot, term, out=dot)
+    cost = np.abs(dot)
+    np.subtract(np.float32(1.0 + EDGE_EPSILON), cost, out=cost)
+    np.maximum(cost, np.float32(EDGE_EPSILON), out=cost)  # |dot| may exceed 1 by rounding
+    sign = np.where(dot < 0, np.int8(-1), np.int8(1))
+    return cost, sign
+
+
+def _pointer_jump(parent: np.ndarray, value: np.ndarray, nodes: np.ndarray | None = None) -> None:
+    """In place: make ``parent[i]`` the root of ``i`` and ``value[i]`` the sign product up to it.
+
+    ``parent`` (N,) int: a forest, roots have ``parent[r] == r``.
+    ``value`` (N,) int8: ``value[i]`` is the sign of ``i`` relative to ``parent[i]``
+    (roots: left unchanged). After the call, ``value[i]`` is the sign of ``i``
+    relative to its root (the product along the path, root excluded).
+    Takes ceil(log2(depth)) vectorized steps. ``nodes``: restrict to these
+    (a set closed under ``parent``).
+    """
+    todo = np.flatnonzero(parent != np.arange(len(parent))) if nodes is None else nodes
+    todo = todo[parent[todo] != todo]
+    while len(todo):
+        up = parent[todo]
+        upup = parent[up]
+        jump = up != upup               # parent is not a root yet
+        todo, up, upup = todo[jump], up[jump], upup[jump]
+        if not len(todo):
+            break
+        newval = value[todo] * value[up]  # old values: segments [i, up) + [up, upup)
+        value[todo] = newval
+        parent[todo] = upup
+
+
+def _boruvka(n: int, cost: np.ndarray, sign: np.ndarray, idx: np.ndarray):
+    """Minimum spanning forest of the kNN graph by Boruvka, with sign propagation.
+
+    Edges are the N*k entries ``(i, idx[i, j])``, ranked by ``(cost, i*k + j)``.
+    Each round every component takes its cheapest outgoing edge, components
+    merge along them (pointer jumping over the component labels), and each
+    merged component's sign relative to its new root is
+    ``rel[i] * rel[j] * sign(n_i . n_j)`` for the connecting edge (i, j).
+
+    Returns ``(comp, rel, tree_edges)``: (N,) intp component root per point,
+    (N,) int8 sign of each point relative to its root (so that
+    ``rel[child] * rel[parent] == sign(n_child . n_parent)`` along every tree
+    edge), and the int64 ids of the N - #components tree edges.
+    """
+    k = idx.shape[1]
+    e_total = n * k
+    if e_total >= 2**32:
+        raise InputError(f"orient_normals: too many edges ({e_total:,}) for 32-bit edge ids")
+    # cost >= 0 as float32: its bit pattern orders like the value; the low 32
+    # bits (edge id) make keys unique, i.e. ties broken like SciPy's stable sort
+    key = (cost.ravel().view(np.uint32).astype(np.uint64) << np.uint64(32)) | np.arange(e_total, dtype=np.uint64)
+    src_all = np.repeat(np.arange(n, dtype=np.intp), k)
+    dst_all = idx.ravel()
+    sgn_all = sign.ravel()
+    none = np.uint64(np.iinfo(np.uint64).max)
+    low = np.uint64(0xFFFFFFFF)
+
+    comp = np.arange(n, dtype=np.intp)     # component label (a member point) of each point
+    rel = np.ones(n, dtype=np.int8)        # sign of each point relative to its label
+    parent = np.arange(n, dtype=np.intp)   # per label, during a round
+    flip = np.ones(n, dtype=np.int8)
+    best = np.empty(n, dtype=np.uint64)
+    tree = []
+    src, dst, ekey = src_all, dst_all, key  # candidate edges (shrinks as components grow)
+    first = True
+    while len(ekey):
+        if first:
+            ca, cb, mkey = src, dst, ekey      # no self loops in a kNN graph
+            first = False
+        else:
+            ca = comp[src]
+            cb = comp[dst]
+            external = ca != cb
+            alive = int(np.count_nonzero(external))
+            if alive == 0:
+                break
+            if alive < 0.6 * len(ekey):
+                # compact once enough edges became internal
+                src, dst, ekey, ca, cb = src[external], dst[external], ekey[external], ca[external], cb[external]
+                mkey = ekey
+            else:
+                mkey = np.where(external, ekey, none)  # cheaper than compacting 5 arrays
+        # each component's cheapest outgoing edge
+        best.fill(none)
+        np.minimum.at(best, ca, mkey)
+        np.minimum.at(best, cb, mkey)
+        act = np.flatnonzero(best != none)
+        if not len(act):
+            break
+        e = (best[act] & low).astype(np.intp)
+        ea, eb = src_all[e], dst_all[e]
+        a_inside = comp[ea] == act
+        inside = np.where(a_inside, ea, eb)
+        outside = np.where(a_inside, eb, ea)
+        other = comp[outside]
+        parent[act] = other
+        # sign of this component's label relative to the other's, so that
+        # sign(inside) * sign(outside) == sign(n_inside . n_outside)
+        flip[act] = rel[inside] * rel[outside] * sgn_all[e]
+        # two components that chose each other (the same edge): the smaller label is the root
+        root = (parent[other] == act) & (act < other)
+        parent[act[root]] = act[root]
+        flip[act[root]] = 1
+        tree.append(e[~root])
+        _pointer_jump(parent, flip, act)
+        rel *= flip[comp]
+        comp = parent[comp]
+        parent[act] = act
+        flip[act] = 1
+    tree_edges = np.concatenate(tree) if tree else np.zeros(0, dtype=np.intp)
+    return comp, rel, tree_edges
+
+
+def _scipy_forest(n: int, cost: np.ndarray, sign: np.ndarray, idx: np.ndarray):
+    """Same ``(comp, rel, tree)`` as :func:`_boruvka` via scipy.sparse.csgraph (reference path); tree is the COO MST."""
+    k = idx.shape[1]
+    graph = csr_matrix((cost.ravel().astype(np.float64), idx.ravel(), np.arange(0, n * k + 1, k)), shape=(n, n))
+    mst = minimum_spanning_tree(graph).tocoo()  # undirected reading of the kNN graph = symmetric kNN graph
+    ncomp, labels = connected_components(mst, directed=False)
+    # root of each component: its smallest point index; tie a virtual node n to
+    # every root so one breadth-first traversal covers the whole forest
+    roots = np.full(ncomp, n, dtype=np.intp)
+    np.minimum.at(roots, labels, np.arange(n))
+    rows = np.concatenate([mst.row, np.full(ncomp, n)])
+    cols = np.concatenate([mst.col, roots])
+    forest = csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n + 1, n + 1))
+    _, pred = breadth_first_order(forest, n, directed=False, return_predecessors=True)
+    parent = pred[:n].astype(np.intp)
+    parent[roots] = roots
+    # sign of each point relative to its tree parent: sign(n_child . n_parent),
+    # looked up from the kNN edge that the tree used (either direction)
+    ids = np.flatnonzero(parent != np.arange(n))
+    rel = np.ones(n, dtype=np.int8)
+    if len(ids):
+        dot_sign = _pair_sign(sign, idx, ids, parent[ids])
+        rel[ids] = dot_sign
+    _pointer_jump(parent, rel)
+    return parent, rel, mst
+
+
+def _pair_sign(sign: np.ndarray, idx: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """int8 sign(n_a . n_b) for pairs that are kNN edges in at least one direction."""
+    hit_ab = idx[a] == b[:, None]
+    hit_ba = idx[b] == a[:, None]
+    from_ab = hit_ab.any(axis=1)
+    out = np.empty(len(a), dtype=np.int8)
+    out[from_ab] = sign[a[from_ab], np.argmax(hit_ab[from_ab], axis=1)]
+    rest = ~from_ab
+    out[rest] = sign[b[rest], np.argmax(hit_ba[rest], axis=1)]
+    return out
+
+
+def orient_normals(positions, normals, indices, *, method: str = "boruvka") -> np.ndarray:
+    """Flip normals to a consistent orientation over the neighbour graph (Hoppe et al. 1992).
+
+    The Riemannian graph is the symmetric kNN graph (edge i-j when j is among
+    the neighbours of i or i among those of j) with cost
+    ``1 - |n_i . n_j| + EDGE_EPSILON``. Along its minimum spanning tree (one
+    per connected component) signs propagate as
+    ``sign(child) = sign(parent) * sign(n_child . n_parent)``. Each component
+    is seeded at its point of largest z, whose normal is turned to +z; where
+    that normal is nearly horizontal (``|n_z| < HORIZONTAL_NZ``) it is turned
+    away from the component's centroid instead. On a closed surface this gives
+    outward normals; on open surfaces, normals on the +z side.
+
+    Args:
+        positions: (N, 3) float array, model units.
+        normals: (N, 3) float array of (not necessarily unit) normals, any signs.
+        indices: (N, k) integer neighbour indices (e.g. from :func:`knn`).
+        method: ``"boruvka"`` (default, vectorized NumPy Boruvka) or
+            ``"scipy"`` (``scipy.sparse.csgraph.minimum_spanning_tree``,
+            breadth-first order, pointer jumping). Both give the same result.
+
+    Returns:
+        (N, 3) float32: ``normals`` (renormalized to unit length) times +-1.
+    """
+    pts = _check_vectors(positions, "positions")
+    n = len(pts)
+    nrm = _check_vectors(normals, "normals", n)
+    idx = _check_indices(indices, n)
+    length = np.linalg.norm(nrm, axis=1, keepdims=True)
+    nrm = np.divide(nrm, length, out=np.zeros_like(nrm), where=length > 0)
+    cost, sign = _edge_costs(nrm, idx)
+    if method == "boruvka":
+        comp, rel, _ = _boruvka(n, cost, sign, idx)
+    elif method == "scipy":
+        comp, rel, _ = _scipy_forest(n, cost, sign, idx)
+    else:
+        raise InputError(f"orient_normals: method must be 'boruvka' or 'scipy', got {method!r}")
+    desired, seeds = _seed_signs(pts, nrm, comp)
+    root_sign = np.ones(n, dtype=np.int8)
+    root_sign[comp[seeds]] = rel[seeds] * desired
+    sigma = rel * root_sign[comp]
+    return (nrm * sigma[:, None]).astype(np.float32, copy=False)
+
+
+def _seed_signs(pts: np.ndarray, nrm: np.ndarray, comp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per component (label = root id): the seed point (largest z) and the sign its normal needs."""
+    n = len(pts)
+    z = pts[:, 2]
+    zmax = np.full(n, -np.inf, dtype=np.float32)
+    np.maximum.at(zmax, comp, z)
+    cand = np.flatnonzero(z == zmax[comp])
+    seed_of = np.empty(n, dtype=np.intp)
+    seed_of[comp[cand]] = cand
+    labels = np.flatnonzero(comp == np.arange(n))
+    seeds = seed_of[labels]
+    nz = nrm[seeds, 2]
+    count = np.bincount(comp, minlength=n)[labels].astype(np.float64)
+    centroid = np.stack([np.bincount(comp, weights=pts[:, c], minlength=n)[labels] / count for c in range(3)], axis=1)
+    away = np.einsum("ij,ij->i", nrm[seeds].astype(np.float64), pts[seeds] - centroid)
+    desired = np.where(np.abs(nz) >= HORIZONTAL_NZ, np.sign(nz), np.where(away < 0, -1, 1)).astype(np.int8)
+    return desired, seeds
+
+
+def orient_towards(normals, positions, viewpoint) -> np.ndarray:
+    """Flip each normal to face a viewpoint (e.g. the scanner position).
+
+    Args:
+        normals: (N, 3) float array.
+        positions: (N, 3) float array, model units.
+        viewpoint: (3,) or (N, 3) float array, model units.
+
+    Returns:
+        (N, 3) float32 normals with ``n . (viewpoint - p) >= 0``.
+    """
+    nrm = _check_vectors(normals, "normals")
+    pts = _check_vectors(positions, "positions", len(nrm))
+    view = np.asarray(viewpoint, dtype=np.float32)
+    facing = np.einsum("ij,ij->i", nrm, np.broadcast_to(view, pts.shape) - pts)
+    return np.where((facing < 0)[:, None], -nrm, nrm).astype(np.float32)

@@ -1,0 +1,218 @@
+"""The GPU pipeline held against the NumPy reference (reference.py) and analytic ground truth."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from surfsplat import reference, scenes
+from surfsplat.camera import Camera, frame_bounds
+from surfsplat.cloud import SplatCloud
+from surfsplat.errors import InputError
+from surfsplat.lighting import Lights
+from surfsplat.render.technique import RenderOptions
+
+UNLIT = Lights(enabled=False)
+
+
+def single_splat(normal, u, v, color=(1.0, 1.0, 1.0), position=(0.0, 0.0, 0.0)) -> SplatCloud:
+    return SplatCloud([position], [normal], [color], [u], [v])
+
+
+def test_camera_projection_matches_view_matrix():
+    cam = Camera(eye=(1.0, 2.0, 3.0), target=(0.2, -0.1, 0.3), up=(0, 1, 0), fov=50, width=320, height=200)
+    target_cam = reference.to_camera(cam, np.array([cam.target]))
+    # the target lies on the optical axis, at the principal point
+    np.testing.assert_allclose(target_cam[0, :2], 0.0, atol=1e-12)
+    np.testing.assert_allclose(reference.project(cam, target_cam)[0], cam.principal_point)
+    # the top edge of the image is at the vertical half field of view
+    top = np.array([[0.0, np.tan(np.radians(25)), -1.0]])
+    np.testing.assert_allclose(reference.project(cam, top)[0], (160.0, 200.0))
+
+
+def test_ewa_jacobian_matches_finite_differences():
+    rng = np.random.default_rng(1)
+    cam = Camera(eye=(0, 0, 4.0), target=(0, 0, 0), width=256, height=256)
+    p = reference.to_camera(cam, rng.uniform(-1, 1, (20, 3)))
+    u, v = rng.normal(size=(20, 3)) * 0.1, rng.normal(size=(20, 3)) * 0.1
+    jac = reference.ewa_jacobian(cam, p, u, v)
+    h = 1e-6
+    du = (reference.project(cam, p + h * u) - reference.project(cam, p - h * u)) / (2 * h)
+    dv = (reference.project(cam, p + h * v) - reference.project(cam, p - h * v)) / (2 * h)
+    np.testing.assert_allclose(jac[:, :, 0], du, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(jac[:, :, 1], dv, rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.parametrize("tilt", [0.0, 55.0, 75.0])
+@pytest.mark.parametrize("prefilter", [True, False])
+def test_single_ewa_splat_weights_match_reference(renderer, tilt, prefilter):
+    """Frontal and slanted splats: the accumulated weight equals the reference kernel at pixel centers."""
+    a = np.radians(tilt)
+    normal = (0.0, np.sin(a), np.cos(a))
+    u = (0.3, 0.0, 0.0)
+    v = (0.0, 0.15 * np.cos(a), -0.15 * np.sin(a))
+    cloud = single_splat(normal, u, v, position=(0.1, -0.05, 0.0))
+    cam = Camera(eye=(0.2, 0.1, 3.0), target=(0, 0, 0), width=96, height=80, fov=30, near=0.5, far=10.0)
+    options = RenderOptions(prefilter=prefilter)
+    frame = renderer.render(cloud, cam, "ewa", UNLIT, options)
+
+    p = reference.to_camera(cam, cloud.positions)
+    uc, vc = reference.to_camera_dir(cam, cloud.u), reference.to_camera_dir(cam, cloud.v)
+    jac = reference.ewa_jacobian(cam, p, uc, vc)
+    var = reference.ewa_variance(jac, options.cutoff, prefilter)
+    offsets = reference.pixel_centers(cam)[None] - reference.project(cam, p)[:, None, None, :]
+    expected = reference.ewa_weight(var, jac, offsets, options.cutoff)[0]
+    assert expected.max() > 0.1
+    # Pixels exactly on the cutoff contour may fall either way in float32.
+    inv = np.linalg.inv(var)[0]
+    beta = 0.5 * np.einsum("...i,ij,...j->...", offsets[0], inv, offsets[0])
+    decided = np.abs(beta - options.cutoff) > 1e-3
+    np.testing.assert_allclose(frame.weight[decided], expected[decided], rtol=2e-4, atol=1e-6)
+    # the bounding quad is tight enough to keep every pixel the kernel reaches
+    assert ((expected > 0) & decided & (frame.weight == 0)).sum() == 0
+    # the white splat normalizes to white wherever it has weight
+    np.testing.assert_allclose(frame.color[frame.mask], 1.0, atol=1e-5)
+
+
+@pytest.mark.parametrize("tilt", [0.0, 60.0, 80.0])
+def test_flat_disk_footprint_and_depth_match_ray_cast(renderer, tilt):
+    a = np.radians(tilt)
+    normal = (np.sin(a), 0.0, np.cos(a))
+    u = (0.4 * np.cos(a), 0.0, -0.4 * np.sin(a))
+    v = (0.0, 0.25, 0.0)
+    cloud = single_splat(normal, u, v)
+    cam = Camera(eye=(0.3, 0.2, 2.5), target=(0, 0, 0), width=90, height=70, fov=35, near=0.5, far=10.0)
+    frame = renderer.render(cloud, cam, "flat", UNLIT)
+
+    p = reference.to_camera(cam, cloud.positions)
+    n = reference.to_camera_dir(cam, cloud.normals)
+    uc, vc = reference.to_camera_dir(cam, cloud.u), reference.to_camera_dir(cam, cloud.v)
+    rays = reference.pixel_rays(cam, reference.pixel_centers(cam))[None]
+    t = reference.ray_plane_distance(rays, p, n)
+    st = reference.splat_coordinates(rays, t, p, uc, vc)[0]
+    r2 = np.sum(st**2, axis=-1)
+    inside, decided = r2 <= 1.0, np.abs(r2 - 1.0) > 1e-4
+    assert inside.sum() > 50
+    np.testing.assert_array_equal(frame.mask[decided], inside[decided])
+    np.testing.assert_allclose(frame.depth[inside & decided], t[0][inside & decided], rtol=1e-5)
+
+
+def test_lighting_matches_reference(renderer):
+    """A frontal splat lit by an oblique light: its color is the Blinn-Phong reference at its center."""
+    lights = Lights(directions=((0.3, 0.5, 1.0),), shininess=8.0)
+    cloud = single_splat((0, 0, 1.0), (0.2, 0, 0), (0, 0.2, 0), color=(0.9, 0.5, 0.2))
+    cam = Camera(eye=(0.0, 0.0, 2.0), target=(0, 0, 0), width=64, height=64, near=0.5, far=5.0)
+    frame = renderer.render(cloud, cam, "ewa", lights)
+    view = cam.view_matrix[:3, :3]
+    p = reference.to_camera(cam, cloud.positions)
+    expected = reference.shade(cloud.colors, reference.to_camera_dir(cam, cloud.normals),
+                               -p / np.linalg.norm(p), lights.world_directions(cam) @ view.T, lights)
+    np.testing.assert_allclose(frame.color[32, 32], np.clip(expected[0], 0, 1), atol=1e-5)
+
+
+def test_visibility_hides_the_back_surface(renderer):
+    """Two parallel planes: only the front one's color is blended; no bleeding of the back one."""
+    front = scenes.checkerboard(60, size=1.0)
+    front.colors[:] = (1.0, 0.0, 0.0)
+    back = scenes.checkerboard(60, size=1.5)
+    back.positions[:, 2] -= 0.3
+    back.colors[:] = (0.0, 0.0, 1.0)
+    both = SplatCloud(*[np.concatenate([getattr(front, f), getattr(back, f)])
+                        for f in ("positions", "normals", "colors", "u", "v")])
+    cam = Camera(eye=(0.2, 0.1, 2.0), target=(0, 0, 0), width=128, height=128, fov=40)
+    for technique in ("ewa", "flat"):
+        frame = renderer.render(both, cam, technique, UNLIT)
+        center = frame.color[40:88, 40:88]
+        assert center[..., 0].min() > 0.999 and center[..., 2].max() < 1e-3, technique
+        assert (frame.color[2:10, 2:10, 2] > 0.999).all(), "the back plane shows around the front one"
+
+
+def exact_sphere(cam: Camera, lights: Lights, albedo=0.8, supersample: int = 1):
+    """Color and coverage of the unit sphere at the origin, ray-cast per pixel in NumPy."""
+    big = cam.resized(cam.width * supersample, cam.height * supersample)
+    rays = reference.pixel_rays(big, reference.pixel_centers(big))
+    d = rays / np.linalg.norm(rays, axis=-1, keepdims=True)
+    center = reference.to_camera(big, np.zeros((1, 3)))[0]
+    b = d @ center
+    disc = b * b - (center @ center - 1.0)
+    hit = disc > 0
+    t = b - np.sqrt(np.maximum(disc, 0))
+    n = t[..., None] * d - center
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    light_dirs = lights.world_directions(big) @ big.view_matrix[:3, :3].T
+    color = np.clip(reference.shade(np.full(n.shape, albedo), n, -d, light_dirs, lights), 0, 1)
+    color[~hit] = 1.0
+    s = supersample
+    color = color.reshape(cam.height, s, cam.width, s, 3).mean(axis=(1, 3))
+    hit = hit.reshape(cam.height, s, cam.width, s).all(axis=(1, 3))
+    return color, hit
+
+
+def psnr(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
+    return float(10 * np.log10(1.0 / np.mean((a - b)[mask] ** 2)))
+
+
+@pytest.mark.parametrize("technique, min_psnr", [("ewa", 45.0), ("flat", 45.0)])
+def test_sphere_against_exact_ray_cast(renderer, technique, min_psnr):
+    """Issue 2: sampled sphere vs exact per-pixel sphere, 512x512: no holes, PSNR asserted.
+
+    Measured on llvmpipe: ewa 53 dB, flat 54 dB (400 k splats; ewa 45 dB at
+    100 k splats where per-splat lighting is coarser).
+    """
+    cloud = scenes.sphere(400_000)
+    lights = Lights()
+    cam = frame_bounds((-1, -1, -1), (1, 1, 1), width=512, height=512, radius=1.0)
+    frame = renderer.render(cloud, cam, technique, lights)
+    truth, hit = exact_sphere(cam, lights)
+    inner = ndimage.binary_erosion(hit, iterations=2)
+    assert inner.sum() > 100_000
+    assert (inner & ~frame.mask).sum() == 0, "holes inside the silhouette"
+    assert (frame.mask & ~ndimage.binary_dilation(hit, iterations=2)).sum() == 0, "splats leak outside"
+    assert psnr(frame.image() / 255.0, truth, inner) >= min_psnr
+
+
+@pytest.mark.parametrize("technique", ["flat", "ewa"])
+def test_depth_of_sphere_is_exact(renderer, technique):
+    """Per-pixel depth of a sampled sphere against the exact ray/sphere depth."""
+    cloud = scenes.sphere(200_000)
+    cam = frame_bounds((-1, -1, -1), (1, 1, 1), width=256, height=256, radius=1.0)
+    frame = renderer.render(cloud, cam, technique, UNLIT)
+    rays = reference.pixel_rays(cam, reference.pixel_centers(cam))
+    d = rays / np.linalg.norm(rays, axis=-1, keepdims=True)
+    center = reference.to_camera(cam, np.zeros((1, 3)))[0]
+    b = d @ center
+    disc = b * b - (center @ center - 1.0)
+    inner = ndimage.binary_erosion(disc > 0, iterations=3)
+    t = b - np.sqrt(np.maximum(disc, 0))
+    depth = t * -d[..., 2]
+    normal = t[..., None] * d - center
+    cos = np.abs(np.sum(normal * d, axis=-1))  # |n . view ray|
+    err = np.abs(frame.depth - depth)
+    # tangent disks of radius r lie within r^2 / 2 of the unit sphere, which a
+    # ray meeting the surface at angle theta sees as r^2 / (2 cos theta) in depth
+    r = np.sqrt(4 * np.pi / 200_000)
+    with np.errstate(divide="ignore"):
+        bound = r**2 / (2 * cos)
+    if technique == "flat":
+        assert (err[inner] < 1.05 * bound[inner]).all()
+    else:
+        # EWA low-pass filters depth over its footprint (the prefilter's ~1.4 px):
+        # a tenth of a splat radius where the surface faces the eye, <= 2 r at the rim
+        assert err[inner & (cos > 0.8)].max() < 0.1 * r
+        assert err[inner].max() < 2 * r
+
+
+def test_render_errors_are_clear(renderer):
+    with pytest.raises(InputError, match="unknown technique"):
+        renderer.render(scenes.sphere(100), Camera(), "nope")
+    with pytest.raises(InputError, match="preprocess"):
+        renderer.upload(SplatCloud(np.zeros((3, 3))))
+    with pytest.raises(InputError, match="field of view"):
+        Camera(fov=0)
+    with pytest.raises(InputError, match="up vector"):
+        Camera(eye=(0, 0, 1), target=(0, 0, 0), up=(0, 0, 2))
+    with pytest.raises(InputError, match="cutoff"):
+        RenderOptions(cutoff=0)
+    with pytest.raises(InputError, match="light"):
+        Lights(directions=((0, 0, 0),))
