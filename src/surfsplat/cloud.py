@@ -166,7 +166,12 @@ class SplatCloud:
             detail = ", ".join(f"{count} with {why}" for why, count in reasons.items() if count)
             warnings.warn(f"{source}: dropped {dropped} of {n} points ({detail})", InvalidPointsWarning, stacklevel=2)
         if out.normals is not None:
-            out.normals = (out.normals / np.linalg.norm(out.normals, axis=1, keepdims=True)).astype(np.float32)
+            # renormalize only rows that are not unit already, so validation is idempotent
+            length = np.linalg.norm(out.normals, axis=1, keepdims=True)
+            off = np.abs(length[:, 0] - 1.0) > 1e-6
+            if off.any():
+                out.normals = out.normals.copy()
+                out.normals[off] /= length[off]
         if out.colors is not None:
             out.colors = np.clip(out.colors, 0.0, 1.0)
         return out

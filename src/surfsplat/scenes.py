@@ -10,19 +10,13 @@ import numpy as np
 
 from .cloud import SplatCloud
 from .errors import InputError
+from .geometry.splats import tangent_frame
 
 GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
-
-def _frame(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Orthonormal tangents (t1, t2) for unit normals (N, 3)."""
-    helper = np.where(np.abs(normals[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
-    t1 = _unit(np.cross(helper, normals))
-    return t1, np.cross(normals, t1)
 
 
 def checker_color(s: np.ndarray, t: np.ndarray, squares: float,
@@ -49,7 +43,7 @@ def sphere(n: int = 100_000, radius: float = 1.0, center=(0.0, 0.0, 0.0), color=
     normals = np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
     positions = np.asarray(center) + radius * normals
     splat_r = coverage * radius * np.sqrt(4.0 * np.pi / n)
-    t1, t2 = _frame(normals)
+    t1, t2 = tangent_frame(normals)
     colors = None
     if isinstance(color, str) and color == "bands":
         colors = checker_color(np.arccos(z) / np.pi, np.zeros(n), 8, (0.85, 0.3, 0.2), (0.9, 0.85, 0.7))

@@ -283,25 +283,10 @@ def _boruvka(n: int, cost: np.ndarray, sign: np.ndarray, idx: np.ndarray):
     flip = np.ones(n, dtype=np.int8)
     best = np.empty(n, dtype=np.uint64)
     tree = []
-    src, dst, ekey = src_all, dst_all, key  # candidate edges (shrinks as components grow)
-    first = True
-    while len(ekey):
-        if first:
-            ca, cb, mkey = src, dst, ekey      # no self loops in a kNN graph
-            first = False
-        else:
-            ca = comp[src]
-            cb = comp[dst]
-            external = ca != cb
-            alive = int(np.count_nonzero(external))
-            if alive == 0:
-                break
-            if alive < 0.6 * len(ekey):
-                # compact once enough edges became internal
-                src, dst, ekey, ca, cb = src[external], dst[external], ekey[external], ca[external], cb[external]
-                mkey = ekey
-            else:
-                mkey = np.where(external, ekey, none)  # cheaper than compacting 5 arrays
+    ekey = key         # keys of the candidate edges (shrinks as components grow)
+    ca, cb = src_all, dst_all  # no self loops in a kNN graph: all edges external at first
+    mkey = key
+    while True:
         # each component's cheapest outgoing edge
         best.fill(none)
         np.minimum.at(best, ca, mkey)
@@ -329,6 +314,21 @@ def _boruvka(n: int, cost: np.ndarray, sign: np.ndarray, idx: np.ndarray):
         comp = parent[comp]
         parent[act] = act
         flip[act] = 1
+        # edges still between different components; the edge id (low key bits)
+        # gives both endpoints, so only the keys need compacting
+        eid = (ekey & low).view(np.int64)
+        ca = comp[src_all[eid]]
+        cb = comp[dst_all[eid]]
+        external = ca != cb
+        alive = int(np.count_nonzero(external))
+        if alive == 0:
+            break
+        if alive < 0.6 * len(ekey):
+            keep = np.flatnonzero(external)
+            ekey, ca, cb = ekey[keep], ca[keep], cb[keep]
+            mkey = ekey
+        else:
+            mkey = np.where(external, ekey, none)  # cheaper than compacting
     tree_edges = np.concatenate(tree) if tree else np.zeros(0, dtype=np.intp)
     return comp, rel, tree_edges
 

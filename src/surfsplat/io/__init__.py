@@ -21,7 +21,7 @@ from pathlib import Path
 
 from ..cloud import SplatCloud
 from ..errors import InputError
-from .mesh import Mesh, area_weighted_normals, read_obj
+from .mesh import Mesh, area_weighted_normals, check_face_indices, read_obj
 from .ply import read_ply, read_ply_mesh, write_ply
 
 #: File extensions :func:`load` understands (lower case).
@@ -41,7 +41,8 @@ def load(path: str | os.PathLike) -> SplatCloud:
       normals are kept, else vertices get area-weighted face normals and
       vertices used by no face are dropped (counted in the warning).
     - ``.obj``: triangle mesh read with trimesh: vertices become points with
-      the file's normals (or area-weighted ones) and vertex colors if any.
+      the file's normals (or area-weighted ones) and vertex colors if any; an
+      OBJ with vertices and no faces is read as a point cloud (no normals).
     - ``.las`` / ``.laz``: positions and RGB (optional dependency laspy).
 
     Returns a SplatCloud: positions (N, 3) float32 model space (the file's
@@ -60,7 +61,7 @@ def load(path: str | os.PathLike) -> SplatCloud:
     if suffix == ".ply":
         cloud = read_ply(path)
     elif suffix == ".obj":
-        cloud = _mesh_to_cloud(read_obj(path).validated(str(path)))
+        cloud = _mesh_to_cloud(read_obj(path), str(path))
     else:
         from .las import read_las
 
@@ -124,8 +125,12 @@ def _existing(path: str | os.PathLike, extensions: tuple[str, ...]) -> Path:
     return path
 
 
-def _mesh_to_cloud(mesh: Mesh) -> SplatCloud:
-    """The mesh's vertices as points, with its normals or area-weighted ones."""
+def _mesh_to_cloud(mesh: Mesh, source: str) -> SplatCloud:
+    """The mesh's vertices as points, with its normals or area-weighted ones
+    (no normals when the mesh has no faces: a point cloud)."""
+    if len(mesh.faces) == 0:
+        return SplatCloud(positions=mesh.vertices, normals=mesh.vertex_normals, colors=mesh.vertex_colors)
+    check_face_indices(mesh.faces, len(mesh.vertices), source)
     normals = mesh.vertex_normals
     if normals is None:
         normals = area_weighted_normals(mesh.vertices, mesh.faces)

@@ -158,8 +158,10 @@ def read_obj(path: Path) -> Mesh:
     Polygons are triangulated by trimesh; several objects in one file are
     concatenated. Vertex normals are kept when the file has them (``vn`` lines),
     else ``vertex_normals`` is None. Per-vertex colors (``v x y z r g b``) are
-    kept; texture-mapped colors are ignored. Note that trimesh drops vertices
-    that no face uses. Any parse failure raises InputError naming the file.
+    kept; texture-mapped colors are ignored. trimesh drops vertices that no
+    face uses; an OBJ with vertices but no faces gives a Mesh with (0, 3)
+    faces (a point cloud for ``load``, an error for ``load_mesh``). Any parse
+    failure, and a file without vertices, raises InputError naming the file.
     """
     import trimesh
 
@@ -167,33 +169,46 @@ def read_obj(path: Path) -> Mesh:
     try:
         loaded = trimesh.load(source, file_type="obj", process=False)
         if isinstance(loaded, trimesh.Scene):
-            parts = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)]
-            loaded = trimesh.util.concatenate(parts) if parts else trimesh.Trimesh()
-        if not isinstance(loaded, trimesh.Trimesh):
-            raise InputError(f"{source}: OBJ file holds no triangle mesh ({type(loaded).__name__})")
-        vertices = np.asarray(loaded.vertices, dtype=np.float64)
-        faces = np.asarray(loaded.faces, dtype=np.int64).reshape(-1, 3)
-        # trimesh keeps normals read from the file in its cache; asking for
-        # ``vertex_normals`` otherwise computes them (angle-weighted), so look first.
-        cache = getattr(getattr(loaded, "_cache", None), "cache", {})
-        normals = cache.get("vertex_normals") if hasattr(cache, "get") else None
-        if normals is not None:
-            normals = np.asarray(normals, dtype=np.float64)
-            if normals.shape != vertices.shape:
-                normals = None
-        colors = None
-        visual = getattr(loaded, "visual", None)
-        if getattr(visual, "kind", None) == "vertex":
-            rgba = np.asarray(visual.vertex_colors)
-            if rgba.shape[0] == len(vertices):
+            parts = [g for g in loaded.dump() if isinstance(g, (trimesh.Trimesh, trimesh.PointCloud))]
+            meshes = [g for g in parts if isinstance(g, trimesh.Trimesh)]
+            if meshes:
+                loaded = trimesh.util.concatenate(meshes) if len(meshes) > 1 else meshes[0]
+            elif parts:
+                loaded = parts[0] if len(parts) == 1 else trimesh.PointCloud(
+                    np.concatenate([p.vertices for p in parts]))
+            else:
+                loaded = trimesh.Trimesh()
+        colors = normals = None
+        if isinstance(loaded, trimesh.PointCloud):  # vertices only
+            vertices = np.asarray(loaded.vertices, dtype=np.float64)
+            faces = np.zeros((0, 3), dtype=np.int64)
+            rgba = np.asarray(loaded.colors) if len(getattr(loaded, "colors", ())) else None
+            if rgba is not None and rgba.shape[0] == len(vertices):
                 colors = rgba[:, :3].astype(np.float64) / 255.0
+        elif isinstance(loaded, trimesh.Trimesh):
+            vertices = np.asarray(loaded.vertices, dtype=np.float64)
+            faces = np.asarray(loaded.faces, dtype=np.int64).reshape(-1, 3)
+            # trimesh keeps normals read from the file in its cache; asking for
+            # ``vertex_normals`` otherwise computes them (angle-weighted), so look first.
+            cache = getattr(getattr(loaded, "_cache", None), "cache", {})
+            normals = cache.get("vertex_normals") if hasattr(cache, "get") else None
+            if normals is not None:
+                normals = np.asarray(normals, dtype=np.float64)
+                if normals.shape != vertices.shape:
+                    normals = None
+            visual = getattr(loaded, "visual", None)
+            if getattr(visual, "kind", None) == "vertex":
+                rgba = np.asarray(visual.vertex_colors)
+                if rgba.shape[0] == len(vertices):
+                    colors = rgba[:, :3].astype(np.float64) / 255.0
+        else:
+            raise InputError(f"{source}: OBJ file holds no triangle mesh ({type(loaded).__name__})")
     except InputError:
         raise
     except Exception as exc:  # trimesh raises many types (IndexError, ValueError, ...)
         raise InputError(f"{source}: cannot read OBJ file: {type(exc).__name__}: {exc}") from exc
-    if len(faces) == 0:
-        raise InputError(f"{source}: OBJ file has no faces (surfsplat reads OBJ files as "
-                         "triangle meshes; an OBJ with only vertices is not supported)")
+    if len(vertices) == 0:
+        raise InputError(f"{source}: OBJ file has no vertices")
     return Mesh(vertices, faces, normals, colors)
 
 

@@ -5,17 +5,17 @@ Reading accepts ascii, binary_little_endian and binary_big_endian files. The
 arrays as follows (every group but ``x y z`` is optional, and a group must be
 complete):
 
-=================================================  =======================================
-PLY vertex properties                              SplatCloud
-=================================================  =======================================
-``x y z``                                          ``positions``
-``nx ny nz``                                       ``normals``
-``red green blue`` (``alpha`` ignored)             ``colors`` (see :func:`color_scale`)
-``ux uy uz vx vy vz``                              ``u``, ``v`` (elliptical splat axes)
-``radius``                                         ``u``, ``v`` of a circular splat
-``alpha beta``                                     ``normal_field``
-``clip0_a clip0_b clip0_c [clip1_a clip1_b clip1_c]``  ``clip_lines``
-=================================================  =======================================
+- ``x y z`` -> ``positions`` (required)
+- ``nx ny nz`` -> ``normals``
+- ``red green blue`` (``alpha`` ignored; or ``diffuse_red diffuse_green
+  diffuse_blue``) -> ``colors``, scaled to [0, 1] as :func:`color_scale` says
+- ``ux uy uz vx vy vz`` -> ``u``, ``v`` (elliptical splat axes)
+- ``radius`` -> ``u``, ``v`` of a circular splat of that radius (Pointshop3D /
+  MeshLab convention; needs normals, ignored with a warning without them;
+  ``ux ...`` take precedence)
+- ``alpha beta`` -> ``normal_field``
+- ``clip0_a clip0_b clip0_c`` and optionally ``clip1_a clip1_b clip1_c`` ->
+  ``clip_lines`` (a missing line is ``(0, 0, 1)``, keep everything)
 
 ``alpha`` alone is a color's opacity and is ignored; ``alpha`` together with
 ``beta`` is the linear normal field. Other properties (``confidence``,
@@ -348,8 +348,8 @@ def color_scale(values: np.ndarray) -> float:
 def read_colors(data: np.ndarray, names: set[str], source: str) -> np.ndarray | None:
     """(N, 3) float32 colors from ``red green blue`` (or ``diffuse_red ...``), or None.
 
-    The divisor is chosen once for the three channels by :func:`color_scale`
-    on the first channel's type (and the largest value over all three).
+    One divisor for the three channels, chosen by :func:`color_scale` from
+    their type and their largest value (mixed types are decided as floats).
     """
     for group in (("red", "green", "blue"), ("diffuse_red", "diffuse_green", "diffuse_blue")):
         if any(name in names for name in group):

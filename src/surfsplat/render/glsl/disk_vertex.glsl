@@ -3,7 +3,8 @@
 
 // Window-pixel box of the projected parallelogram p +- u +- v, which contains
 // the ellipse; the whole viewport when a corner is not in front of the near
-// plane. False when the box misses the viewport.
+// plane. The box is shrunk to the pixel centers it holds; false when it holds
+// none (a sub-pixel disk between centers cannot cover any: no primitive is sent).
 bool disk_bounds(Splat s, out vec2 lo, out vec2 hi) {
     lo = vec2(1e30);
     hi = vec2(-1e30);
@@ -16,7 +17,8 @@ bool disk_bounds(Splat s, out vec2 lo, out vec2 hi) {
         hi = max(hi, q);
     }
     if (behind) { lo = vec2(-1.0); hi = u_viewport + 1.0; }
-    lo = max(floor(lo), vec2(-1.0));
-    hi = min(ceil(hi), u_viewport + 1.0);
+    // pixel i (center i + 0.5) is inside when lo <= i + 0.5 <= hi
+    lo = max(ceil(lo - 0.5), vec2(0.0));
+    hi = min(floor(hi - 0.5) + 1.0, u_viewport);
     return all(lessThan(lo, hi));
 }

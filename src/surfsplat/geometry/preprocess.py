@@ -1,0 +1,159 @@
+"""Preprocessing: from points (optional normals, colors) to renderable splats.
+
+Stages, each reported through :func:`surfsplat.progress.stage`:
+
+1. spatial sort (Morton order; internal only, the result keeps the input order),
+2. k-nearest neighbours (:func:`knn`),
+3. normals by PCA (:func:`estimate_normals`) when the cloud has none,
+4. consistent orientation (:func:`orient_normals`, Hoppe et al. 1992) when
+   the normals were estimated here,
+5. splat axes (:func:`elliptical_splats`, Pajarola 2003, or
+   :func:`circular_splats`, Guennebaud 2003 eq. 7) unless the cloud has
+   ``u`` and ``v`` already.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .. import progress
+from ..cloud import SplatCloud
+from ..errors import InputError
+from .neighbors import _LEAFSIZE, _as_points, knn, spatial_order
+from .normals import estimate_normals, orient_normals
+from .splats import COVERAGE, MAX_ANISOTROPY, circular_splats, elliptical_splats
+
+SHAPES = ("ellipse", "circle")
+
+
+def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True,
+               coverage: float = COVERAGE, max_anisotropy: float = MAX_ANISOTROPY,
+               source: str = "input") -> SplatCloud:
+    """Turn a point cloud into renderable splats.
+
+    Args:
+        cloud: a :class:`SplatCloud` (or an (N, 3) array of positions).
+            Existing normals, colors, ``u``/``v``, normal fields and clip lines
+            are kept as they are.
+        k: neighbours per point (>= 1). Clouds with at most k points use
+            ``k = N - 1`` and warn.
+        shape: ``"ellipse"`` (Pajarola 2003 covariance ellipses, default) or
+            ``"circle"`` (Guennebaud 2003 eq. 7 radii).
+        orient: orient estimated normals consistently (Hoppe et al. 1992).
+            Given normals are never re-oriented.
+        coverage: factor on all splat radii (default 1.0).
+        max_anisotropy: cap of the ellipse axis ratio (default 4.0).
+        source: name of the input in messages and warnings.
+
+    Returns:
+        A validated :class:`SplatCloud` in the input order (invalid input rows
+        dropped with a warning) with unit ``normals`` and splat axes ``u``,
+        ``v`` (float32, model units). If the cloud has ``u`` and ``v`` but no
+        normals, the normals are ``u x v`` normalized.
+
+    Raises:
+        InputError: bad arguments, no valid points, or a single point without
+            splat axes (its size cannot be derived).
+    """
+    if not isinstance(cloud, SplatCloud):
+        cloud = SplatCloud(positions=cloud)
+    if shape not in SHAPES:
+        raise InputError(f"shape must be one of {SHAPES}, got {shape!r}")
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+        raise InputError(f"k must be a positive integer, got {k!r}")
+    if not coverage > 0:
+        raise InputError(f"coverage must be > 0, got {coverage}")
+    if not max_anisotropy >= 1:
+        raise InputError(f"max_anisotropy must be >= 1, got {max_anisotropy}")
+    cloud = cloud.validated(source)
+    n = len(cloud)
+    need_normals = cloud.normals is None
+    need_axes = cloud.u is None or cloud.v is None
+    if not need_axes:
+        if need_normals:
+            normals = np.cross(cloud.u, cloud.v)
+            cloud = cloud.replace(normals=normals)
+        return cloud.validated(source)
+    if n < 2:
+        raise InputError(f"{source}: preprocessing needs at least 2 points to size the splats, got {n}")
+    k = int(k)
+    if k > n - 1:
+        warnings.warn(f"{source}: only {n} points, using k = {n - 1} neighbours instead of {k}", stacklevel=2)
+        k = n - 1
+
+    with progress.stage("spatial sort", n):
+        perm = spatial_order(cloud.positions)
+        pts = cloud.positions[perm]
+    with progress.stage(f"{k}-nearest neighbours", n):
+        dist, idx = knn(pts, k)
+    if need_normals:
+        with progress.stage("normals (PCA)", n):
+            normals = estimate_normals(pts, idx)
+        if orient:
+            with progress.stage("orientation (MST)", n):
+                normals = orient_normals(pts, normals, idx)
+    else:
+        normals = cloud.normals[perm]
+    with progress.stage(f"splat {shape}s", n):
+        if shape == "ellipse":
+            u, v = elliptical_splats(pts, normals, idx, dist, coverage=coverage, max_anisotropy=max_anisotropy)
+        else:
+            u, v = circular_splats(normals, dist, coverage=coverage)
+
+    def unsort(arr):
+        out = np.empty_like(arr)
+        out[perm] = arr
+        return out
+
+    changes = {"u": unsort(u), "v": unsort(v)}
+    if need_normals:
+        changes["normals"] = unsort(normals)
+    return cloud.replace(**changes).validated(source)
+
+
+def neighbour_spacing(positions, k: int = 1, sample: int | None = None, seed: int = 0) -> dict:
+    """Statistics of the distance from a point to its k-th nearest neighbour.
+
+    For an ``info`` command: the sampling density of a cloud.
+
+    Args:
+        positions: (N, 3) float array (or a SplatCloud), model units, N >= k + 1.
+        k: which neighbour (1 = nearest; the point itself excluded).
+        sample: if given and smaller than N, only this many randomly chosen
+            points are queried (the tree holds all points): a fast estimate
+            for very large clouds.
+        seed: random seed of the sample.
+
+    Returns:
+        dict with float ``min``, ``median``, ``mean``, ``max`` (model units)
+        and int ``count`` (points queried) and ``zero`` (queried points with
+        a coincident duplicate as k-th neighbour, distance 0).
+    """
+    if isinstance(positions, SplatCloud):
+        positions = positions.positions
+    points = _as_points(positions)
+    n = len(points)
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+        raise InputError(f"neighbour_spacing: k must be a positive integer, got {k!r}")
+    if n < k + 1:
+        raise InputError(f"neighbour_spacing: need at least {k + 1} points, got {n}")
+    if sample is not None and sample < n:
+        query = np.sort(np.random.default_rng(seed).choice(n, size=int(sample), replace=False))
+    else:
+        query = np.arange(n)
+    tree = cKDTree(points, leafsize=_LEAFSIZE, balanced_tree=False, compact_nodes=False)
+    dist, _ = tree.query(points[query], k=k + 1, workers=-1)
+    # result 0 is the point itself (or a duplicate at distance 0): result k is
+    # the k-th other point either way
+    d = dist[:, k]
+    return {
+        "min": float(d.min()),
+        "median": float(np.median(d)),
+        "mean": float(d.mean()),
+        "max": float(d.max()),
+        "count": int(len(d)),
+        "zero": int((d == 0).sum()),
+    }

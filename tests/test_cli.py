@@ -1,0 +1,117 @@
+"""The command line end to end: every subcommand, and clear errors for bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from surfsplat import SplatCloud
+from surfsplat.cli import main
+from surfsplat.io import load, save_ply
+
+
+def run(capsys, *argv) -> tuple[int, str, str]:
+    status = main(["-q", *map(str, argv)])
+    out, err = capsys.readouterr()
+    return status, out, err
+
+
+def noisy_sphere(n: int = 3000, seed: int = 0) -> SplatCloud:
+    p = np.random.default_rng(seed).normal(size=(n, 3))
+    return SplatCloud(p / np.linalg.norm(p, axis=1, keepdims=True))
+
+
+@pytest.mark.parametrize("scene", ["torus", "sphere", "checkerboard"])
+def test_demo_renders_a_picture(tmp_path, capsys, scene):
+    out = tmp_path / f"{scene}.png"
+    status, _, err = run(capsys, "demo", "--scene", scene, "-o", out, "--width", 160, "--height", 120)
+    assert status == 0, err
+    image = np.asarray(Image.open(out))
+    assert image.shape == (120, 160, 3)
+    covered = (image < 250).any(axis=2)
+    assert 0.1 < covered.mean() < 0.95  # the model is framed: visible, not cropped to the edges
+
+
+def test_render_raw_points_with_camera_flags_and_depth(tmp_path, capsys):
+    ply = save_ply(noisy_sphere(), tmp_path / "points.ply")
+    out, depth = tmp_path / "out.png", tmp_path / "depth.npy"
+    status, _, err = run(capsys, "render", ply, "-o", out, "--width", 128, "--height", 96, "--eye", 0, 0, 4,
+                         "--target", 0, 0, 0, "--fov", 40, "--light", 1, 1, 1, "--background", 0, 0, 0,
+                         "--depth", depth)
+    assert status == 0, err
+    image = np.asarray(Image.open(out))
+    d = np.load(depth)
+    assert image.shape == (96, 128, 3) and d.shape == (96, 128)
+    assert (image[0, 0] == 0).all()  # the black background
+    # the eye is on the optical axis 4 units from a unit sphere: depth 3 at the center
+    assert abs(d[48, 64] - 3.0) < 0.02
+    # the exact sphere's silhouette radius in pixels, for the 40 degree field of view
+    focal = 48 / np.tan(np.radians(20))
+    radius_px = focal * np.tan(np.arcsin(1 / 4))
+    covered = np.isfinite(d)
+    assert abs(np.sqrt(covered.sum() / np.pi) - radius_px) < 1.5
+
+
+def test_preprocess_sample_info(tmp_path, capsys):
+    import trimesh
+
+    mesh_path = tmp_path / "ico.ply"
+    trimesh.creation.icosphere(subdivisions=2).export(mesh_path)
+    samples = tmp_path / "samples.ply"
+    assert run(capsys, "sample", mesh_path, "-n", 2000, "-o", samples)[0] == 0
+    cloud = load(samples)
+    assert len(cloud) == 2000 and cloud.normals is not None
+
+    splats = tmp_path / "splats.ply"
+    assert run(capsys, "preprocess", samples, "-o", splats, "--k", 10)[0] == 0
+    model = load(splats)
+    assert model.has_splats and len(model) == 2000
+
+    status, out, _ = run(capsys, "info", splats)
+    assert status == 0
+    assert "2,000" in out and "normals" in out and "spacing" in out
+
+    # no silent overwrite of an existing file; an explicit --force does it
+    status, _, err = run(capsys, "preprocess", samples, "-o", splats)
+    assert status == 2 and "exists" in err
+    assert run(capsys, "preprocess", samples, "-o", splats, "--force")[0] == 0
+
+
+@pytest.mark.parametrize("content, problem", [
+    (b"", ""),
+    (b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nend_header\n1\n2\n", ""),
+    (b"not a ply file at all", ""),
+])
+def test_bad_files_give_a_clear_error(tmp_path, capsys, content, problem):
+    bad = tmp_path / "bad.ply"
+    bad.write_bytes(content)
+    status, out, err = run(capsys, "render", bad, "-o", tmp_path / "x.png")
+    assert status == 2
+    assert "bad.ply" in err and "Traceback" not in err
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_missing_file_and_unknown_scene(tmp_path, capsys):
+    status, _, err = run(capsys, "render", tmp_path / "nope.ply", "-o", tmp_path / "x.png")
+    assert status == 2 and "nope.ply" in err
+    with pytest.raises(SystemExit):
+        main(["demo", "--scene", "nope"])
+
+
+def test_render_refuses_to_overwrite_its_input(tmp_path, capsys):
+    ply = save_ply(noisy_sphere(500), tmp_path / "points.ply")
+    before = ply.read_bytes()
+    status, _, err = run(capsys, "preprocess", ply, "-o", ply, "--force")
+    assert status == 2 and "input" in err
+    assert ply.read_bytes() == before
+
+
+def test_bad_numbers_are_rejected(tmp_path, capsys):
+    ply = save_ply(noisy_sphere(500), tmp_path / "points.ply")
+    out = tmp_path / "x.png"
+    assert run(capsys, "render", ply, "-o", out, "--background", 2, 0, 0)[0] == 2
+    assert run(capsys, "render", ply, "-o", out, "--fov", 0, "--eye", 0, 0, 3)[0] == 2
+    assert run(capsys, "render", ply, "-o", out, "--width", 0)[0] == 2
+    assert run(capsys, "render", ply, "-o", out, "--light", 0, 0, 0)[0] == 2
+    assert not out.exists()
