@@ -216,3 +216,27 @@ def test_render_errors_are_clear(renderer):
         RenderOptions(cutoff=0)
     with pytest.raises(InputError, match="light"):
         Lights(directions=((0, 0, 0),))
+
+
+def test_preprocessed_random_sphere_against_exact_ray_cast(renderer):
+    """Uniform random points (no normals, no radii) -> preprocess -> ewa, 512x512.
+
+    The whole pipeline: kNN, PCA normals, MST orientation, covariance ellipses.
+    Measured: ewa 49.0 dB, flat 40.7 dB, no holes, no leaks (100 k points).
+    """
+    from surfsplat import preprocess
+
+    p = np.random.default_rng(0).normal(size=(100_000, 3))
+    cloud = preprocess(SplatCloud(p / np.linalg.norm(p, axis=1, keepdims=True)))
+    lights = Lights()
+    cam = frame_bounds((-1, -1, -1), (1, 1, 1), width=512, height=512, radius=1.0)
+    truth, hit = exact_sphere(cam, lights)
+    inner = ndimage.binary_erosion(hit, iterations=2)
+    quality = {}
+    for technique in ("ewa", "flat"):
+        frame = renderer.render(cloud, cam, technique, lights)
+        assert (inner & ~frame.mask).sum() == 0, f"{technique}: holes inside the silhouette"
+        assert (frame.mask & ~ndimage.binary_dilation(hit, iterations=2)).sum() == 0
+        quality[technique] = psnr(frame.image() / 255.0, truth, inner)
+    assert quality["ewa"] >= 45.0
+    assert quality["ewa"] > quality["flat"] + 3.0  # blending beats opaque disks

@@ -48,14 +48,21 @@ def spatial_order(positions) -> np.ndarray:
         coherent, so neighbour gathers in later stages hit the cache
         (measured ~30x faster gathers on 1 M random-order points).
     """
-    p = np.asarray(positions, dtype=np.float64)
+    p = np.asarray(positions)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise InputError(f"positions must have shape (N, 3), got {p.shape}")
     if len(p) == 0:
         return np.zeros(0, dtype=np.int64)
-    lo = p.min(axis=0)
-    extent = float((p.max(axis=0) - lo).max())
-    scale = (2**21 - 1) / extent if extent > 0 else 0.0
-    q = ((p - lo) * scale).astype(np.uint64)
-    code = _part1by2(q[:, 0]) | (_part1by2(q[:, 1]) << np.uint64(1)) | (_part1by2(q[:, 2]) << np.uint64(2))
+    cols = [np.ascontiguousarray(p[:, c], dtype=np.float64) for c in range(3)]  # column reductions are ~10x faster
+    lo = [c.min() for c in cols]
+    extent = max(float(c.max() - l) for c, l in zip(cols, lo))
+    scale = (2**21 - 1) / extent if extent > 0 and np.isfinite(extent) else 0.0
+    code = None
+    for axis, (c, l) in enumerate(zip(cols, lo)):
+        c -= l
+        c *= scale
+        bits = _part1by2(c.astype(np.uint64)) << np.uint64(axis)
+        code = bits if code is None else np.bitwise_or(code, bits, out=code)
     return np.argsort(code).astype(np.int64, copy=False)
 
 
@@ -70,15 +77,19 @@ def _part1by2(x: np.ndarray) -> np.ndarray:
     return x
 
 
-def knn(positions, k: int) -> tuple[np.ndarray, np.ndarray]:
+def knn(positions, k: int, *, presorted: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """The k nearest neighbours of every point, the point itself excluded.
 
-    Uses a SciPy ``cKDTree`` queried with ``workers=-1`` (all cores), queries
-    issued in the tree's leaf order for cache locality.
+    Uses a SciPy ``cKDTree`` queried with ``workers=-1`` (all cores). Queries
+    are issued in the tree's leaf order for cache locality (about 2.5x faster
+    on 1 M points in random order) unless ``presorted``.
 
     Args:
         positions: (N, 3) float array, model units; must be finite.
         k: number of neighbours, ``1 <= k <= N - 1``.
+        presorted: the points are already in a spatially coherent order
+            (e.g. permuted by :func:`spatial_order`): query them in the given
+            order, skipping the reordering (same result, a little faster).
 
     Returns:
         ``(distances, indices)``: (N, k) float32 Euclidean distances in model
@@ -88,31 +99,40 @@ def knn(positions, k: int) -> tuple[np.ndarray, np.ndarray]:
 
     Raises:
         InputError: malformed or non-finite positions, ``k < 1``, or fewer
-            than ``k + 1`` points.
+            than ``k + 1`` points (this function does not clamp k;
+            :func:`~surfsplat.geometry.preprocess` does, with a warning).
     """
     points = _as_points(positions)
     n = len(points)
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+        raise InputError(f"knn: k must be a positive integer, got {k!r}")
     k = int(k)
-    if k < 1:
-        raise InputError(f"knn: k must be at least 1, got {k}")
     if n < k + 1:
         raise InputError(f"knn: need at least k + 1 = {k + 1} points for k = {k} neighbours, got {n}")
     tree = _tree(points)
-    order = np.asarray(tree.indices, dtype=np.int64)
-    dist, idx = tree.query(points[order], k=k + 1, workers=-1)
-    is_self = idx == order[:, None]
-    if is_self[:, 0].all():
+    if presorted:
+        order = None
+        expected = np.arange(n)
+        dist, idx = tree.query(points, k=k + 1, workers=-1)
+    else:
+        order = np.asarray(tree.indices, dtype=np.int64)
+        expected = order
+        dist, idx = tree.query(points[order], k=k + 1, workers=-1)
+    if (idx[:, 0] == expected).all():
         # usual case: the point itself comes first (distance 0, no duplicates)
         dist, idx = dist[:, 1:], idx[:, 1:]
     else:
         # coincident duplicates may come before the point itself, or push it
         # out of the k + 1 results altogether: drop the point where it is,
         # else the last (farthest) result. Rows stay sorted.
+        is_self = idx == expected[:, None]
         missing = ~is_self.any(axis=1)
         is_self[missing, -1] = True
         keep = ~is_self
         dist = dist[keep].reshape(n, k)
         idx = idx[keep].reshape(n, k)
+    if order is None:
+        return dist.astype(np.float32), np.ascontiguousarray(idx, dtype=np.int64)
     out_d = np.empty((n, k), dtype=np.float32)
     out_i = np.empty((n, k), dtype=np.int64)
     out_d[order] = dist

@@ -250,52 +250,186 @@ def _pointer_jump(parent: np.ndarray, value: np.ndarray, nodes: np.ndarray | Non
         parent[todo] = upup
 
 
-def _boruvka(n: int, cost: np.ndarray, sign: np.ndarray, idx: np.ndarray):
+def _mutual_duplicates(pts: np.ndarray, idx: np.ndarray, dist: np.ndarray | None = None) -> np.ndarray:
+    """(N, k) bool: kNN entries (i, j) that are the second copy of an undirected edge.
+
+    True where j < i and i is certainly among the neighbours of j, i.e.
+    ``|p_i - p_j| < |p_j - p_(k-th neighbour of j)|`` (the rows of a kNN
+    query are the k closest points). With ``dist`` (the float32 distances
+    from :func:`knn`, rounded monotonically from the exact ones) the strict
+    comparison is exact; without, squared float32 distances are recomputed
+    from ``pts`` and compared with a relative margin of 1e-5, so rounding
+    never drops an edge whose twin is missing. Dropping these halves the work for mutual pairs (most kNN
+    edges) without changing the graph or the spanning tree: the twin has
+    the same cost and a smaller position, so it always comes first.
+    """
+    n, k = idx.shape
+    if dist is not None:
+        far = dist[:, 0].copy()
+        for j in range(1, k):
+            np.maximum(far, dist[:, j], out=far)
+        dup = dist < far[idx]
+        dup &= idx < np.arange(n)[:, None]
+        return dup
+    d2 = None
+    for col in _columns(pts):
+        d = col[idx]
+        d -= col[:, None]
+        d *= d
+        d2 = d if d2 is None else np.add(d2, d, out=d2)
+    far = d2[:, 0].copy()
+    for j in range(1, k):
+        np.maximum(far, d2[:, j], out=far)  # squared distance to the k-th neighbour
+    dup = d2 < far[idx] * np.float32(1.0 - 1e-5)
+    dup &= idx < np.arange(n)[:, None]
+    return dup
+
+
+#: Light-edge phase of the filtered Boruvka: about this many edges per point
+#: (the cheapest ones) are processed first; the rest only where they join
+#: different components afterwards.
+LIGHT_EDGES_PER_POINT = 2.0
+
+
+def _boruvka(n: int, cost: np.ndarray, sign: np.ndarray, idx: np.ndarray, skip: np.ndarray | None = None):
     """Minimum spanning forest of the kNN graph by Boruvka, with sign propagation.
 
-    Edges are the N*k entries ``(i, idx[i, j])``, ranked by ``(cost, i*k + j)``.
-    Each round every component takes its cheapest outgoing edge, components
-    merge along them (pointer jumping over the component labels), and each
-    merged component's sign relative to its new root is
-    ``rel[i] * rel[j] * sign(n_i . n_j)`` for the connecting edge (i, j).
+    Edges are the N*k entries ``(i, idx[i, j])`` (minus those marked in the
+    optional (N, k) bool ``skip``: duplicate copies), ranked by the unique
+    key ``(cost, i*k + j)``. Each round every component takes its cheapest
+    outgoing edge, components merge along them (pointer jumping over the
+    component labels), and each merged component's sign relative to its new
+    root is ``rel[i] * rel[j] * sign(n_i . n_j)`` for the connecting edge (i, j).
 
-    Returns ``(comp, rel, tree_edges)``: (N,) intp component root per point,
-    (N,) int8 sign of each point relative to its root (so that
-    ``rel[child] * rel[parent] == sign(n_child . n_parent)`` along every tree
-    edge), and the int64 ids of the N - #components tree edges.
+    Filtered like Filter-Kruskal (Osipov, Sanders & Singler 2009): the
+    cheapest ~2 edges per point go first; the forest they give is exactly
+    Kruskal's state after those edges, so the remaining edges are then only
+    needed where they join two different components. Same tree, about half
+    the work and memory.
+
+    Returns ``(comp, rel, tree_edges)``: (N,) intp component label per point
+    (a member point), (N,) int8 sign of each point relative to its label (so
+    that ``rel[a] * rel[b] == sign(n_a . n_b)`` along every tree edge), and
+    the intp ids ``i*k + j`` of the N - #components tree edges.
     """
     k = idx.shape[1]
     e_total = n * k
     if e_total >= 2**32:
         raise InputError(f"orient_normals: too many edges ({e_total:,}) for 32-bit edge ids")
-    # cost >= 0 as float32: its bit pattern orders like the value; the low 32
-    # bits (edge id) make keys unique, i.e. ties broken like SciPy's stable sort
-    key = (cost.ravel().view(np.uint32).astype(np.uint64) << np.uint64(32)) | np.arange(e_total, dtype=np.uint64)
-    src_all = np.repeat(np.arange(n, dtype=np.intp), k)
-    dst_all = idx.ravel()
-    sgn_all = sign.ravel()
-    none = np.uint64(np.iinfo(np.uint64).max)
-    low = np.uint64(0xFFFFFFFF)
+    # key = cost bits (a float32 >= 0 orders like its bit pattern) | edge id:
+    # unique keys, ties broken by position like SciPy's stable-sort Kruskal
+    flat_cost = cost.ravel()
+    if skip is None:
+        eid = np.arange(e_total, dtype=np.uint64)
+        ecost = flat_cost
+    else:
+        eid = np.flatnonzero(~skip.ravel())
+        ecost = flat_cost[eid]
+        eid = eid.astype(np.uint64)
+    ekey = ecost.view(np.uint32).astype(np.uint64)
+    ekey <<= np.uint64(32)
+    ekey |= eid
+    del eid
+    forest = _Forest(n, idx, sign)
+    if len(ekey) > 1.5 * LIGHT_EDGES_PER_POINT * n:
+        # threshold from a sample: any threshold gives the same tree
+        step = max(1, len(ecost) // 65536)
+        limit = np.quantile(ecost[::step], LIGHT_EDGES_PER_POINT * n / len(ecost))
+        light = ecost <= limit
+        del ecost
+        forest.run(ekey[light])
+        np.logical_not(light, out=light)
+        ekey = ekey[light]
+        del light
+        forest.run(ekey, prefilter=True)
+    else:
+        del ecost
+        forest.run(ekey)
+    tree_edges = np.concatenate(forest.tree) if forest.tree else np.zeros(0, dtype=np.intp)
+    return forest.comp, forest.rel, tree_edges
 
-    comp = np.arange(n, dtype=np.intp)     # component label (a member point) of each point
-    rel = np.ones(n, dtype=np.int8)        # sign of each point relative to its label
-    parent = np.arange(n, dtype=np.intp)   # per label, during a round
-    flip = np.ones(n, dtype=np.int8)
-    best = np.empty(n, dtype=np.uint64)
-    tree = []
-    ekey = key         # keys of the candidate edges (shrinks as components grow)
-    ca, cb = src_all, dst_all  # no self loops in a kNN graph: all edges external at first
-    mkey = key
-    while True:
+
+class _Forest:
+    """State of the Boruvka merges: component label and relative sign of every point."""
+
+    NONE = np.uint64(np.iinfo(np.uint64).max)
+    LOW = np.uint64(0xFFFFFFFF)
+
+    def __init__(self, n: int, idx: np.ndarray, sign: np.ndarray):
+        self.k = np.int64(idx.shape[1])
+        self.dst_all = idx.ravel()
+        self.sgn_all = sign.ravel()
+        self.comp = np.arange(n, dtype=np.intp)     # component label (a member point) of each point
+        self.rel = np.ones(n, dtype=np.int8)        # sign of each point relative to its label
+        self.parent = np.arange(n, dtype=np.intp)   # per label, during a round
+        self.flip = np.ones(n, dtype=np.int8)
+        self.best = np.empty(n, dtype=np.uint64)
+        self.tree = []
+
+    def _labels(self, keys, bufs):
+        """Component labels of both endpoints of the edges with these keys."""
+        size = len(keys)
+        eid = np.bitwise_and(keys, self.LOW, out=bufs["eid"][:size].view(np.uint64)).view(np.int64)
+        tmp = bufs["tmp"][:size]
+        # mode="clip": indices are valid; the default "raise" buffers out= (2-3x slower)
+        ca = np.take(self.comp, np.floor_divide(eid, self.k, out=tmp), out=bufs["ca"][:size], mode="clip")
+        cb = np.take(self.comp, np.take(self.dst_all, eid, out=tmp, mode="clip"), out=bufs["cb"][:size], mode="clip")
+        return ca, cb
+
+    def run(self, ekey: np.ndarray, prefilter: bool = False) -> None:
+        """Merge along the edges with keys ``ekey`` (consumed) until none joins two components."""
+        if not len(ekey):
+            return
+        m = len(ekey)
+        # work buffers reused by every round through out= arguments: fresh
+        # temporaries of this size per round cost as much in page faults as
+        # the arithmetic itself
+        bufs = {"eid": np.empty(m, dtype=np.int64), "tmp": np.empty(m, dtype=np.intp),
+                "ca": np.empty(m, dtype=np.intp), "cb": np.empty(m, dtype=np.intp)}
+        ext_buf = np.empty(m, dtype=bool)
+        spare = None
+        mkey_buf = None
+        check = prefilter
+        ca, cb = self._labels(ekey, bufs)
+        mkey = ekey
+        while True:
+            if check:
+                # keep the edges between different components
+                external = np.not_equal(ca, cb, out=ext_buf[:len(ekey)])
+                alive = int(np.count_nonzero(external))
+                if alive == 0:
+                    return
+                if alive < 0.6 * len(ekey):
+                    if spare is None:
+                        spare = np.empty(m, dtype=np.uint64)
+                    kept = np.compress(external, ekey, out=spare[:alive])
+                    spare = ekey.base if ekey.base is not None else ekey
+                    ekey = kept
+                    ca, cb = self._labels(ekey, bufs)
+                    mkey = ekey
+                else:
+                    if mkey_buf is None:
+                        mkey_buf = np.empty(m, dtype=np.uint64)
+                    mkey = mkey_buf[:len(ekey)]
+                    np.copyto(mkey, ekey)
+                    np.copyto(mkey, self.NONE, where=~external)  # cheaper than compacting
+            check = True
+            if not self._round(ca, cb, mkey):
+                return
+            ca, cb = self._labels(ekey, bufs)
+
+    def _round(self, ca, cb, mkey) -> bool:
+        """One Boruvka round over edges with endpoint labels ca, cb and keys mkey (NONE = skip)."""
+        comp, parent, flip, rel, best = self.comp, self.parent, self.flip, self.rel, self.best
         # each component's cheapest outgoing edge
-        best.fill(none)
+        best.fill(self.NONE)
         np.minimum.at(best, ca, mkey)
         np.minimum.at(best, cb, mkey)
-        act = np.flatnonzero(best != none)
+        act = np.flatnonzero(best != self.NONE)
         if not len(act):
-            break
-        e = (best[act] & low).astype(np.intp)
-        ea, eb = src_all[e], dst_all[e]
+            return False
+        e = (best[act] & self.LOW).astype(np.intp)
+        ea, eb = e // self.k, self.dst_all[e]
         a_inside = comp[ea] == act
         inside = np.where(a_inside, ea, eb)
         outside = np.where(a_inside, eb, ea)
@@ -303,34 +437,18 @@ def _boruvka(n: int, cost: np.ndarray, sign: np.ndarray, idx: np.ndarray):
         parent[act] = other
         # sign of this component's label relative to the other's, so that
         # sign(inside) * sign(outside) == sign(n_inside . n_outside)
-        flip[act] = rel[inside] * rel[outside] * sgn_all[e]
+        flip[act] = rel[inside] * rel[outside] * self.sgn_all[e]
         # two components that chose each other (the same edge): the smaller label is the root
         root = (parent[other] == act) & (act < other)
         parent[act[root]] = act[root]
         flip[act[root]] = 1
-        tree.append(e[~root])
+        self.tree.append(e[~root])
         _pointer_jump(parent, flip, act)
         rel *= flip[comp]
-        comp = parent[comp]
+        self.comp = parent[comp]
         parent[act] = act
         flip[act] = 1
-        # edges still between different components; the edge id (low key bits)
-        # gives both endpoints, so only the keys need compacting
-        eid = (ekey & low).view(np.int64)
-        ca = comp[src_all[eid]]
-        cb = comp[dst_all[eid]]
-        external = ca != cb
-        alive = int(np.count_nonzero(external))
-        if alive == 0:
-            break
-        if alive < 0.6 * len(ekey):
-            keep = np.flatnonzero(external)
-            ekey, ca, cb = ekey[keep], ca[keep], cb[keep]
-            mkey = ekey
-        else:
-            mkey = np.where(external, ekey, none)  # cheaper than compacting
-    tree_edges = np.concatenate(tree) if tree else np.zeros(0, dtype=np.intp)
-    return comp, rel, tree_edges
+        return True
 
 
 def _scipy_forest(n: int, cost: np.ndarray, sign: np.ndarray, idx: np.ndarray):
@@ -372,7 +490,7 @@ def _pair_sign(sign: np.ndarray, idx: np.ndarray, a: np.ndarray, b: np.ndarray) 
     return out
 
 
-def orient_normals(positions, normals, indices, *, method: str = "boruvka") -> np.ndarray:
+def orient_normals(positions, normals, indices, distances=None, *, method: str = "boruvka") -> np.ndarray:
     """Flip normals to a consistent orientation over the neighbour graph (Hoppe et al. 1992).
 
     The Riemannian graph is the symmetric kNN graph (edge i-j when j is among
@@ -389,6 +507,9 @@ def orient_normals(positions, normals, indices, *, method: str = "boruvka") -> n
         positions: (N, 3) float array, model units.
         normals: (N, 3) float array of (not necessarily unit) normals, any signs.
         indices: (N, k) integer neighbour indices (e.g. from :func:`knn`).
+        distances: optional (N, k) float32 distances returned by :func:`knn`
+            together with ``indices``; only used to skip duplicate edges
+            faster (same result without them).
         method: ``"boruvka"`` (default, vectorized NumPy Boruvka) or
             ``"scipy"`` (``scipy.sparse.csgraph.minimum_spanning_tree``,
             breadth-first order, pointer jumping). Both give the same result.
@@ -400,26 +521,44 @@ def orient_normals(positions, normals, indices, *, method: str = "boruvka") -> n
     n = len(pts)
     nrm = _check_vectors(normals, "normals", n)
     idx = _check_indices(indices, n)
+    if method not in ("boruvka", "scipy"):
+        raise InputError(f"orient_normals: method must be 'boruvka' or 'scipy', got {method!r}")
+    if distances is not None:
+        distances = np.asarray(distances, dtype=np.float32)
+        if distances.shape != idx.shape:
+            raise InputError(f"distances {distances.shape} and indices {idx.shape} must have the same shape")
     length = np.linalg.norm(nrm, axis=1, keepdims=True)
     nrm = np.divide(nrm, length, out=np.zeros_like(nrm), where=length > 0)
+    sigma = _orientation_signs(pts, nrm, idx, distances, method)
+    nrm *= sigma[:, None]
+    return nrm
+
+
+def _orientation_signs(pts: np.ndarray, nrm: np.ndarray, idx: np.ndarray, dist: np.ndarray | None = None,
+                       method: str = "boruvka") -> np.ndarray:
+    """(N,) int8 signs that orient unit normals ``nrm`` consistently (see :func:`orient_normals`).
+
+    Arguments already validated: float32 (N, 3) ``pts`` and unit ``nrm``,
+    intp (N, k) ``idx``, optional float32 (N, k) ``dist`` from :func:`knn`.
+    """
+    n = len(pts)
     cost, sign = _edge_costs(nrm, idx)
     if method == "boruvka":
-        comp, rel, _ = _boruvka(n, cost, sign, idx)
-    elif method == "scipy":
-        comp, rel, _ = _scipy_forest(n, cost, sign, idx)
+        comp, rel, _ = _boruvka(n, cost, sign, idx, _mutual_duplicates(pts, idx, dist))
     else:
-        raise InputError(f"orient_normals: method must be 'boruvka' or 'scipy', got {method!r}")
+        comp, rel, _ = _scipy_forest(n, cost, sign, idx)
+    del cost, sign
     desired, seeds = _seed_signs(pts, nrm, comp)
     root_sign = np.ones(n, dtype=np.int8)
     root_sign[comp[seeds]] = rel[seeds] * desired
-    sigma = rel * root_sign[comp]
-    return (nrm * sigma[:, None]).astype(np.float32, copy=False)
+    rel *= root_sign[comp]
+    return rel
 
 
 def _seed_signs(pts: np.ndarray, nrm: np.ndarray, comp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per component (label = root id): the seed point (largest z) and the sign its normal needs."""
+    """Per component (label = a member point): the seed (its highest point) and the sign its normal needs."""
     n = len(pts)
-    z = pts[:, 2]
+    z = np.ascontiguousarray(pts[:, 2])
     zmax = np.full(n, -np.inf, dtype=np.float32)
     np.maximum.at(zmax, comp, z)
     cand = np.flatnonzero(z == zmax[comp])
@@ -428,10 +567,21 @@ def _seed_signs(pts: np.ndarray, nrm: np.ndarray, comp: np.ndarray) -> tuple[np.
     labels = np.flatnonzero(comp == np.arange(n))
     seeds = seed_of[labels]
     nz = nrm[seeds, 2]
-    count = np.bincount(comp, minlength=n)[labels].astype(np.float64)
-    centroid = np.stack([np.bincount(comp, weights=pts[:, c], minlength=n)[labels] / count for c in range(3)], axis=1)
-    away = np.einsum("ij,ij->i", nrm[seeds].astype(np.float64), pts[seeds] - centroid)
-    desired = np.where(np.abs(nz) >= HORIZONTAL_NZ, np.sign(nz), np.where(away < 0, -1, 1)).astype(np.int8)
+    desired = np.where(nz < 0, -1, 1).astype(np.int8)  # seed normal towards +z
+    horizontal = np.flatnonzero(np.abs(nz) < HORIZONTAL_NZ)
+    if len(horizontal):
+        # nearly horizontal seed normal: turn it away from the component's centroid
+        lab = labels[horizontal]
+        slot = np.full(n, -1, dtype=np.intp)
+        slot[lab] = np.arange(len(lab))
+        member = np.flatnonzero(slot[comp] >= 0)
+        group = slot[comp[member]]
+        count = np.bincount(group, minlength=len(lab)).astype(np.float64)
+        centroid = np.stack([np.bincount(group, weights=pts[member, c], minlength=len(lab)) / count
+                             for c in range(3)], axis=1)
+        sd = seeds[horizontal]
+        away = np.einsum("ij,ij->i", nrm[sd].astype(np.float64), pts[sd] - centroid)
+        desired[horizontal] = np.where(away < 0, -1, 1)
     return desired, seeds
 
 

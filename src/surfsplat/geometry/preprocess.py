@@ -23,8 +23,8 @@ from .. import progress
 from ..cloud import SplatCloud
 from ..errors import InputError
 from .neighbors import _LEAFSIZE, _as_points, knn, spatial_order
-from .normals import estimate_normals, orient_normals
-from .splats import COVERAGE, MAX_ANISOTROPY, circular_splats, elliptical_splats
+from .normals import _orientation_signs, estimate_normals, orient_normals
+from .splats import COVERAGE, MAX_ANISOTROPY, circular_splats, elliptical_splats, normals_and_ellipses
 
 SHAPES = ("ellipse", "circle")
 
@@ -88,20 +88,30 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
         perm = spatial_order(cloud.positions)
         pts = cloud.positions[perm]
     with progress.stage(f"{k}-nearest neighbours", n):
-        dist, idx = knn(pts, k)
-    if need_normals:
-        with progress.stage("normals (PCA)", n):
-            normals = estimate_normals(pts, idx)
+        dist, idx = knn(pts, k, presorted=True)
+    if need_normals and shape == "ellipse":
+        # one pass over the neighbourhoods for both (shares the offset gathers)
+        with progress.stage("normals (PCA) and splat ellipses", n):
+            normals, u, v = normals_and_ellipses(pts, idx, dist, coverage=coverage, max_anisotropy=max_anisotropy)
         if orient:
             with progress.stage("orientation (MST)", n):
-                normals = orient_normals(pts, normals, idx)
+                sigma = _orientation_signs(pts, normals, idx, dist)[:, None]
+                normals *= sigma
+                v *= sigma  # keep u x v along the normal
     else:
-        normals = cloud.normals[perm]
-    with progress.stage(f"splat {shape}s", n):
-        if shape == "ellipse":
-            u, v = elliptical_splats(pts, normals, idx, dist, coverage=coverage, max_anisotropy=max_anisotropy)
+        if need_normals:
+            with progress.stage("normals (PCA)", n):
+                normals = estimate_normals(pts, idx)
+            if orient:
+                with progress.stage("orientation (MST)", n):
+                    normals = orient_normals(pts, normals, idx, dist)
         else:
-            u, v = circular_splats(normals, dist, coverage=coverage)
+            normals = cloud.normals[perm]
+        with progress.stage(f"splat {shape}s", n):
+            if shape == "ellipse":
+                u, v = elliptical_splats(pts, normals, idx, dist, coverage=coverage, max_anisotropy=max_anisotropy)
+            else:
+                u, v = circular_splats(normals, dist, coverage=coverage)
 
     def unsort(arr):
         out = np.empty_like(arr)

@@ -25,7 +25,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from .normals import _block_offsets, _blocks, _check_indices, _check_vectors, _columns
+from .normals import (_block_covariance, _block_offsets, _blocks, _check_indices, _check_vectors, _columns,
+                      smallest_eigenvectors)
 
 #: Default cap of the ellipse axis ratio (major / minor).
 MAX_ANISOTROPY = 4.0
@@ -238,3 +239,42 @@ def elliptical_splats(positions, normals, indices, distances, *, coverage: float
         u[sl], v[sl] = _block_ellipses(_block_offsets(cols, idx, sl), nrm[sl], dmax[sl],
                                        coverage, max_anisotropy, lambda: fallback_radius(dist))
     return u, v
+
+
+def normals_and_ellipses(positions, indices, distances, *, coverage: float = COVERAGE,
+                         max_anisotropy: float = MAX_ANISOTROPY) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """PCA normals and elliptical splats in one pass over the neighbourhoods.
+
+    Same results as :func:`~surfsplat.geometry.normals.estimate_normals`
+    followed by :func:`elliptical_splats`, but the neighbour offsets are
+    gathered once (used by :func:`surfsplat.geometry.preprocess`). The normals
+    are not oriented: after flipping some normals, negate ``v`` of the same
+    splats to keep ``u x v`` along the normal.
+
+    Args:
+        positions: (N, 3) float array, model units.
+        indices: (N, k) integer neighbour indices (e.g. from :func:`knn`).
+        distances: (N, k) float neighbour distances, model units.
+        coverage, max_anisotropy: as in :func:`elliptical_splats`.
+
+    Returns:
+        ``(normals, u, v)``: three (N, 3) float32 arrays.
+    """
+    if not coverage > 0:
+        raise InputError(f"coverage must be > 0, got {coverage}")
+    if not max_anisotropy >= 1:
+        raise InputError(f"max_anisotropy must be >= 1, got {max_anisotropy}")
+    pts = _check_vectors(positions, "positions")
+    n = len(pts)
+    idx = _check_indices(indices, n)
+    dist = _check_distances(distances, n)
+    cols = _columns(pts)
+    dmax = _row_max(dist)
+    nrm = np.empty((n, 3), dtype=np.float32)
+    u = np.empty((n, 3), dtype=np.float32)
+    v = np.empty((n, 3), dtype=np.float32)
+    for sl in _blocks(n):
+        d = _block_offsets(cols, idx, sl)
+        nrm[sl] = smallest_eigenvectors(*_block_covariance(d))
+        u[sl], v[sl] = _block_ellipses(d, nrm[sl], dmax[sl], coverage, max_anisotropy, lambda: fallback_radius(dist))
+    return nrm, u, v
