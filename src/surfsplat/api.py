@@ -26,13 +26,37 @@ def default_renderer():
     return _renderer
 
 
+#: Default viewing direction (toward the eye) for a y-up world: front, a little right and above.
+DEFAULT_DIRECTION = (0.4, 0.35, 1.0)
+
+
+def _rotate_y_to(up) -> np.ndarray:
+    """3x3 rotation taking +y to the unit vector ``up`` (Rodrigues; 180 degrees about x for -y)."""
+    up = np.asarray(up, dtype=np.float64)
+    up = up / np.linalg.norm(up)
+    y = np.array([0.0, 1.0, 0.0])
+    axis = np.cross(y, up)
+    s, c = np.linalg.norm(axis), float(y @ up)
+    if s < 1e-12:
+        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    k = axis / s
+    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + s * kx + (1 - c) * kx @ kx
+
+
 def auto_camera(cloud: SplatCloud, width: int = 512, height: int = 512, fov: float = 40.0,
-                direction=(0.4, 0.35, 1.0), up=(0.0, 1.0, 0.0)) -> Camera:
+                direction=None, up=(0.0, 1.0, 0.0)) -> Camera:
     """A camera framing the whole cloud from ``direction`` (world, toward the eye).
 
     The bounding sphere of the splat centers (around the bounds' center) fills
-    90% of the smaller field of view; near/far enclose the splats.
+    90% of the smaller field of view; near/far enclose the splats. Without a
+    direction the view is from the front, a little right and above, relative
+    to ``up`` (so ``up=(0, 0, 1)`` suits z-up data such as LiDAR).
     """
+    if np.linalg.norm(np.asarray(up, dtype=float)) == 0 or not np.isfinite(up).all():
+        raise InputError(f"up must be a finite non-zero vector, got {up!r}")
+    if direction is None:
+        direction = _rotate_y_to(up) @ np.asarray(DEFAULT_DIRECTION)
     lo, hi = cloud.bounds()
     center = 0.5 * (lo + hi)
     radius = float(np.sqrt(np.max(np.sum((cloud.positions - center) ** 2, axis=1))))

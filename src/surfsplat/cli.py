@@ -45,7 +45,7 @@ def _camera(args, cloud):
     if args.eye is None:
         if args.target is not None:
             raise InputError("--target needs --eye (without camera flags the model is framed automatically)")
-        return auto_camera(cloud, args.width, args.height, args.fov)
+        return auto_camera(cloud, args.width, args.height, args.fov, up=tuple(args.up))
     lo, hi = cloud.bounds()
     target = args.target if args.target is not None else 0.5 * (lo + hi)
     camera = Camera(eye=tuple(args.eye), target=tuple(target), up=tuple(args.up), fov=args.fov,
