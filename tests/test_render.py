@@ -44,6 +44,20 @@ def test_ewa_jacobian_matches_finite_differences():
     np.testing.assert_allclose(jac[:, :, 1], dv, rtol=1e-5, atol=1e-6)
 
 
+def test_ewa_bounds_are_the_tight_box_of_the_cutoff_ellipse():
+    rng = np.random.default_rng(2)
+    jac = rng.normal(size=(50, 2, 2)) * 5
+    for cutoff in (0.5, 1.0, 2.0):
+        var = reference.ewa_variance(jac, cutoff)
+        half = reference.ewa_half_extent(var, cutoff)
+        # boundary of 0.5 x^T V^-1 x = c: x = sqrt(2c) L (cos a, sin a) with V = L L^T
+        chol = np.linalg.cholesky(var)
+        angle = np.linspace(0, 2 * np.pi, 20001)
+        circle = np.stack([np.cos(angle), np.sin(angle)])
+        boundary = np.sqrt(2 * cutoff) * chol @ circle  # (50, 2, K)
+        np.testing.assert_allclose(np.abs(boundary).max(axis=2), half, rtol=1e-6)
+
+
 @pytest.mark.parametrize("tilt", [0.0, 55.0, 75.0])
 @pytest.mark.parametrize("prefilter", [True, False])
 def test_single_ewa_splat_weights_match_reference(renderer, tilt, prefilter):
