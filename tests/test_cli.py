@@ -50,7 +50,9 @@ def test_render_raw_points_with_camera_flags_and_depth(tmp_path, capsys):
     focal = 48 / np.tan(np.radians(20))
     radius_px = focal * np.tan(np.arcsin(1 / 4))
     covered = np.isfinite(d)
-    assert abs(np.sqrt(covered.sum() / np.pi) - radius_px) < 1.5
+    # 3000 points: splats ~4 px wide, sized to cover random samples (coverage 1.5),
+    # widen the silhouette by a fraction of a splat
+    assert abs(np.sqrt(covered.sum() / np.pi) - radius_px) < 2.0
 
 
 def test_preprocess_sample_info(tmp_path, capsys):

