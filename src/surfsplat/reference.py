@@ -162,8 +162,10 @@ def shade(albedo: np.ndarray, n: np.ndarray, view: np.ndarray, light_dirs: np.nd
 # footprint (no cancellation against the center's absolute pixel position).
 #
 # The cutoff contour of the reconstruction kernel in normalized coordinates is the splat's own
-# ellipse s^2 + t^2 = 1, i.e. Q_h = diag(1, 1, -1) (sec. 4.4 with R_k = I, F_g^2 = 1; as in ewa,
-# V_r = I / (2c) and the cut 0.5 x^T V_r^-1 x = c). Its image is Q'_h = M^-1 Q_h M^-T (sec. 4.3).
+# ellipse s^2 + t^2 = 1: sec. 4.4's Q_h = [[R_k^-1, 0], [0, -F_g^2]] (the paper prints R_k where
+# the contour u R_k^-1 u^T = F_g^2 needs its inverse) with ewa's R_k = V_r = I / (2c) and
+# F_g^2 = 2c (the cut 0.5 x^T V_r^-1 x = c) is 2c diag(1, 1, -1), the same conic as
+# Q_h = diag(1, 1, -1). Its image is Q'_h = M^-1 Q_h M^-T (sec. 4.3).
 # Eq. 11's Q''' is a *conic* matrix (x Q''' x^T = F_g^2 on the contour, F_g^2 = 2c here), so the
 # reconstruction variance is R'_k = Q'''^-1 and the resampling variance V = Q'''^-1 + H (eq. 3);
 # sec. 6 names (Q''' + H)^-1 the conic of the resampling filter, reading Q''' as the variance.
@@ -316,12 +318,13 @@ def perspective_footprint(camera: Camera, p_cam: np.ndarray, n_cam: np.ndarray, 
     with ``h = z^2 - u_z^2 - v_z^2 = -C*_33 > 0`` (the image is an ellipse iff h > 0, eq. 5):
 
     - center (eq. 7): ``x_t = (U u_z + V v_z) / h`` (pixel offset from project(p));
-    - shape ``S = (g g^T + h (U U^T + V V^T)) / h^2``, ``g = U u_z + V v_z``: the ellipse is
-      ``(x - x_t)^T S^-1 (x - x_t) = 1``, i.e. ``S = F_g^2 Q'''^-1`` (eq. 10-11), ``det S =
-      f^4 ((u x v) . p)^2 / h^3`` in closed form;
+    - shape ``S = x_t x_t^T + (U U^T + V V^T) / h`` (positive terms only): the ellipse is
+      ``(x - x_t)^T S^-1 (x - x_t) = 1``, i.e. ``S = F_g^2 Q'''^-1`` (eq. 10-11), and
+      ``det S = f^4 ((u x v) . p)^2 / h^3`` in closed form (used as ``det S / tr(S)^2``);
     - resampling variance ``V = S / (2c) + H`` (eq. 3, ``H = I`` with the prefilter, 1e-4 I
       without, or ``filter_variance`` I), pixels^2;
-    - weight scale ``sqrt(|V_r| / |V|) = sqrt(det S) / (2c sqrt(det V))``: the reconstruction
+    - weight scale ``sqrt(|V_r| / |V|) = 1 / sqrt(1 + (x + x^2) / (det S / tr(S)^2))``,
+      ``x = eta / tr(V_r)``: the reconstruction
       kernel with peak 1 convolved with the unit-mass prefilter, so a magnified splat peaks
       at ~1 and a minified one weighs its projected area (ewa's ``|J| / (2c sqrt|V|)``);
     - box half extents ``sqrt(2c V_xx)``, ``sqrt(2c V_yy)`` around x_t (eq. 8-9 of the cut).
@@ -329,7 +332,8 @@ def perspective_footprint(camera: Camera, p_cam: np.ndarray, n_cam: np.ndarray, 
     Returns a dict of arrays: ``mode`` (N,) int (PERSPECTIVE_CULLED / _CONIC / _RAYCAST),
     ``center`` (N, 2) window pixels of the conic's center (project(p) + x_t), ``offset`` (N, 2)
     x_t, ``shape`` (N, 2, 2) S, ``variance`` (N, 2, 2) V, ``scale`` (N,), ``half_extent`` (N, 2)
-    pixels, ``condition`` (N,). Entries of non-conic splats are undefined (nan-free zeros).
+    pixels, ``condition`` (N,), ``det_variance`` (N,) |V| in pixels^4. Entries of non-conic
+    splats are zeros (no NaN).
     """
     p, n, u, v = (np.asarray(a, dtype=np.float64) for a in (p_cam, n_cam, u_cam, v_cam))
     near, far = camera.near, camera.far
@@ -353,24 +357,30 @@ def perspective_footprint(camera: Camera, p_cam: np.ndarray, n_cam: np.ndarray, 
     delta = f * p[:, :2] / zs[:, None]
     big_u = f * u[:, :2] + delta * u[:, 2:3]
     big_v = f * v[:, :2] + delta * v[:, 2:3]
-    g = big_u * u[:, 2:3] + big_v * v[:, 2:3]
+    offset = (big_u * u[:, 2:3] + big_v * v[:, 2:3]) / h[:, None]  # eq. 7
     outer = lambda a: a[:, :, None] * a[:, None, :]  # noqa: E731
-    shape = (outer(g) + h[:, None, None] * (outer(big_u) + outer(big_v))) / (h**2)[:, None, None]
-    offset = g / h[:, None]
+    shape = outer(offset) + (outer(big_u) + outer(big_v)) / h[:, None, None]  # eq. 10-11
     eta = (1.0 if prefilter else 1e-4) if filter_variance is None else float(filter_variance)
     variance = shape / (2.0 * cutoff) + eta * np.eye(2)
-    det_s = f**4 * np.sum(np.cross(u, v) * p, axis=-1) ** 2 / h**3
-    det_v = det_s / (4.0 * cutoff**2) + eta * np.trace(shape, axis1=1, axis2=2) / (2.0 * cutoff) + eta**2
-    scale = np.sqrt(det_s) / (2.0 * cutoff * np.sqrt(det_v))
+    # det S / tr(S)^2 from det S = f^4 ((u x v) . p)^2 / h^3 (closed form, scale-free)
+    trace_s = np.trace(shape, axis1=1, axis2=2)
+    a = f * f * np.sum(np.cross(u, v) * p, axis=-1) / h / trace_s
+    det_ratio = a * a / h
+    trace_r = trace_s / (2.0 * cutoff)
+    det_v = trace_r * (trace_r * det_ratio + eta) + eta**2  # |R'| + eta tr(R') + eta^2
+    x = eta / trace_r
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = 1.0 / np.sqrt(1.0 + (x + x * x) / det_ratio)  # sqrt(|R'| / |V|)
     half = np.sqrt(2.0 * cutoff * np.stack([variance[:, 0, 0], variance[:, 1, 1]], axis=-1))
     center = project(camera, np.where(conic[:, None], p, (0.0, 0.0, -1.0))) + offset
     zero = ~conic
-    for a in (offset, center, half):
-        a[zero] = 0.0
+    for arr in (offset, center, half):
+        arr[zero] = 0.0
     shape[zero], variance[zero] = 0.0, 0.0
     scale = np.where(conic, scale, 0.0)
     return {"mode": mode, "center": center, "offset": offset, "shape": shape, "variance": variance,
-            "scale": scale, "half_extent": half, "condition": condition, "det_variance": np.where(conic, det_v, 1.0)}
+            "scale": scale, "half_extent": half, "condition": condition,
+            "det_variance": np.where(conic, det_v, 1.0)}
 
 
 def perspective_weight(camera: Camera, p_cam: np.ndarray, n_cam: np.ndarray, u_cam: np.ndarray,

@@ -89,31 +89,36 @@ void main() {
         vec2 g = U * s.u.z + V * s.v.z;    // -C*_{12,3}
         // Eq. 7: the center x_t is the pole of the line at infinity, C*_{12,3} / C*_33.
         vec2 xt = g / h;
-        // Eq. 10-11: S = F_g^2 Q'''^-1 = (g g^T + h (U U^T + V V^T)) / h^2: positive terms only.
-        mat2 S = (outerProduct(g, g) + h * (outerProduct(U, U) + outerProduct(V, V))) / (h * h);
-        // det S = f^4 ((u x v) . p)^2 / h^3 in closed form: no cancellation for thin ellipses.
-        float q = u_focal * u_focal * dot(cross(s.u, s.v), s.p) / h;
-        float det_s = q * q / h;
-        // Eq. 3: V = R'_k + H with R'_k = Q'''^-1 = S / F_g^2, F_g^2 = 2c.
-        mat2 Vr = S / (2.0 * u_cutoff);
-        mat2 Vt = Vr + mat2(u_prefilter);
-        float det_v = det_s / (4.0 * u_cutoff * u_cutoff) + u_prefilter * (Vr[0][0] + Vr[1][1])
-                      + u_prefilter * u_prefilter;
+        // Eq. 10-11: S = F_g^2 Q'''^-1 = (C*_{12,3} C*_{12,3}^T - C*_33 C*_{12,12}) / C*_33^2
+        //   = x_t x_t^T + (U U^T + V V^T) / h: positive terms only, S > 0 for an ellipse.
+        mat2 S = outerProduct(xt, xt) + (outerProduct(U, U) + outerProduct(V, V)) / h;
+        // det S = f^4 ((u x v) . p)^2 / h^3 in closed form (no cancellation for thin ellipses),
+        // kept as the scale-free ratio det S / tr(S)^2 in [0, 1/4] so that nothing overflows.
+        float trace_s = S[0][0] + S[1][1];
+        float a = u_focal * u_focal * dot(cross(s.u, s.v), s.p) / h / trace_s;
+        float det_ratio = a * a / h;
+        // Eq. 3: V = R'_k + H with R'_k = Q'''^-1 = S / F_g^2, F_g^2 = 2c, H = u_prefilter I.
+        float trace_r = trace_s / (2.0 * u_cutoff);
+        mat2 Vt = S / (2.0 * u_cutoff) + mat2(u_prefilter);
         // Principal axes of V: the major eigenvalue from the entries, the minor one from the
         // closed-form determinant (the kernel of a 1000:1 ellipse keeps its precision).
         float mean = 0.5 * (Vt[0][0] + Vt[1][1]);
         float dev = 0.5 * (Vt[0][0] - Vt[1][1]);
         float radius = sqrt(dev * dev + Vt[0][1] * Vt[0][1]);
         float lambda1 = mean + radius;
-        float lambda2 = det_v / lambda1;
+        // lambda2 = |V| / lambda1 with |V| = |R'| + eta tr(R') + eta^2 (positive terms) and
+        // |R'| = det_ratio tr(R')^2, divided through so that it cannot overflow.
+        float lambda2 = trace_r / lambda1 * (trace_r * det_ratio + u_prefilter) + u_prefilter * u_prefilter / lambda1;
         // Its eigenvector, from the form without cancellation for the sign of dev.
         vec2 axis = dev >= 0.0 ? vec2(dev + radius, Vt[0][1]) : vec2(Vt[0][1], radius - dev);
         float axis_len = length(axis);
         v_axis = axis_len > 0.0 ? axis / axis_len : vec2(1.0, 0.0);
         v_inv_lambda = vec2(1.0 / lambda1, 1.0 / lambda2);
-        // Weight scale: the peak-1 reconstruction kernel convolved with the unit-mass
-        // prefilter, sqrt(|V_r| / |V|) (ewa's |J| / (2c sqrt|V|)).
-        v_scale = sqrt(det_s / det_v) / (2.0 * u_cutoff);
+        // Weight scale: the peak-1 reconstruction kernel convolved with the unit-mass prefilter,
+        // sqrt(|R'| / |V|) = 1 / sqrt(1 + (x + x^2) / det_ratio), x = eta / tr(R') (ewa's
+        // |J| / (2c sqrt|V|)): 1 for a magnified splat, its projected area for a minified one.
+        float x = u_prefilter / trace_r;
+        v_scale = inversesqrt(1.0 + (x + x * x) / det_ratio);
         v_center_px = c_px + xt;
         // Eq. 8-9 for the final ellipse 0.5 x^T V^-1 x = c: half extents sqrt(2c V_xx), sqrt(2c V_yy).
         vec2 half_extent = sqrt(2.0 * u_cutoff * vec2(Vt[0][0], Vt[1][1]));
