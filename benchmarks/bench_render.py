@@ -54,6 +54,37 @@ def time_frames(renderer: Renderer, splats, camera, technique: str, repeat: int)
     return (time.perf_counter() - start) / repeat
 
 
+def primitive_floor(renderer: Renderer, n: int, size: int, repeat: int) -> float:
+    """Seconds to draw n instanced 2x2-pixel quads with trivial shaders: the rasterizer's floor per splat.
+
+    Every technique draws one quad (two triangles) per splat, so this bounds
+    the splat rate of any of them on this OpenGL implementation.
+    """
+    import moderngl
+    import numpy as np
+
+    ctx = renderer.ctx
+    program = ctx.program(
+        vertex_shader="#version 330 core\nin vec2 in_corner; in vec2 in_position; uniform float u_px;\n"
+                      "void main() { gl_Position = vec4(in_position + in_corner * u_px, 0.0, 1.0); }",
+        fragment_shader="#version 330 core\nout vec4 color; void main() { color = vec4(1.0); }")
+    program["u_px"].value = 1.0 / size
+    positions = ctx.buffer(np.random.default_rng(0).uniform(-0.9, 0.9, (n, 2)).astype("f4"))
+    vao = ctx.vertex_array(program, [(renderer._quad, "2f", "in_corner"), (positions, "2f/i", "in_position")])
+    target = ctx.framebuffer([ctx.renderbuffer((size, size))])
+    target.use()
+    vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=n)
+    ctx.finish()
+    start = time.perf_counter()
+    for _ in range(repeat):
+        vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=n)
+    ctx.finish()
+    seconds = (time.perf_counter() - start) / repeat
+    for item in (vao, positions, program, target):
+        item.release()
+    return seconds
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--splats", type=int, default=1_000_000)
@@ -80,6 +111,11 @@ def main() -> None:
                              f"{frame.mask.mean():.0%}"])
                 print(rows[-1], flush=True)
         gpu.release()
+    for size in args.sizes:
+        seconds = primitive_floor(renderer, args.splats, size, args.repeat)
+        rows.append(["(floor: trivial 2x2 px quads)", "-", 1, f"{size}x{size}", args.splats,
+                     round(seconds * 1000, 1), round(args.splats / seconds / 1e6, 2), "-", "-"])
+        print(rows[-1], flush=True)
     columns = ["model", "technique", "passes", "resolution", "splats", "frame ms", "M splats/s",
                "frame + read-back ms", "coverage"]
     write_table(args.name, columns, rows, machine_description(renderer_name(renderer.ctx)))

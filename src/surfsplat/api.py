@@ -88,7 +88,8 @@ def render(source: SplatCloud | str | Path, camera: Camera | None = None, *, tec
     Args:
         source: a SplatCloud (preprocessed if it lacks normals or splat axes) or a path.
         camera: the view; None frames the model automatically at ``width`` x ``height``.
-        technique: "ewa" (three passes, Guennebaud 2003) or "flat" (opaque, one pass).
+        technique: "ewa" (Guennebaud 2003), "perspective" (Zwicker 2004), both three
+            passes, or "flat" (opaque disks, one pass).
         lights: lighting and material; None is a headlight with the default material.
         background: RGB in [0, 1].
         prefilter, cutoff, depth_epsilon: see :class:`~surfsplat.render.technique.RenderOptions`.
