@@ -254,3 +254,30 @@ def test_preprocessed_random_sphere_against_exact_ray_cast(renderer):
         quality[technique] = psnr(frame.image() / 255.0, truth, inner)
     assert quality["ewa"] >= 45.0
     assert quality["ewa"] > quality["flat"] + 3.0  # blending beats opaque disks
+
+
+@pytest.mark.parametrize("technique", ["flat", "ewa", "perspective"])
+def test_clip_lines_cut_every_technique_footprint(renderer, technique):
+    """A slanted splat with two clip lines (a corner): pixels on the cut side get no weight,
+    pixels on the kept side keep exactly the unclipped weight (reference.clip_keep)."""
+    a = np.radians(40)
+    normal = (0.0, np.sin(a), np.cos(a))
+    u, v = (0.35, 0.0, 0.0), (0.0, 0.3 * np.cos(a), -0.3 * np.sin(a))
+    lines = np.array([[[1.0, 0.0, 0.2], [0.3, -1.0, 0.1]]])  # keep s >= -0.2 and t <= 0.3 s + 0.1
+    plain = single_splat(normal, u, v)
+    clipped = plain.replace(clip_lines=lines)
+    cam = Camera(eye=(0.1, 0.2, 2.5), target=(0, 0, 0), width=80, height=80, fov=30, near=0.5, far=10.0)
+    full = renderer.render(plain, cam, technique, UNLIT)
+    cut = renderer.render(clipped, cam, technique, UNLIT)
+
+    p = reference.to_camera(cam, plain.positions)
+    n = reference.to_camera_dir(cam, plain.normals)
+    uc, vc = reference.to_camera_dir(cam, plain.u), reference.to_camera_dir(cam, plain.v)
+    rays = reference.pixel_rays(cam, reference.pixel_centers(cam))[None]
+    st = reference.splat_coordinates(rays, reference.ray_plane_distance(rays, p, n), p, uc, vc)
+    keep = reference.clip_keep(st, lines)[0]
+    values = lines[0, :, 0] * st[0, ..., None, 0] + lines[0, :, 1] * st[0, ..., None, 1] + lines[0, :, 2]
+    decided = (np.abs(values) > 1e-3).all(axis=-1)
+    assert (full.weight[~keep & decided] > 0).sum() > 20, "the clip lines cut nothing: test is void"
+    assert (cut.weight[~keep & decided] == 0).all()
+    np.testing.assert_allclose(cut.weight[keep & decided], full.weight[keep & decided], rtol=1e-6)

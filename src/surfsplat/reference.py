@@ -417,3 +417,15 @@ def perspective_weight(camera: Camera, p_cam: np.ndarray, n_cam: np.ndarray, u_c
         w_ray = np.where(hit, np.exp(-cutoff * np.where(hit, r2, 0.0)), 0.0)
     mode = fp["mode"].reshape(shape)
     return np.where(mode == PERSPECTIVE_CONIC, w_conic, np.where(mode == PERSPECTIVE_RAYCAST, w_ray, 0.0))
+
+
+def clip_keep(st: np.ndarray, clip_lines: np.ndarray) -> np.ndarray:
+    """Clip-line test: True where ``a s + b t + c >= 0`` for both lines of each splat.
+
+    ``st``: (N, ..., 2) normalized splat coordinates; ``clip_lines``: (N, 2, 3)
+    ``(a, b, c)`` (Botsch 2004, sec. 4; unused lines are (0, 0, 1)).
+    """
+    extra = st.ndim - 2
+    lines = clip_lines.reshape(clip_lines.shape[:1] + (1,) * extra + (2, 3))
+    value = lines[..., 0] * st[..., None, 0] + lines[..., 1] * st[..., None, 1] + lines[..., 2]
+    return (value >= 0).all(axis=-1)

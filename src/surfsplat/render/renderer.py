@@ -84,6 +84,8 @@ class Renderer:
             raise InputError("the SplatCloud is empty")
         arrays = {"position": cloud.positions, "normal": cloud.normals, "color": cloud.albedo,
                   "u": cloud.u, "v": cloud.v}
+        if cloud.clip_lines is not None:
+            arrays["clip0"], arrays["clip1"] = cloud.clip_lines[:, 0], cloud.clip_lines[:, 1]
         buffers = {name: self.ctx.buffer(np.ascontiguousarray(a, dtype="f4")) for name, a in arrays.items()}
         return GpuSplats(buffers, len(cloud), cloud.bounds(), float(cloud.radii.max()))
 
@@ -91,8 +93,9 @@ class Renderer:
         key = id(program)
         if key not in splats._vaos:
             content = [(self._quad, "2f", "in_corner")]
+            # attributes without a buffer keep OpenGL's default (0, 0, 0): no clip lines
             content += [(splats.buffers[name], "3f/i", f"in_{name}") for name in technique.attributes
-                        if f"in_{name}" in program]
+                        if f"in_{name}" in program and name in splats.buffers]
             splats._vaos[key] = self.ctx.vertex_array(program, content)
         return splats._vaos[key]
 

@@ -32,7 +32,7 @@ class Technique:
     vertex: str
     fragment: str
     blended: bool
-    attributes: tuple[str, ...] = ("position", "normal", "color", "u", "v")
+    attributes: tuple[str, ...] = ("position", "normal", "color", "u", "v", "clip0", "clip1")
     uniforms: Callable[["RenderOptions"], dict] = field(default=lambda options: {})
     description: str = ""
 

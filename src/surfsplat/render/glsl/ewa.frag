@@ -20,6 +20,8 @@ void main() {
     float beta = 0.5 * (v_conic.x * d.x * d.x + 2.0 * v_conic.y * d.x * d.y + v_conic.z * d.y * d.y);
     if (beta > u_cutoff) discard;
     vec3 ray = pixel_ray(gl_FragCoord.xy);
-    emit(ray, fragment_depth(ray), v_scale * exp(-beta), v_color, v_normal);
+    vec2 st = footprint_st(ray);
+    if (clipped(st)) discard;
+    emit(ray, footprint_depth(st), v_scale * exp(-beta), v_color, v_normal);
 #endif
 }

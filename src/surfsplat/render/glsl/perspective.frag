@@ -25,7 +25,7 @@ void main() {
         float z;
         if (!ray_disk(ray, z)) discard;
         vec2 st = plane_st(ray, z);
-        emit(ray, z, exp(-u_cutoff * dot(st, st)), v_color, v_normal);   // z = fragment_depth inside the disk
+        emit(ray, z, exp(-u_cutoff * dot(st, st)), v_color, v_normal);   // the exact depth (footprint_depth agrees inside the disk)
     } else {
         // Eq. 3 with R'_k = Q'''^-1 (eq. 11), centered at x_t (eq. 7): beta = 0.5 x^T V^-1 x in
         // V's principal axes, cut at beta = c.
@@ -33,7 +33,9 @@ void main() {
         vec2 q = vec2(dot(d, v_axis), dot(d, vec2(-v_axis.y, v_axis.x)));
         float beta = 0.5 * (q.x * q.x * v_inv_lambda.x + q.y * q.y * v_inv_lambda.y);
         if (beta > u_cutoff) discard;
-        emit(ray, fragment_depth(ray), v_scale * exp(-beta), v_color, v_normal);
+        vec2 st = footprint_st(ray);
+        if (clipped(st)) discard;
+        emit(ray, footprint_depth(st), v_scale * exp(-beta), v_color, v_normal);
     }
 #endif
 }

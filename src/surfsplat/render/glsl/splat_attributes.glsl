@@ -5,3 +5,5 @@ in vec3 in_normal;      // unit
 in vec3 in_color;       // linear RGB albedo
 in vec3 in_u;           // scaled tangent axis
 in vec3 in_v;           // scaled tangent axis, orthogonal to in_u
+in vec3 in_clip0;       // clip lines (a, b, c) in normalized (s, t): kept where a s + b t + c >= 0;
+in vec3 in_clip1;       // unbound (no clip lines) they read (0, 0, 0): nothing is clipped

@@ -11,11 +11,20 @@ flat in vec3 v_udual;
 flat in vec3 v_vdual;
 flat in vec2 v_uvz;
 flat in float v_radius;
+flat in vec3 v_clip0;
+flat in vec3 v_clip1;
 
 // Normalized (s, t) of the point t * ray on the splat's plane.
 vec2 plane_st(vec3 ray, float t) {
     vec3 q = t * ray - v_center;
     return vec2(dot(q, v_udual), dot(q, v_vdual));
+}
+
+// Clip lines in the splat's normalized coordinates (Botsch 2004, sec. 4): the
+// point (s, t) is cut away where a s + b t + c < 0 for either line.
+bool clipped(vec2 st) {
+    vec3 h = vec3(st, 1.0);
+    return dot(v_clip0, h) < 0.0 || dot(v_clip1, h) < 0.0;
 }
 
 // Exact ray/disk test: depth z of the ray's hit with the splat plane; false
@@ -24,18 +33,22 @@ bool ray_disk(vec3 ray, out float z) {
     z = 1.0 / dot(v_plane, ray);
     if (!(z >= u_near_far.x && z <= u_near_far.y)) return false;
     vec2 st = plane_st(ray, z);
-    return dot(st, st) <= 1.0;
+    return dot(st, st) <= 1.0 && !clipped(st);
+}
+
+// (s, t) where the fragment's ray meets the splat plane; a ray parallel to the
+// plane, or meeting it behind the eye, goes off to the plane's horizon: the
+// direction of its far end there, scaled far outside the ellipse.
+vec2 footprint_st(vec3 ray) {
+    float z = 1.0 / dot(v_plane, ray);
+    return (z > 0.0) ? plane_st(ray, z) : vec2(dot(ray, v_udual), dot(ray, v_vdual)) * 1e6;
 }
 
 // Depth for fragments a footprint filter spreads beyond the disk: the depth of
 // the disk point nearest (in (s, t)) to the ray's hit with the plane, so a
 // fragment is never given a depth the splat does not have (the plane itself
 // runs away from the surface at grazing angles).
-float fragment_depth(vec3 ray) {
-    float z = 1.0 / dot(v_plane, ray);
-    // A ray parallel to the plane, or meeting it behind the eye, goes off to
-    // the plane's horizon: take the direction of its far end there.
-    vec2 st = (z > 0.0) ? plane_st(ray, z) : vec2(dot(ray, v_udual), dot(ray, v_vdual)) * 1e6;
+float footprint_depth(vec2 st) {
     float len2 = dot(st, st);
     if (!(len2 <= 1.0)) st = len2 > 0.0 ? st * inversesqrt(len2) : vec2(0.0);
     return -(v_center.z + st.x * v_uvz.x + st.y * v_uvz.y);

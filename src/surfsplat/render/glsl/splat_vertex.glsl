@@ -9,6 +9,8 @@ flat out vec2 v_uvz;      // (u.z, v.z): depth change along the axes
 flat out float v_radius;  // largest semi-axis, model units
 flat out vec3 v_color;
 flat out vec3 v_normal;
+flat out vec3 v_clip0;    // clip lines, passed through (Botsch 2004, sec. 4; Zwicker 2004, sec. 5)
+flat out vec3 v_clip1;
 
 struct Splat {
     vec3 p;   // center, camera space
@@ -39,5 +41,7 @@ bool camera_splat(out Splat s) {
     v_radius = max(length(s.u), length(s.v));
     v_color = shade(in_color, s.n, normalize(-s.p));
     v_normal = s.n;
+    v_clip0 = in_clip0;
+    v_clip1 = in_clip1;
     return true;
 }
