@@ -82,7 +82,8 @@ def as_splats(source: SplatCloud | str | Path, *, k: int = 8) -> SplatCloud:
 
 def render(source: SplatCloud | str | Path, camera: Camera | None = None, *, technique: str = "ewa",
            width: int = 512, height: int = 512, lights: Lights | None = None, background=(1.0, 1.0, 1.0),
-           prefilter: bool = True, cutoff: float = 1.0, depth_epsilon: float = 1.0, k: int = 8) -> Frame:
+           prefilter: bool = True, cutoff: float = 1.0, depth_epsilon: float = 1.0,
+           cull_backfaces: bool = False, k: int = 8) -> Frame:
     """Render a SplatCloud or a point file to a :class:`Frame`.
 
     Args:
@@ -92,7 +93,8 @@ def render(source: SplatCloud | str | Path, camera: Camera | None = None, *, tec
             passes, or "flat" (opaque disks, one pass).
         lights: lighting and material; None is a headlight with the default material.
         background: RGB in [0, 1].
-        prefilter, cutoff, depth_epsilon: see :class:`~surfsplat.render.technique.RenderOptions`.
+        prefilter, cutoff, depth_epsilon, cull_backfaces: see
+            :class:`~surfsplat.render.technique.RenderOptions`.
         k: neighbours for preprocessing when needed.
     """
     cloud = as_splats(source, k=k)
@@ -101,5 +103,6 @@ def render(source: SplatCloud | str | Path, camera: Camera | None = None, *, tec
         raise InputError(f"background must be 3 numbers in [0, 1], got {background}")
     if camera is None:
         camera = auto_camera(cloud, width, height)
-    options = RenderOptions(cutoff=cutoff, prefilter=prefilter, depth_epsilon=depth_epsilon)
+    options = RenderOptions(cutoff=cutoff, prefilter=prefilter, depth_epsilon=depth_epsilon,
+                            cull_backfaces=cull_backfaces)
     return default_renderer().render(cloud, camera, technique, lights or Lights(), options, background)

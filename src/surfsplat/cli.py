@@ -36,6 +36,8 @@ def _add_view_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cutoff", type=float, default=1.0, help="EWA kernel cutoff c (default 1)")
     p.add_argument("--depth-epsilon", type=float, default=1.0,
                    help="visibility offset along the viewing rays, in splat radii (default 1)")
+    p.add_argument("--cull-backfaces", action="store_true",
+                   help="drop splats facing away from the eye (closed models with outward normals only)")
 
 
 def _camera(args, cloud):
@@ -62,7 +64,8 @@ def _render_and_save(cloud, args, out: Path, inputs: tuple[Path, ...] = ()) -> N
     lights = Lights(directions=tuple(map(tuple, args.light)) if args.light else None, enabled=not args.no_lighting)
     start = time.perf_counter()
     frame = render(cloud, camera, technique=args.technique, lights=lights, background=args.background,
-                   prefilter=not args.no_prefilter, cutoff=args.cutoff, depth_epsilon=args.depth_epsilon)
+                   prefilter=not args.no_prefilter, cutoff=args.cutoff, depth_epsilon=args.depth_epsilon,
+                   cull_backfaces=args.cull_backfaces)
     elapsed = time.perf_counter() - start
     frame.save(out)
     progress.message(f"rendered {len(cloud):,} splats with {args.technique} at {camera.width}x{camera.height} "

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .cloud import SplatCloud
+from .cloud import NO_CLIP, SplatCloud
 from .errors import InputError
 from .geometry.splats import tangent_frame
 
@@ -94,10 +94,68 @@ def torus(n_major: int = 400, n_minor: int = 160, major: float = 1.0, minor: flo
     return SplatCloud(positions, normals, colors, u, v)
 
 
+FACE_COLORS = np.array([[0.85, 0.25, 0.2], [0.2, 0.7, 0.3], [0.25, 0.4, 0.85],
+                        [0.9, 0.75, 0.2], [0.7, 0.3, 0.75], [0.2, 0.75, 0.8]], dtype=np.float32)
+
+
+def cube(n_side: int = 120, size: float = 1.0, texture: bool = True, coverage: float = 1.0) -> SplatCloud:
+    """An axis-aligned cube (edge ``size``, centered at the origin) of 6 n_side^2 splats with exact clip lines.
+
+    Each face is a grid of circular splats (radius as in :func:`checkerboard`).
+    A splat that reaches over an edge gets the clip line of the neighbouring
+    face's plane, two at a corner (Zwicker 2004, sec. 5 and figure 5), in the
+    convention of Botsch 2004: the part of the splat outside the cube, where
+    ``a s + b t + c < 0``, is cut away. ``texture``: a checkerboard of
+    per-face colors (else one flat color per face, see :data:`FACE_COLORS`).
+    """
+    if n_side < 2:
+        raise InputError("the cube needs at least 2 points per face side")
+    h = 0.5 * size
+    spacing = size / n_side
+    radius = coverage * 1.1 * spacing / np.sqrt(2.0)
+    g = (np.arange(n_side) + 0.5) * spacing - h
+    ga, gb = (x.ravel() for x in np.meshgrid(g, g))
+    axes = np.eye(3)
+    positions, normals, u, v, colors, lines = [], [], [], [], [], []
+    for face in range(6):  # six faces, not a loop over points
+        k, sign = face // 2, 1.0 - 2.0 * (face % 2)
+        n = axes[k] * sign
+        e1, e2 = axes[(k + 1) % 3], axes[(k + 2) % 3]
+        if sign < 0:
+            e1, e2 = e2, e1  # keep e1 x e2 = n
+        count = len(ga)
+        positions.append(h * n + ga[:, None] * e1 + gb[:, None] * e2)
+        normals.append(np.tile(n, (count, 1)))
+        u.append(np.tile(e1 * radius, (count, 1)))
+        v.append(np.tile(e2 * radius, (count, 1)))
+        base = FACE_COLORS[face]
+        if texture:
+            colors.append(checker_color((ga + h) / size, (gb + h) / size, 6, base * 0.45, 0.55 + base * 0.45))
+        else:
+            colors.append(np.tile(base, (count, 1)))
+        # the neighbouring faces' planes: along +-e1 (coordinate ga) and +-e2 (coordinate gb);
+        # inside is coord * side <= h, i.e. (h - side coord) - s side r [- t side r] >= 0
+        face_lines = np.tile(NO_CLIP, (count, 2, 1))
+        used = np.zeros(count, dtype=int)
+        for coord, column in ((ga, 0), (gb, 1)):
+            for side in (1.0, -1.0):
+                crosses = h - side * coord < radius
+                line = np.zeros((count, 3))
+                line[:, column] = -side * radius / radius  # (s, t) are in units of the radius
+                line[:, 2] = (h - side * coord) / radius
+                rows = np.flatnonzero(crosses)
+                face_lines[rows, used[rows]] = line[rows]
+                used[rows] += 1
+        lines.append(face_lines)
+    return SplatCloud(np.concatenate(positions), np.concatenate(normals), np.concatenate(colors),
+                      np.concatenate(u), np.concatenate(v), clip_lines=np.concatenate(lines))
+
+
 SCENES = {
     "sphere": lambda: sphere(100_000, color="bands"),
     "checkerboard": checkerboard,
     "torus": torus,
+    "cube": cube,
 }
 
 

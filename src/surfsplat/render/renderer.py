@@ -145,6 +145,7 @@ class Renderer:
             "u_light_dirs": [tuple(map(float, d)) for d in padded],
             "u_material": (lights.ambient, lights.diffuse, lights.specular, lights.shininess),
             "u_depth_epsilon": float(options.depth_epsilon),
+            "u_cull_backfaces": bool(options.cull_backfaces),
         }
 
     def draw(self, splats: GpuSplats, camera: Camera, technique: Technique | str = "ewa",

@@ -46,11 +46,15 @@ class RenderOptions:
         prefilter: apply the one-pixel EWA prefilter H = I.
         depth_epsilon: visibility-pass offset along the viewing rays, in units
             of each splat's largest semi-axis (Guennebaud 2003, sec. 5).
+        cull_backfaces: drop splats whose normal faces away from the eye. Only
+            for closed models with outward normals; it avoids blending across
+            silhouette edges within depth_epsilon (default off: two-sided).
     """
 
     cutoff: float = 1.0
     prefilter: bool = True
     depth_epsilon: float = 1.0
+    cull_backfaces: bool = False
 
     def __post_init__(self) -> None:
         if not (self.cutoff > 0):

@@ -12,6 +12,8 @@ flat out vec3 v_normal;
 flat out vec3 v_clip0;    // clip lines, passed through (Botsch 2004, sec. 4; Zwicker 2004, sec. 5)
 flat out vec3 v_clip1;
 
+uniform bool u_cull_backfaces;   // closed, outward-oriented models only
+
 struct Splat {
     vec3 p;   // center, camera space
     vec3 n;   // unit normal, camera space, facing the eye
@@ -28,6 +30,8 @@ bool camera_splat(out Splat s) {
     s.u = r * in_u;
     s.v = r * in_v;
     float np = dot(s.n, s.p);
+    // The eye lies on one side of the splat's plane: the whole splat faces away or none of it.
+    if (u_cull_backfaces && np > 0.0) return false;
     if (np > 0.0) { s.n = -s.n; np = -np; }
     float z = -s.p.z;
     float zext = length(vec2(s.u.z, s.v.z));   // half depth range of the ellipse
