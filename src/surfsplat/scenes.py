@@ -151,11 +151,86 @@ def cube(n_side: int = 120, size: float = 1.0, texture: bool = True, coverage: f
                       np.concatenate(u), np.concatenate(v), clip_lines=np.concatenate(lines))
 
 
+def _add_clip_line(lines: np.ndarray, used: np.ndarray, rows: np.ndarray, line: np.ndarray) -> None:
+    """Store ``line`` (len(rows), 3) in the next free of the two clip-line slots of ``rows``."""
+    free = used[rows] < 2
+    rows, line = rows[free], line[free]
+    lines[rows, used[rows]] = line
+    used[rows] += 1
+
+
+def sphere_cube(n: int = 150_000, half: float = 0.5, radius: float = 0.65) -> SplatCloud:
+    """CSG intersection of a cube (half edge ``half``) and a sphere (``radius``), both centered at 0.
+
+    With half < radius < half * sqrt(2) the six faces are flat disks and the
+    cube's edges are rounded by the sphere: flat and curved surfaces meeting at
+    sharp circular edges, every splat there clipped by the other surface's
+    tangent plane (Zwicker 2004, sec. 5 and figure 8). About ``n`` splats in
+    all, with the same density on both surfaces.
+    """
+    if not (half < radius < half * np.sqrt(2.0)):
+        raise InputError("sphere_cube needs half < radius < half * sqrt(2)")
+    # sphere part: a Fibonacci sphere at the density of n splats over the whole solid's area
+    rho = np.sqrt(radius**2 - half**2)  # radius of each face's disk
+    cap = 2 * np.pi * radius * (radius - half)  # area of the sphere beyond one face plane
+    area_sphere = 4 * np.pi * radius**2 - 6 * cap
+    area_faces = 6 * np.pi * rho**2
+    spacing = np.sqrt((area_sphere + area_faces) / n)
+    shell = sphere(int(4 * np.pi * radius**2 / spacing**2), radius=radius)
+    # Splats whose disks reach into the solid are kept (and clipped), not only those
+    # centered inside, so the surface next to a sharp edge is covered too.
+    keep = (np.abs(shell.positions) <= half + shell.radii[:, None]).all(axis=1)
+    shell = shell.subset(keep)
+    # face parts: square grids within the disks, grown by a splat radius likewise
+    splat_r = 1.1 * spacing / np.sqrt(2.0)
+    g = np.arange(-rho - splat_r, rho + splat_r + spacing, spacing)
+    ga, gb = (x.ravel() for x in np.meshgrid(g, g))
+    disk = ga**2 + gb**2 <= (rho + splat_r) ** 2
+    ga, gb = ga[disk], gb[disk]
+    axes = np.eye(3)
+    pos, nor, uu, vv = [shell.positions], [shell.normals], [shell.u], [shell.v]
+    for face in range(6):  # six faces, not a loop over points
+        k, sign = face // 2, 1.0 - 2.0 * (face % 2)
+        nf = axes[k] * sign
+        e1, e2 = axes[(k + 1) % 3], axes[(k + 2) % 3]
+        if sign < 0:
+            e1, e2 = e2, e1
+        pos.append(half * nf + ga[:, None] * e1 + gb[:, None] * e2)
+        nor.append(np.tile(nf, (len(ga), 1)))
+        uu.append(np.tile(e1 * splat_r, (len(ga), 1)))
+        vv.append(np.tile(e2 * splat_r, (len(ga), 1)))
+    positions, normals, u, v = (np.concatenate(x).astype(np.float64) for x in (pos, nor, uu, vv))
+    count, n_shell = len(positions), len(shell)
+    lines = np.tile(NO_CLIP, (count, 2, 1)).astype(np.float64)
+    used = np.zeros(count, dtype=int)
+    r = np.maximum(np.linalg.norm(u, axis=1), np.linalg.norm(v, axis=1))
+    on_shell = np.arange(count) < n_shell
+    # sphere splats: the face planes n.x = half; inside is half - n.(p + s u + t v) >= 0
+    for face in range(6):
+        nf = axes[face // 2] * (1.0 - 2.0 * (face % 2))
+        gap = half - positions @ nf
+        rows = np.flatnonzero(on_shell & (gap < r))
+        line = np.stack([-(u[rows] @ nf), -(v[rows] @ nf), gap[rows]], axis=1)
+        _add_clip_line(lines, used, rows, line)
+    # face splats: the sphere's tangent plane at the nearest point b of the face's rim circle;
+    # inside is radius^2 - b.(p + s u + t v) >= 0
+    face_normal = normals
+    in_plane = positions - (positions * face_normal).sum(1, keepdims=True) * face_normal
+    dist = np.linalg.norm(in_plane, axis=1)
+    rows = np.flatnonzero(~on_shell & (rho - dist < r))
+    b = half * face_normal[rows] + rho * in_plane[rows] / np.maximum(dist[rows, None], 1e-12)
+    line = np.stack([-(b * u[rows]).sum(1), -(b * v[rows]).sum(1), radius**2 - (b * positions[rows]).sum(1)], axis=1)
+    _add_clip_line(lines, used, rows, line)
+    colors = np.where(on_shell[:, None], np.float32([0.9, 0.55, 0.2]), np.float32([0.35, 0.55, 0.85]))
+    return SplatCloud(positions, normals, colors, u, v, clip_lines=lines)
+
+
 SCENES = {
     "sphere": lambda: sphere(100_000, color="bands"),
     "checkerboard": checkerboard,
     "torus": torus,
     "cube": cube,
+    "csg": sphere_cube,
 }
 
 
