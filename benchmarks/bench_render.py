@@ -18,6 +18,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+import numpy as np  # noqa: E402
 from common import machine_description, write_table  # noqa: E402
 
 from surfsplat import scenes  # noqa: E402
@@ -33,6 +34,10 @@ SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
 def models(n: int) -> dict:
     """The benchmark scenes, each with n splats."""
     out = {"sphere": scenes.sphere(n)}
+    # the cost of clip lines: the same cube with and without them (its edge splats clipped)
+    cube = scenes.cube(max(2, int(round(np.sqrt(n / 6)))))
+    out["cube, clip lines"] = cube
+    out["cube, no clip lines"] = cube.replace(clip_lines=None)
     bunny = SHARED / "bunny.ply"
     if bunny.exists():
         from surfsplat.geometry.sampling import sample_mesh
@@ -45,11 +50,12 @@ def models(n: int) -> dict:
 
 def time_frames(renderer: Renderer, splats, camera, technique: str, repeat: int) -> float:
     """Mean seconds per frame of ``repeat`` frames after one warm-up frame."""
-    renderer.draw(splats, camera, technique, Lights(), RenderOptions())
+    options = RenderOptions()
+    renderer.draw(splats, camera, technique, Lights(), options)
     renderer.ctx.finish()
     start = time.perf_counter()
     for _ in range(repeat):
-        renderer.draw(splats, camera, technique, Lights(), RenderOptions())
+        renderer.draw(splats, camera, technique, Lights(), options)
     renderer.ctx.finish()
     return (time.perf_counter() - start) / repeat
 
