@@ -48,6 +48,13 @@ class GpuSplats:
         self.buffers.clear()
 
 
+def _with_clip_planes(camera: Camera, splats: GpuSplats) -> Camera:
+    """The camera with near/far set from the splats' bounds where it has none."""
+    if camera.near is None or camera.far is None:
+        return camera.with_clip_from_bounds(*splats.bounds, margin=splats.max_radius)
+    return camera
+
+
 class Renderer:
     """Renders SplatClouds with any registered technique into Frames.
 
@@ -157,8 +164,7 @@ class Renderer:
         :meth:`render`); a window passes its own framebuffer.
         """
         technique = get_technique(technique) if isinstance(technique, str) else technique
-        if camera.near is None or camera.far is None:
-            camera = camera.with_clip_from_bounds(*splats.bounds, margin=splats.max_radius)
+        camera = _with_clip_planes(camera, splats)
         ctx = self.ctx
         targets = self._ensure_targets(camera.width, camera.height)
         uniforms = self._frame_uniforms(camera, lights, options) | technique.uniforms(options)
@@ -208,8 +214,7 @@ class Renderer:
         if isinstance(splats, SplatCloud):
             splats = uploaded = self.upload(splats)
         try:
-            if camera.near is None or camera.far is None:
-                camera = camera.with_clip_from_bounds(*splats.bounds, margin=splats.max_radius)
+            camera = _with_clip_planes(camera, splats)
             self.draw(splats, camera, technique, lights, options, background)
             targets = self._targets
             w, h = camera.width, camera.height
