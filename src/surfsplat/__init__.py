@@ -15,6 +15,7 @@ from .lighting import Lights
 from .render.frame import Frame
 from .render.technique import RenderOptions
 from .scenes import demo_scene
+from .viewer import view
 
 __version__ = "0.1.0"
 
@@ -35,4 +36,4 @@ def preprocess(cloud: SplatCloud, **kwargs) -> SplatCloud:
 
 __all__ = ["Camera", "Frame", "InputError", "Lights", "RenderError", "RenderOptions", "SplatCloud",
            "SurfsplatError", "as_splats", "auto_camera", "demo_scene", "load", "preprocess", "render",
-           "__version__"]
+           "view", "__version__"]

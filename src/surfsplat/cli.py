@@ -132,7 +132,7 @@ def cmd_preprocess(args) -> None:
     with progress.stage(f"loading {args.input}"):
         cloud = load(args.input)
     progress.message(f"{len(cloud):,} points")
-    cloud = preprocess(cloud, k=args.k, shape=args.shape)
+    cloud = preprocess(cloud, k=args.k, shape=args.shape, sharp_angle=args.sharp_angle)
     save_ply(cloud, out, overwrite=args.force)
     progress.message(f"wrote {len(cloud):,} splats -> {out}")
 
@@ -145,7 +145,7 @@ def cmd_sample(args) -> None:
     _refuse_overwriting_inputs(out, (Path(args.mesh),))
     mesh = load_mesh(args.mesh)
     with progress.stage(f"sampling {args.n:,} points", count=args.n):
-        cloud = sample_mesh(mesh, args.n, seed=args.seed)
+        cloud = sample_mesh(mesh, args.n, seed=args.seed, sharp_angle=args.sharp_angle)
     save_ply(cloud, out, overwrite=args.force)
     progress.message(f"wrote {len(cloud):,} samples -> {out}")
 
@@ -176,11 +176,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("input")
     p.set_defaults(func=cmd_info)
 
+    from .geometry.sharp import sharp_angle_argument
+
     p = sub.add_parser("preprocess", help="estimate normals and splat ellipses; write a splat PLY")
     p.add_argument("input")
     p.add_argument("-o", "--output", required=True, help="output .ply")
     p.add_argument("--k", type=int, default=8, help="neighbours (default 8)")
     p.add_argument("--shape", choices=("ellipse", "circle"), default="ellipse", help="splat shape (default ellipse)")
+    p.add_argument("--sharp-angle", type=sharp_angle_argument, metavar="DEG",
+                   help="clip lines at sharp edges and corners: where neighbouring normals split into groups "
+                        "more than DEG degrees apart (0 < DEG < 180; default: none)")
     p.add_argument("--force", action="store_true", help="overwrite an existing output file")
     p.set_defaults(func=cmd_preprocess)
 
@@ -189,8 +194,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-n", type=int, required=True, help="number of samples")
     p.add_argument("-o", "--output", required=True, help="output .ply")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--sharp-angle", type=sharp_angle_argument, metavar="DEG",
+                   help="also give the samples splats, and clip lines where they cross an edge whose faces' "
+                        "normals differ by more than DEG degrees (0 < DEG < 180; default: points only)")
     p.add_argument("--force", action="store_true", help="overwrite an existing output file")
     p.set_defaults(func=cmd_sample)
+
+    from .viewer.cli import add_view_command
+
+    add_view_command(sub, _add_view_options)
     return parser
 
 

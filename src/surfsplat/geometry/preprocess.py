@@ -7,9 +7,14 @@ Stages, each reported through :func:`surfsplat.progress.stage`:
 3. normals by PCA (:func:`estimate_normals`) when the cloud has none,
 4. consistent orientation (:func:`orient_normals`, Hoppe et al. 1992) when
    the normals were estimated here,
-5. splat axes (:func:`elliptical_splats`, Pajarola 2003, or
+5. with ``sharp_angle``: sharp features (:func:`~surfsplat.geometry.sharp.detect_sharp_features`,
+   Zwicker 2004 sec. 5): normals re-fitted to one side of the feature and
+   the planes of the other side(s),
+6. splat axes (:func:`elliptical_splats`, Pajarola 2003, or
    :func:`circular_splats`, Guennebaud 2003 eq. 7) unless the cloud has
-   ``u`` and ``v`` already.
+   ``u`` and ``v`` already,
+7. with ``sharp_angle``: clip lines where those planes cross the splats
+   (:func:`~surfsplat.geometry.sharp.feature_clip_lines`).
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ from ..cloud import SplatCloud
 from ..errors import InputError
 from .neighbors import _LEAFSIZE, _as_points, knn, spatial_order
 from .normals import _orientation_signs, estimate_normals, orient_normals
+from .sharp import check_sharp_angle, detect_sharp_features, feature_clip_lines
 from .splats import (CIRCLE_COVERAGE, ELLIPSE_COVERAGE, MAX_ANISOTROPY, circular_splats, elliptical_splats,
                      normals_and_ellipses)
 
@@ -32,7 +38,7 @@ SHAPES = ("ellipse", "circle")
 
 def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True,
                coverage: float | None = None, max_anisotropy: float = MAX_ANISOTROPY,
-               source: str = "input") -> SplatCloud:
+               source: str = "input", sharp_angle: float | None = None) -> SplatCloud:
     """Turn a point cloud into renderable splats.
 
     Args:
@@ -51,12 +57,22 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
             papers' bare sizes, enough for near-regular samplings (scans).
         max_anisotropy: cap of the ellipse axis ratio (default 4.0).
         source: name of the input in messages and warnings.
+        sharp_angle: None (default), or an angle in degrees in (0, 180):
+            detect sharp edges and corners where the normals in a point's
+            neighbourhood (its 32 nearest points) split into groups
+            more than this apart, and give the splats there clip lines (see
+            :func:`surfsplat.geometry.sharp.detect_sharp_features`). Estimated
+            normals at feature points are re-fitted to the point's own side
+            (PCA normals average the two faces). Normals that came with the
+            cloud are kept as they are. A cloud that has clip lines already
+            keeps them (this option is then ignored, with a warning).
 
     Returns:
         A validated :class:`SplatCloud` in the input order (invalid input rows
         dropped with a warning) with unit ``normals`` and splat axes ``u``,
         ``v`` (float32, model units). If the cloud has ``u`` and ``v`` but no
-        normals, the normals are ``u x v`` normalized.
+        normals, the normals are ``u x v`` normalized. With ``sharp_angle``,
+        ``clip_lines`` (N, 2, 3) float32 too (``(0, 0, 1)`` where unused).
 
     Raises:
         InputError: bad arguments, no valid points, or a single point without
@@ -74,14 +90,21 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
         raise InputError(f"coverage must be > 0, got {coverage}")
     if not max_anisotropy >= 1:
         raise InputError(f"max_anisotropy must be >= 1, got {max_anisotropy}")
+    if sharp_angle is not None:
+        sharp_angle = check_sharp_angle(sharp_angle)
     cloud = cloud.validated(source)
     n = len(cloud)
+    if sharp_angle is not None and cloud.clip_lines is not None:
+        warnings.warn(f"{source}: has clip lines already; sharp_angle ignored", stacklevel=2)
+        sharp_angle = None
     need_normals = cloud.normals is None
     need_axes = cloud.u is None or cloud.v is None
     if not need_axes:
         if need_normals:
             normals = np.cross(cloud.u, cloud.v)
             cloud = cloud.replace(normals=normals)
+        if sharp_angle is not None and n > 1:
+            cloud = _add_clip_lines(cloud.validated(source), sharp_angle)
         return cloud.validated(source)
     if n < 2:
         raise InputError(f"{source}: preprocessing needs at least 2 points to size the splats, got {n}")
@@ -93,9 +116,10 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
     with progress.stage("spatial sort", n):
         perm = spatial_order(cloud.positions)
         pts = np.take(cloud.positions, perm, axis=0)
+    sharp = sharp_angle is not None
     with progress.stage(f"{k}-nearest neighbours", n):
         dist, idx = knn(pts, k, presorted=True)
-    if need_normals and shape == "ellipse":
+    if need_normals and shape == "ellipse" and not sharp:
         # one pass over the neighbourhoods for both (shares the offset gathers)
         with progress.stage("normals (PCA) and splat ellipses", n):
             normals, u, v = normals_and_ellipses(pts, idx, dist, coverage=coverage, max_anisotropy=max_anisotropy)
@@ -113,6 +137,13 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
                     normals = orient_normals(pts, normals, idx, dist)
         else:
             normals = np.take(cloud.normals, perm, axis=0)
+        if sharp:
+            with progress.stage("sharp features", n):
+                features = detect_sharp_features(pts, normals, idx, sharp_angle,
+                                                 oriented=orient or not need_normals, refine_normals=need_normals)
+            normals = features.normals
+            progress.message(f"  {int(features.feature.sum()):,} points at sharp features "
+                             f"({features.candidates:,} examined)")
         with progress.stage(f"splat {shape}s", n):
             if shape == "ellipse":
                 u, v = elliptical_splats(pts, normals, idx, dist, coverage=coverage, max_anisotropy=max_anisotropy)
@@ -128,7 +159,30 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
     changes = {"u": unsort(u), "v": unsort(v)}
     if need_normals:
         changes["normals"] = unsort(normals)
+    if sharp:
+        with progress.stage("clip lines", n):
+            lines = feature_clip_lines(features, pts, u, v)
+        out = np.empty_like(lines)
+        out[perm] = lines
+        changes["clip_lines"] = out
     return cloud.replace(**changes).validated(source)
+
+
+def _add_clip_lines(cloud: SplatCloud, sharp_angle: float) -> SplatCloud:
+    """Clip lines for a cloud that has its splats (normals, u, v) already; normals unchanged."""
+    n = len(cloud)
+    with progress.stage("spatial sort", n):
+        perm = spatial_order(cloud.positions)
+        pts = np.take(cloud.positions, perm, axis=0)
+    with progress.stage("8-nearest neighbours", n):
+        _, idx = knn(pts, min(8, n - 1), presorted=True)
+    with progress.stage("sharp features", n):
+        features = detect_sharp_features(pts, np.take(cloud.normals, perm, axis=0), idx, sharp_angle,
+                                         oriented=True, refine_normals=False)
+        lines = feature_clip_lines(features, pts, np.take(cloud.u, perm, axis=0), np.take(cloud.v, perm, axis=0))
+    out = np.empty_like(lines)
+    out[perm] = lines
+    return cloud.replace(clip_lines=out)
 
 
 def neighbour_spacing(positions, k: int = 1, sample: int | None = None, seed: int = 0) -> dict:

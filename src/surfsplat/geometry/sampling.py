@@ -1,4 +1,5 @@
-"""Uniform random sampling of a triangle mesh's surface into splat centers."""
+"""Uniform random sampling of a triangle mesh's surface into splat centers (and, on request,
+splats with clip lines at the mesh's sharp edges)."""
 
 from __future__ import annotations
 
@@ -6,12 +7,16 @@ import numbers
 
 import numpy as np
 
+from .. import progress
 from ..cloud import SplatCloud
 from ..errors import InputError
 from ..io.mesh import Mesh
+from .preprocess import preprocess
+from .sharp import check_sharp_angle, mesh_clip_lines
 
 
-def sample_mesh(mesh: Mesh, n: int, *, seed: int = 0) -> SplatCloud:
+def sample_mesh(mesh: Mesh, n: int, *, seed: int = 0, sharp_angle: float | None = None, k: int = 8,
+                shape: str = "circle", coverage: float | None = None) -> SplatCloud:
     """Sample ``n`` points uniformly by area on the surface of ``mesh``.
 
     Each sample picks a face with probability proportional to its area, then a
@@ -23,6 +28,21 @@ def sample_mesh(mesh: Mesh, n: int, *, seed: int = 0) -> SplatCloud:
         n: number of samples, >= 1.
         seed: seed of ``numpy.random.default_rng``; equal seeds give equal
             samples.
+        sharp_angle: None (default: points and normals only), or a dihedral
+            angle in degrees, in (0, 180): then every sample also gets its
+            splat, and splats that reach over an edge sharper than this get
+            clip lines from the faces there (see below).
+        k, shape, coverage: splat sizes when ``sharp_angle`` is given, as in
+            :func:`surfsplat.geometry.preprocess.preprocess` with the face
+            normals kept: ``k`` neighbours; ``shape`` ``"circle"`` (default:
+            radius ``coverage * h_k``, Guennebaud 2003 eq. 7, the distance
+            to the k-th neighbour) or ``"ellipse"``; ``coverage`` default
+            1.25 for circles, 1.5 for ellipses, the factors measured to leave
+            no holes between uniformly random samples (see
+            :mod:`surfsplat.geometry.splats`). The axes lie in the face's
+            plane. Sizes adapt to the random gaps, which a global radius
+            ``sqrt(area / n)`` times a constant cannot do without splats ~2x
+            larger everywhere.
 
     Returns:
         SplatCloud with positions (n, 3) float32 model space; normals (n, 3)
@@ -40,6 +60,8 @@ def sample_mesh(mesh: Mesh, n: int, *, seed: int = 0) -> SplatCloud:
         raise InputError(f"sample_mesh: n must be an integer, got {n!r}")
     if n < 1:
         raise InputError(f"sample_mesh: n must be at least 1, got {n}")
+    if sharp_angle is not None:
+        sharp_angle = check_sharp_angle(sharp_angle, "sample_mesh: sharp_angle")
     mesh = mesh.validated("sample_mesh: mesh")
     areas = mesh.face_areas()
     total = float(areas.sum())
@@ -69,5 +91,14 @@ def sample_mesh(mesh: Mesh, n: int, *, seed: int = 0) -> SplatCloud:
     if mesh.vertex_colors is not None:
         colors = np.einsum("nk,nkd->nd", bary, mesh.vertex_colors.astype(np.float64)[corners])
 
-    return SplatCloud(positions=positions.astype(np.float32), normals=normals.astype(np.float32),
-                      colors=None if colors is None else colors.astype(np.float32))
+    cloud = SplatCloud(positions=positions.astype(np.float32), normals=normals.astype(np.float32),
+                       colors=None if colors is None else colors.astype(np.float32))
+    if sharp_angle is None:
+        return cloud
+    # splats with the face normals kept (axes in the face planes), sized by the k-neighbourhoods
+    splats = preprocess(cloud, k=k, shape=shape, coverage=coverage, source="sample_mesh")
+    if len(splats) != n:  # cannot happen: samples of a valid mesh are finite, their normals unit
+        raise InputError(f"sample_mesh: preprocessing dropped {n - len(splats)} samples")
+    with progress.stage("clip lines at sharp edges", n):
+        lines = mesh_clip_lines(mesh, face, splats.positions, splats.u, splats.v, sharp_angle)
+    return splats.replace(clip_lines=lines)

@@ -1,0 +1,11 @@
+"""The interactive viewer (``surfsplat view``): a glfw window drawing with the same Renderer.
+
+``surfsplat.viewer.view("bunny.ply")`` opens a window; see :func:`view` for the
+options and the scripted mode (``frames``, ``orbit``, ``screenshot``) used by
+tests and by people without a mouse. Needs the optional ``glfw`` package
+(``pip install 'surfsplat[viewer]'``) and a display.
+"""
+
+from .app import ViewStats, level_of_detail, view
+
+__all__ = ["ViewStats", "level_of_detail", "view"]

@@ -1,0 +1,872 @@
+"""The interactive viewer: a glfw window drawing with the same Renderer as ``surfsplat render``.
+
+Frame loop (one thread; glfw callbacks only record input, the loop acts on it):
+
+1. input -> :class:`~surfsplat.viewer.camera_control.CameraController` (orbit, pan, zoom, fly) and
+   settings (technique, prefilter, lighting, culling, LOD tolerance);
+2. rendering, off-screen, into RGBA8 textures of the window's framebuffer size:
+   - while the camera moves (and for ``SETTLE_S`` after its last change), where full quality
+     is too slow to follow (over ``PREVIEW_ABOVE_S`` a frame), a cheap *preview*:
+     technique ``flat`` (one pass) on at most ``motion_budget`` splats (one per cell of a grid,
+     enlarged to cover the cell: :func:`preview_cloud`), optionally at a lower internal
+     resolution (``motion_scale``);
+   - once the camera has been still for ``SETTLE_S``, one *full-quality* frame with the chosen
+     technique; it is kept and shown again, not re-rendered, until something changes;
+3. presenting: the preview cross-faded into the full frame over ``FADE_S`` (no pop), then the HUD.
+
+Why this preview: on Mesa's llvmpipe (2 cores) the cost of a frame is about proportional to
+the number of splats (vertex and setup bound), not to the pixels: 1 M splats at 1280x720
+take 0.7 s with ``flat``, 1.6-1.9 s with ``ewa``, and halving the resolution saves only
+20-30%. Cutting the splat count is what makes moving interactive; the LOD hierarchy
+(Pajarola 2003) will do this properly, see :func:`level_of_detail`.
+
+Rendering off-screen also gives screenshots without the HUD, independent of the window's
+pixel ownership, and lets a still view be re-shown without re-rendering.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Callable, Literal
+
+import numpy as np
+
+from .. import progress
+from ..camera import Camera
+from ..cloud import SplatCloud
+from ..errors import InputError, RenderError
+from ..lighting import Lights
+from ..render.technique import TECHNIQUES, RenderOptions, get_technique
+from . import camera_control as cc
+
+#: Seconds the camera must be still before the full-quality frame replaces the preview.
+SETTLE_S = 0.25
+#: Seconds of the cross-fade from the preview to the full-quality frame.
+FADE_S = 0.15
+#: Default (about) number of splats and resolution scale of the motion preview: with ``flat``
+#: at 1280x720 (drawn at 640x360) about 5-10 frames/s on llvmpipe with 2 cores. Only used
+#: where full quality is slow (motion "auto"), so a GPU usually never shows the preview.
+DEFAULT_MOTION_BUDGET = 100_000
+DEFAULT_MOTION_SCALE = 0.5
+#: LOD screen tolerance range, pixels, and the factor of one +/- step.
+TOLERANCE_RANGE = (0.125, 64.0)
+TOLERANCE_STEP = math.sqrt(2.0)
+#: Seconds between refreshes of the frame counter (and so of the HUD's text).
+FPS_INTERVAL_S = 0.5
+#: Image formats a scripted screenshot may be written in (by suffix).
+IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}
+
+Motion = Literal["auto", "flat", "same", "off"]
+#: With motion "auto", the preview is used only where a full-quality frame takes longer than this
+#: (seconds): on a GPU the full quality usually keeps up and is drawn while moving too.
+PREVIEW_ABOVE_S = 0.05
+
+NO_DISPLAY = ("cannot open a window: {why}. The viewer needs a display. Without one, render images "
+              "with `surfsplat render INPUT -o out.png` (or `surfsplat demo`), or run the viewer under "
+              "a virtual X server: `xvfb-run -s '-screen 0 1280x1024x24' surfsplat view INPUT --frames N "
+              "--screenshot out.png` (Debian/Ubuntu: apt-get install xvfb)")
+
+
+@dataclass
+class ViewStats:
+    """What a :func:`view` session did.
+
+    Attributes:
+        frames: frames presented (scripted mode: the N asked for, unless the window was closed).
+        seconds: wall-clock time of those frames (rendering, presenting, HUD, swap), seconds.
+        fps: frames / seconds.
+        preview_frames, full_frames: how many renders were motion previews / full quality.
+        splats: splats in the model; preview_splats: splats drawn in a preview.
+        size: (width, height) of the framebuffer, pixels.
+        screenshot: the image written by the scripted mode, if any.
+    """
+
+    frames: int
+    seconds: float
+    fps: float
+    preview_frames: int
+    full_frames: int
+    splats: int
+    preview_splats: int
+    size: tuple[int, int]
+    screenshot: Path | None = None
+
+
+# -- inputs ----------------------------------------------------------------
+
+def load_source(source, k: int = 8) -> SplatCloud:
+    """A render-ready SplatCloud from a SplatCloud, a file path, or ``"demo:NAME"`` (a built-in scene)."""
+    from ..api import as_splats
+
+    if isinstance(source, str) and source.startswith("demo:"):
+        from ..scenes import demo_scene
+
+        with progress.stage(f"building scene {source[5:]}"):
+            return demo_scene(source[5:])
+    if isinstance(source, (str, Path)):
+        with progress.stage(f"loading {source}"):
+            return as_splats(source, k=k)
+    return as_splats(source, k=k)
+
+
+def check_source(source) -> None:
+    """Cheap checks before a window opens: a known demo scene, an existing file (InputError else)."""
+    if isinstance(source, str) and source.startswith("demo:"):
+        from ..scenes import SCENES
+
+        if source[5:] not in SCENES:
+            raise InputError(f"unknown demo scene {source[5:]!r}; choose one of "
+                             f"{', '.join('demo:' + name for name in sorted(SCENES))}")
+    elif isinstance(source, (str, Path)) and not Path(source).is_file():
+        raise InputError(f"{source}: no such file (or demo:NAME for a built-in scene)")
+
+
+def technique_names() -> list[str]:
+    """The registered techniques in the order T cycles through them and 1..9 select them."""
+    get_technique("ewa")  # importing the technique modules registers them
+    return sorted(TECHNIQUES)
+
+
+def _grid_sample(positions: np.ndarray, budget: int) -> tuple[np.ndarray, float]:
+    """One splat per occupied cell of a cubic grid, the cell size tuned so that between 85% and
+    100% of ``budget`` cells are occupied (fewer only if that does not converge).
+
+    Args:
+        positions: (N, 3) float32, model space.
+    Returns:
+        (sorted indices of the kept splats, cell size in model units).
+    """
+    p = positions.astype(np.float64)
+    lo = p.min(axis=0)
+    diag = float(np.linalg.norm(p.max(axis=0) - lo)) or 1.0
+
+    def first_per_cell(cell: float) -> np.ndarray:
+        key = np.floor((p - lo) / cell).astype(np.int64)
+        dims = key.max(axis=0) + 1
+        flat = (key[:, 0] * dims[1] + key[:, 1]) * dims[2] + key[:, 2]
+        return np.sort(np.unique(flat, return_index=True)[1])
+
+    cell, best = diag / math.sqrt(budget), None
+    for _ in range(12):
+        kept = first_per_cell(cell)
+        if len(kept) <= budget:
+            best = (kept, cell)
+            if len(kept) >= 0.85 * budget:
+                break
+        # occupied cells of a surface ~ 1 / cell^2: aim at 93% of the budget
+        cell *= max(math.sqrt(len(kept) / (0.93 * budget)), 0.5)
+    while best is None or len(best[0]) > budget:
+        cell *= 1.5
+        best = (first_per_cell(cell), cell)
+    return best
+
+
+def preview_cloud(cloud: SplatCloud, budget: int) -> SplatCloud | None:
+    """About ``budget`` (at most) splats standing in for the whole cloud while the camera moves.
+
+    One splat per cell of a cubic grid (even coverage, unlike a random subset, and
+    fixed, so the preview does not flicker), each tangent axis stretched to at least
+    the cell size so the kept splats close the gaps of the dropped ones; clip lines are
+    rescaled to cut the same planes. A crude stand-in for the LOD hierarchy's
+    representative splats (Pajarola 2003). None when the cloud has no more than
+    ``budget`` splats (or ``budget`` is 0).
+    """
+    if budget <= 0 or len(cloud) <= budget:
+        return None
+    index, cell = _grid_sample(cloud.positions, budget)
+    sub = cloud.subset(index)
+    # Neighbouring kept splats are up to about two cells apart; axes of one cell close the gaps
+    # (checked on the demo scenes: 0.6 cells leaves holes, 0.8 a few, 1.0 none).
+    gu = np.maximum(1.0, cell / np.linalg.norm(sub.u, axis=1)).astype(np.float32)[:, None]
+    gv = np.maximum(1.0, cell / np.linalg.norm(sub.v, axis=1)).astype(np.float32)[:, None]
+    clip = None
+    if sub.clip_lines is not None:
+        # (a, b, c) act on (s, t) in units of u, v: with u' = g u, s = g s', so a, b scale by g
+        clip = sub.clip_lines.copy()
+        clip[:, :, 0] *= gu
+        clip[:, :, 1] *= gv
+    return sub.replace(u=sub.u * gu, v=sub.v * gv, clip_lines=clip, normal_field=None)
+
+
+def level_of_detail(splats, camera: Camera, tolerance_px: float):
+    """Hook for view-dependent level of detail: the splats to draw for ``camera``.
+
+    ``tolerance_px`` is the LOD screen tolerance tau in pixels (Pajarola 2003,
+    sec. 4): a hierarchy node is drawn instead of its children when its projected
+    size error is below tau. There is no hierarchy yet (``surfsplat.hierarchy``
+    is empty), so this draws every splat and ignores the tolerance; the viewer
+    already stores tau, changes it with +/-, shows it in the HUD and calls this
+    once per full-quality frame. A hierarchy-backed version returns the selection
+    (a few index ranges of level-ordered buffers) and the count drawn.
+
+    Returns:
+        (GpuSplats to draw, number of splats drawn).
+    """
+    return splats, splats.count
+
+
+# -- the window ------------------------------------------------------------
+
+def open_window(width: int, height: int, title: str, visible: bool = True):
+    """Create a glfw window with an OpenGL 3.3 core context and a moderngl context on it.
+
+    Returns (glfw module, window, moderngl context). Raises RenderError with
+    :data:`NO_DISPLAY`'s advice when glfw is missing, finds no display or the
+    window (or its context) cannot be created.
+    """
+    try:
+        import glfw
+    except ImportError:
+        raise RenderError(NO_DISPLAY.format(why="the glfw package is not installed "
+                                            "(pip install 'surfsplat[viewer]')")) from None
+    import moderngl
+
+    errors: list[str] = []
+
+    def on_error(code, description):
+        text = description.decode(errors="replace") if isinstance(description, bytes) else str(description)
+        errors.append(text)
+
+    glfw.set_error_callback(on_error)
+
+    def fail(what: str):
+        why = what + (f" ({'; '.join(errors)})" if errors else "")
+        glfw.terminate()
+        glfw.set_error_callback(None)
+        return RenderError(NO_DISPLAY.format(why=why))
+
+    if not glfw.init():
+        raise fail("glfw found no display")
+    glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, 3)
+    glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, 3)
+    glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
+    glfw.window_hint(glfw.OPENGL_FORWARD_COMPAT, True)  # required on macOS, harmless elsewhere
+    glfw.window_hint(glfw.VISIBLE, visible)
+    window = glfw.create_window(int(width), int(height), title, None, None)
+    if not window:
+        raise fail("the window with an OpenGL 3.3 core context could not be created")
+    glfw.make_context_current(window)
+    try:
+        ctx = moderngl.create_context(require=330)
+    except Exception as exc:  # moderngl raises plain Exceptions from its loader
+        glfw.destroy_window(window)
+        raise fail(f"no OpenGL 3.3 context on the window: {exc}") from None
+    return glfw, window, ctx
+
+
+def unique_screenshot_path(folder: Path | None = None, now: float | None = None) -> Path:
+    """``surfsplat-YYYYmmdd-HHMMSS.png`` in ``folder`` (default: the current folder), with ``-1``,
+    ``-2``, ... appended while that name exists. :func:`save_image` with ``exclusive``
+    re-checks atomically."""
+    folder = Path.cwd() if folder is None else Path(folder)
+    stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(now))
+    for i in itertools.count():
+        path = folder / f"surfsplat-{stamp}{'' if i == 0 else f'-{i}'}.png"
+        if not path.exists():
+            return path
+    raise AssertionError("unreachable")
+
+
+def save_image(image: np.ndarray, path: Path, exclusive: bool = False) -> Path:
+    """Write an (H, W, 3) uint8 image. ``exclusive``: never overwrite; the name gets ``-1``,
+    ``-2``, ... until a new file can be created (opened with O_EXCL, so no race). Returns the path."""
+    from PIL import Image
+
+    path = Path(path)
+    picture = Image.fromarray(image)
+    if not exclusive:
+        picture.save(path)
+        return path
+    stem, suffix = path.stem, path.suffix
+    for i in itertools.count():
+        candidate = path.with_name(f"{stem}{'' if i == 0 else f'-{i}'}{suffix}")
+        try:
+            with open(candidate, "xb") as handle:
+                picture.save(handle, format="PNG")
+            return candidate
+        except FileExistsError:
+            continue
+    raise AssertionError("unreachable")
+
+
+def _check_image_path(path) -> Path:
+    path = Path(path)
+    if path.suffix.lower() not in IMAGE_SUFFIXES:
+        raise InputError(f"{path}: unsupported image format {path.suffix!r}; use .png")
+    if not path.parent.exists():
+        raise InputError(f"{path}: folder {path.parent} does not exist")
+    return path
+
+
+HELP = """\
+left drag\torbit around the target (fly mode: look around)
+right / middle drag\tpan
+wheel\tzoom (fly mode: move forward / back)
+arrows\torbit (fly mode: look)
+F\tfly mode on / off: W A S D move, Q E down / up, Shift faster
+R\treset the view (automatic framing)
+T, Shift+T\tnext / previous technique
+1 .. 9\t{numbers}
+P\tEWA prefilter on / off
+L\tlighting on / off
+B\tback-face culling on / off
++ / -\tLOD tolerance (stored only: no hierarchy yet)
+S, Ctrl+S\tscreenshot surfsplat-<time>.png (fly mode: Ctrl+S)
+H\tthis help
+Esc, Q\tquit (fly mode: Esc)"""
+
+
+class Viewer:
+    """The window, its input state and its frame loop (see the module docstring).
+
+    Built by :func:`view`; usable directly for tests that drive it frame by frame.
+    """
+
+    def __init__(self, glfw, window, ctx, cloud: SplatCloud, camera: Camera | None, *, technique: str,
+                 lights: Lights, options: RenderOptions, background, up, fov: float, tolerance: float,
+                 motion: Motion, motion_budget: int, motion_scale: float, hud: bool,
+                 lod: Callable = level_of_detail):
+        from ..api import auto_camera
+        from ..render.renderer import Renderer
+        from .hud import Hud, viewer_program
+
+        self.glfw, self.window, self.ctx = glfw, window, ctx
+        self.renderer = Renderer(ctx)
+        self.techniques = technique_names()
+        self.technique = technique
+        self.lights, self.options, self.background = lights, options, tuple(background)
+        self.tolerance = float(tolerance)
+        self.motion, self.motion_scale = motion, float(motion_scale)
+        self.lod = lod
+
+        with progress.stage(f"uploading {len(cloud):,} splats", count=len(cloud), unit="splats"):
+            self.splats = self.renderer.upload(cloud)
+            small = preview_cloud(cloud, motion_budget) if motion != "off" else None
+            self.preview_splats = self.renderer.upload(small) if small is not None else self.splats
+
+        fb_w, fb_h = glfw.get_framebuffer_size(window)
+        fb_w, fb_h = max(fb_w, 1), max(fb_h, 1)
+        up = tuple(float(x) for x in up)
+        lo, hi = cloud.bounds()
+        scene_radius = 0.5 * float(np.linalg.norm(hi - lo)) or 1.0
+
+        def home(width: int, height: int) -> Camera:
+            return auto_camera(cloud, width, height, fov, up=up)
+
+        start = home(fb_w, fb_h) if camera is None else camera.resized(fb_w, fb_h)
+        self.controller = cc.CameraController(start, home, scale=scene_radius, up=np.asarray(up))
+
+        self.present_program = viewer_program(ctx, "render:fullscreen.vert", "present.frag")
+        self._present_vao = ctx.vertex_array(self.present_program, [])
+        self.hud = Hud(ctx, scale=max(glfw.get_window_content_scale(window)[0], 1.0)) if hud else None
+        self.show_hud = hud
+
+        self._targets: dict | None = None
+        self.size = (fb_w, fb_h)
+        self._make_targets()
+
+        # versions: every change bumps `version`; a frame is valid for the version it was made for
+        self.version, self.full_version, self.preview_version = 1, 0, 0
+        self.moved_at = -math.inf        # time of the last camera change
+        self.fade_from: float | None = None  # start of the preview -> full cross-fade
+        self.showing_preview = False
+        self._rendered_camera = self.controller.camera
+        self._actions: list[tuple] = []
+        self._buttons: set[str] = set()
+        self._cursor: tuple[float, float] | None = None
+        self._pending_size: tuple[int, int] | None = None
+        self.should_quit = False
+        # counters for the HUD and the stats
+        self.preview_frames = self.full_frames = 0
+        self.drawn = self.splats.count
+        self.last_render_s = {"preview": 0.0, "full": 0.0}
+        self._fps_window_start, self._fps_count, self.fps = time.perf_counter(), 0, None
+        self._message: tuple[str, float] | None = None
+        self._install_callbacks()
+
+    # -- resources -----------------------------------------------------------
+
+    def _make_targets(self) -> None:
+        """(Re)create the off-screen color targets for the current framebuffer size."""
+        import moderngl
+
+        ctx = self.ctx
+        if self._targets is not None:
+            ctx.screen.use()  # park on the default framebuffer while freeing (see Renderer)
+            for name in ("full_fbo", "preview_fbo", "full", "preview"):
+                self._targets[name].release()
+        w, h = self.size
+        pw, ph = max(1, round(w * self.motion_scale)), max(1, round(h * self.motion_scale))
+        full, preview = ctx.texture((w, h), 4), ctx.texture((pw, ph), 4)
+        full.filter = (moderngl.NEAREST, moderngl.NEAREST)  # shown 1:1
+        preview.filter = (moderngl.LINEAR, moderngl.LINEAR)  # bilinear upscaling of a lower resolution
+        self._targets = {"full": full, "preview": preview, "preview_size": (pw, ph),
+                         "full_fbo": ctx.framebuffer([full]), "preview_fbo": ctx.framebuffer([preview])}
+
+    def release(self) -> None:
+        """Free every GPU resource the viewer made (the window itself is :func:`view`'s)."""
+        self.ctx.screen.use()
+        for name in ("full_fbo", "preview_fbo", "full", "preview"):
+            self._targets[name].release()
+        if self.preview_splats is not self.splats:
+            self.preview_splats.release()
+        self.splats.release()
+        if self.hud is not None:
+            self.hud.release()
+
+    # -- input -----------------------------------------------------------------
+
+    def _install_callbacks(self) -> None:
+        glfw, win = self.glfw, self.window
+        glfw.set_key_callback(win, self._on_key)
+        glfw.set_char_callback(win, self._on_char)
+        glfw.set_mouse_button_callback(win, self._on_button)
+        glfw.set_cursor_pos_callback(win, self._on_cursor)
+        glfw.set_scroll_callback(win, self._on_scroll)
+        glfw.set_framebuffer_size_callback(win, self._on_framebuffer_size)
+
+    def _on_key(self, window, key, scancode, action, mods) -> None:
+        glfw = self.glfw
+        if action != glfw.PRESS:
+            return
+        fly = self.controller.mode == "fly"
+        ctrl = bool(mods & glfw.MOD_CONTROL)
+        if key == glfw.KEY_ESCAPE or (key == glfw.KEY_Q and not fly):
+            self._actions.append(("quit",))
+        elif key == glfw.KEY_S and (ctrl or not fly):
+            self._actions.append(("screenshot",))
+        elif fly and key in (glfw.KEY_W, glfw.KEY_A, glfw.KEY_S, glfw.KEY_D, glfw.KEY_Q, glfw.KEY_E):
+            return  # movement keys are read each frame (held down)
+        elif key == glfw.KEY_F:
+            # at once, not queued: the mode decides what the next keys mean (Q, S)
+            mode = self.controller.toggle_mode()
+            self._message = (f"{mode} mode", time.perf_counter() + 2.0)
+        elif key == glfw.KEY_R:
+            self._actions.append(("reset",))
+        elif key == glfw.KEY_T:
+            self._actions.append(("technique", -1 if mods & glfw.MOD_SHIFT else 1))
+        elif glfw.KEY_1 <= key <= glfw.KEY_9:
+            self._actions.append(("technique_index", key - glfw.KEY_1))
+        elif key == glfw.KEY_P:
+            self._actions.append(("prefilter",))
+        elif key == glfw.KEY_L:
+            self._actions.append(("lighting",))
+        elif key == glfw.KEY_B:
+            self._actions.append(("cull",))
+        elif key == glfw.KEY_H:
+            self._actions.append(("help",))
+
+    def _on_char(self, window, codepoint) -> None:
+        # +/- come as characters: the same on every keyboard layout and on the keypad
+        char = chr(codepoint)
+        if char in "+=":
+            self._actions.append(("tolerance", 1))
+        elif char in "-_":
+            self._actions.append(("tolerance", -1))
+
+    def _on_button(self, window, button, action, mods) -> None:
+        glfw = self.glfw
+        name = {glfw.MOUSE_BUTTON_LEFT: "left", glfw.MOUSE_BUTTON_RIGHT: "right",
+                glfw.MOUSE_BUTTON_MIDDLE: "middle"}.get(button)
+        if name is None:
+            return
+        if action == glfw.PRESS:
+            self._buttons.add(name)
+            self._cursor = glfw.get_cursor_pos(window)
+        else:
+            self._buttons.discard(name)
+
+    def _on_cursor(self, window, x, y) -> None:
+        if not self._buttons or self._cursor is None:
+            self._cursor = (x, y)
+            return
+        # cursor positions are in screen coordinates; the camera works in framebuffer pixels (HiDPI)
+        win_w, _ = self.glfw.get_window_size(window)
+        ratio = self.size[0] / max(win_w, 1)
+        dx, dy = (x - self._cursor[0]) * ratio, (y - self._cursor[1]) * ratio
+        self._cursor = (x, y)
+        button = "left" if "left" in self._buttons else ("right" if "right" in self._buttons else "middle")
+        self.controller.drag(button, dx, dy)
+
+    def _on_scroll(self, window, dx, dy) -> None:
+        self.controller.scroll(dy)
+
+    def _on_framebuffer_size(self, window, width, height) -> None:
+        self._pending_size = (width, height)
+
+    def _held_keys(self, dt: float) -> bool:
+        """Keyboard motion for ``dt`` seconds (fly keys, arrows); returns whether any key is held."""
+        glfw, win = self.glfw, self.window
+
+        def down(key) -> int:
+            return 1 if glfw.get_key(win, key) == glfw.PRESS else 0
+
+        turn = (down(glfw.KEY_LEFT) - down(glfw.KEY_RIGHT), down(glfw.KEY_UP) - down(glfw.KEY_DOWN))
+        if self.controller.mode == "fly":
+            move = (down(glfw.KEY_W) - down(glfw.KEY_S), down(glfw.KEY_D) - down(glfw.KEY_A),
+                    down(glfw.KEY_E) - down(glfw.KEY_Q))
+        else:
+            move = (0, 0, 0)
+        fast = bool(down(glfw.KEY_LEFT_SHIFT) or down(glfw.KEY_RIGHT_SHIFT))
+        return self.controller.keys(move, turn, dt, fast)
+
+    def _apply(self, action: tuple) -> None:
+        kind = action[0]
+        if kind == "quit":
+            self.should_quit = True
+        elif kind == "screenshot":
+            path = save_image(self.full_image(), unique_screenshot_path(), exclusive=True)
+            progress.message(f"screenshot -> {path}")
+            self._message = (f"saved {path.name}", time.perf_counter() + 3.0)
+            return  # the image itself does not change
+        elif kind == "reset":
+            self.controller.reset()
+        elif kind in ("technique", "technique_index"):
+            names = self.techniques
+            if kind == "technique":
+                index = (names.index(self.technique) + action[1]) % len(names)
+            elif action[1] < len(names):
+                index = action[1]
+            else:
+                return
+            self.technique = names[index]
+        elif kind == "prefilter":
+            self.options = replace(self.options, prefilter=not self.options.prefilter)
+        elif kind == "lighting":
+            self.lights = replace(self.lights, enabled=not self.lights.enabled)
+        elif kind == "cull":
+            self.options = replace(self.options, cull_backfaces=not self.options.cull_backfaces)
+        elif kind == "tolerance":
+            lo, hi = TOLERANCE_RANGE
+            self.tolerance = float(np.clip(self.tolerance * TOLERANCE_STEP ** action[1], lo, hi))
+        elif kind == "help":
+            if self.hud is not None:
+                self.hud.show_help = not self.hud.show_help
+            return  # the image itself does not change
+        self.version += 1
+
+    def _process_input(self, now: float) -> None:
+        actions, self._actions = self._actions, []
+        for action in actions:
+            self._apply(action)
+        if self._pending_size is not None:
+            w, h = self._pending_size
+            self._pending_size = None
+            if w > 0 and h > 0 and (w, h) != self.size:  # 0 x 0 while minimized: keep the old targets
+                self.size = (w, h)
+                self.controller.resize(w, h)
+                self._make_targets()
+        if self.controller.camera != self._rendered_camera:
+            self._rendered_camera = self.controller.camera
+            self.moved_at = now
+            self.version += 1
+
+    # -- rendering -------------------------------------------------------------
+
+    @property
+    def use_preview(self) -> bool:
+        """Whether camera motion is drawn as a preview (see ``motion`` in :func:`view`)."""
+        if self.motion == "auto":
+            last = self.last_render_s["full"]
+            return last == 0.0 or last > PREVIEW_ABOVE_S  # unknown yet, or too slow to keep up
+        return self.motion != "off"
+
+    def render(self, full: bool) -> None:
+        """Render the current view off-screen: full quality, or the motion preview."""
+        camera = self.controller.camera
+        if full:
+            splats, self.drawn = self.lod(self.splats, camera, self.tolerance)
+            technique, fbo = self.technique, self._targets["full_fbo"]
+        else:
+            splats, self.drawn = self.preview_splats, self.preview_splats.count
+            technique = self.technique if self.motion == "same" else "flat"
+            fbo = self._targets["preview_fbo"]
+            camera = camera.resized(*self._targets["preview_size"])
+        start = time.perf_counter()
+        self.renderer.draw(splats, camera, technique, self.lights, self.options, self.background, output=fbo)
+        self.ctx.finish()  # llvmpipe works asynchronously: wait, so frame times are real
+        self.last_render_s["full" if full else "preview"] = time.perf_counter() - start
+        if full:
+            self.full_frames += 1
+            self.full_version = self.version
+        else:
+            self.preview_frames += 1
+            self.preview_version = self.version
+        self._fps_count += 1
+
+    def full_image(self) -> np.ndarray:
+        """(H, W, 3) uint8 full-quality image of the current view (rendered first if out of date)."""
+        if self.full_version != self.version:
+            self.render(full=True)
+        w, h = self.size
+        data = np.frombuffer(self._targets["full"].read(), dtype=np.uint8).reshape(h, w, 4)
+        return np.ascontiguousarray(data[::-1, :, :3])  # GL rows start at the bottom
+
+    def screen_image(self) -> np.ndarray:
+        """(H, W, 3) uint8 of what the window's back buffer shows (image and HUD), for tests."""
+        w, h = self.size
+        data = np.frombuffer(self.ctx.screen.read(viewport=(0, 0, w, h), components=3), dtype=np.uint8)
+        return np.ascontiguousarray(data.reshape(h, w, 3)[::-1])
+
+    def present(self, mix: float) -> None:
+        """Draw the preview/full mix (0: preview, 1: full) and the HUD into the window's back buffer."""
+        screen = self.ctx.screen
+        screen.viewport = (0, 0, *self.size)
+        screen.use()
+        program = self.present_program
+        self._targets["preview"].use(location=0)
+        self._targets["full"].use(location=1)
+        program["u_preview"].value, program["u_full"].value = 0, 1
+        program["u_mix"].value = float(mix)
+        program["u_viewport"].value = tuple(map(float, self.size))
+        self._present_vao.render(vertices=3)
+        if self.hud is not None and self.show_hud:
+            self.hud.update(self.status_text(), self.help_text())
+            self.hud.draw(self.size)
+
+    # -- HUD text ---------------------------------------------------------------
+
+    def _count_frames(self, now: float) -> None:
+        elapsed = now - self._fps_window_start
+        if elapsed >= FPS_INTERVAL_S:
+            self.fps = self._fps_count / elapsed if self._fps_count else None
+            self._fps_window_start, self._fps_count = now, 0
+
+    def status_text(self) -> str:
+        """The HUD's status panel (changes only when a shown value changes)."""
+        on = {True: "on", False: "off"}
+        preview = self.showing_preview
+        ms = 1000.0 * self.last_render_s["preview" if preview else "full"]
+        rate = f"{self.fps:.1f} fps" if self.fps is not None else "idle"
+        quality = (f"moving: preview ({'flat' if self.motion != 'same' else self.technique}, "
+                   f"{self.preview_splats.count:,} splats)" if preview else "full quality")
+        lines = [
+            f"{self.technique}   {self.drawn:,} splats   {rate}   ({ms:.0f} ms/frame)",
+            f"prefilter {on[self.options.prefilter]}   lighting {on[self.lights.enabled]}   "
+            f"culling {on[self.options.cull_backfaces]}   LOD tolerance {self.tolerance:.3g} px (no hierarchy)",
+            f"{self.controller.mode} mode   {quality}   H: help",
+        ]
+        if self._message is not None:
+            if time.perf_counter() < self._message[1]:
+                lines.append(self._message[0])
+            else:
+                self._message = None
+        return "\n".join(lines)
+
+    def help_text(self) -> str:
+        """The key list shown on H."""
+        numbers = ", ".join(f"{i + 1} {name}" for i, name in enumerate(self.techniques[:9]))
+        return HELP.format(numbers=numbers)
+
+    # -- loops -------------------------------------------------------------------
+
+    def run_interactive(self) -> ViewStats:
+        """The frame loop until the window is closed (or Esc / Q)."""
+        self.glfw.swap_interval(1)
+        start, frames = time.perf_counter(), 0
+        self._last_step = start
+        while not (self.glfw.window_should_close(self.window) or self.should_quit):
+            if self.step():
+                frames += 1
+        seconds = time.perf_counter() - start
+        return self._stats(frames, seconds)
+
+    def step(self, wait: bool = True) -> bool:
+        """One turn of the interactive loop: input, render what is out of date, present, then
+        wait for events (``wait``; else only poll). Returns False when quitting instead."""
+        glfw = self.glfw
+        now = time.perf_counter()
+        keys_held = self._held_keys(min(now - getattr(self, "_last_step", now), 0.1))
+        self._last_step = now
+        self._process_input(now)
+        if self.should_quit:
+            return False
+        moving = now - self.moved_at < SETTLE_S and self.use_preview
+        if moving:
+            if self.preview_version != self.version:
+                self.render(full=False)
+                self.showing_preview, self.fade_from = True, None
+        elif self.full_version != self.version:
+            self.render(full=True)
+            if self.showing_preview:
+                self.fade_from = time.perf_counter()  # cross-fade preview -> full, no pop
+            self.showing_preview = False
+        mix = 0.0 if self.showing_preview else 1.0
+        if self.fade_from is not None:
+            mix = min(1.0, (time.perf_counter() - self.fade_from) / FADE_S)
+            if mix >= 1.0:
+                self.fade_from = None
+        self._count_frames(time.perf_counter())
+        self.present(mix)
+        glfw.swap_buffers(self.window)
+        # Sleep until something can change: poll while animating, else wait for input
+        # (waking at the end of the settle time, and twice a second for the HUD).
+        if not wait or keys_held or self.fade_from is not None or self._actions or self._buttons:
+            glfw.poll_events()
+        elif moving:
+            glfw.wait_events_timeout(max(0.005, SETTLE_S - (time.perf_counter() - self.moved_at)))
+        else:
+            glfw.wait_events_timeout(FPS_INTERVAL_S)
+        return True
+
+    def run_scripted(self, frames: int, orbit_deg: float, screenshot: Path | None) -> ViewStats:
+        """Render ``frames`` frames, turning the eye ``orbit_deg`` degrees about the up axis before
+        each; save the last view at full quality (no HUD) to ``screenshot``.
+
+        Every frame is rendered (nothing is re-shown), so the frame rate measures rendering:
+        previews while orbiting (where :attr:`use_preview`), full quality with ``orbit_deg`` = 0.
+        One full-quality frame and one preview are rendered first, untimed: shaders compile
+        and motion "auto" measures the full quality's speed.
+        """
+        glfw, win = self.glfw, self.window
+        glfw.swap_interval(0)  # measure rendering, not the monitor's refresh
+        # the script alone moves the camera: mouse input would make the result depend on the user
+        glfw.set_cursor_pos_callback(win, None)
+        glfw.set_scroll_callback(win, None)
+        self.render(full=True)
+        if self.use_preview:
+            self.render(full=False)
+        self.preview_frames = self.full_frames = self._fps_count = 0
+        moving = orbit_deg != 0 and self.use_preview
+        done = 0
+        start = time.perf_counter()
+        for _ in range(frames):
+            glfw.poll_events()
+            self._actions = [a for a in self._actions if a[0] == "quit"]  # only Esc/Q count here
+            self._process_input(time.perf_counter())
+            if glfw.window_should_close(win) or self.should_quit:
+                break
+            if orbit_deg:
+                self.controller.camera = cc.orbit(self.controller.camera, orbit_deg, 0.0, self.controller.up)
+                self._process_input(time.perf_counter())
+            self.render(full=not moving)
+            self.showing_preview = moving
+            self._count_frames(time.perf_counter())
+            self.present(0.0 if moving else 1.0)
+            glfw.swap_buffers(win)
+            done += 1
+        seconds = time.perf_counter() - start
+        stats = self._stats(done, seconds)
+        if screenshot is not None:
+            stats.screenshot = save_image(self.full_image(), screenshot)
+        return stats
+
+    def _stats(self, frames: int, seconds: float) -> ViewStats:
+        return ViewStats(frames, seconds, frames / seconds if seconds > 0 else 0.0, self.preview_frames,
+                         self.full_frames, self.splats.count, self.preview_splats.count, self.size)
+
+
+def view(source, camera: Camera | None = None, *, technique: str = "ewa", size: tuple[int, int] = (1280, 720),
+         eye=None, target=None, up=(0.0, 1.0, 0.0), fov: float = 40.0, lights: Lights | None = None,
+         background=(1.0, 1.0, 1.0), prefilter: bool = True, cutoff: float = 1.0, depth_epsilon: float = 1.0,
+         cull_backfaces: bool = False, tolerance: float = 1.0, motion: Motion = "auto",
+         motion_budget: int = DEFAULT_MOTION_BUDGET, motion_scale: float = DEFAULT_MOTION_SCALE, hud: bool = True,
+         frames: int | None = None, orbit: float = 0.0, screenshot=None, k: int = 8,
+         title: str | None = None) -> ViewStats:
+    """Open an interactive window on a splat model (press H in it for the keys).
+
+    Args:
+        source: a SplatCloud, a point/splat/mesh file (preprocessed with ``k`` neighbours
+            if needed) or ``"demo:NAME"`` for a built-in scene (``demo:torus``, ...).
+        camera: the first view; its size is replaced by the window's. Default: ``eye`` /
+            ``target`` if given, else the automatic framing (also what R returns to).
+        technique: the starting technique (T and 1..9 switch).
+        size: window size (width, height) in screen coordinates; the image has the
+            framebuffer's size (larger on HiDPI screens).
+        eye, target: camera position and point looked at (world); target defaults to the
+            model's center. up: the world up axis orbits turn about. fov: vertical, degrees.
+        lights, background, prefilter, cutoff, depth_epsilon, cull_backfaces: as for
+            :func:`surfsplat.render`.
+        tolerance: LOD screen tolerance in pixels (+/- change it; no effect until the
+            hierarchy exists, see :func:`level_of_detail`).
+        motion: what is drawn while the camera moves: "flat" (opaque one-pass disks) or
+            "same" (the chosen technique), both on about ``motion_budget`` splats (0: all) at
+            ``motion_scale`` of the resolution; "off": full quality always; "auto" (default):
+            "flat" where a full-quality frame takes longer than 50 ms, else "off".
+        hud: show the heads-up display (status; help on H).
+        frames, orbit, screenshot: scripted mode: render ``frames`` frames, turning the eye
+            ``orbit`` degrees about ``up`` before each, save the last view at full quality
+            without the HUD to ``screenshot`` (if given), close. ``screenshot`` alone means
+            one frame.
+        title: window title (default: the input's name).
+
+    Returns:
+        :class:`ViewStats` (frames, seconds, frame rate, ...).
+
+    Raises:
+        RenderError: no display (the message points to ``surfsplat render`` and ``xvfb-run``),
+            or OpenGL 3.3 is not available.
+        InputError: bad arguments or input data.
+    """
+    names = technique_names()
+    if technique not in names:
+        raise InputError(f"unknown technique {technique!r}; choose one of {', '.join(names)}")
+    if motion not in ("auto", "flat", "same", "off"):
+        raise InputError(f"motion must be 'auto', 'flat', 'same' or 'off', got {motion!r}")
+    if not (0.0 < motion_scale <= 1.0):
+        raise InputError(f"motion scale must be in (0, 1], got {motion_scale}")
+    if int(motion_budget) < 0:
+        raise InputError(f"motion budget must be >= 0 splats (0: all), got {motion_budget}")
+    if not (tolerance > 0 and math.isfinite(tolerance)):
+        raise InputError(f"LOD tolerance must be a positive number of pixels, got {tolerance}")
+    width, height = (int(x) for x in size)
+    if not (1 <= width <= 16384 and 1 <= height <= 16384):
+        raise InputError(f"window size must be within 1..16384 pixels, got {width}x{height}")
+    if screenshot is not None:
+        screenshot = _check_image_path(screenshot)
+        frames = 1 if frames is None else frames
+    if frames is not None and int(frames) < 1:
+        raise InputError(f"--frames must be at least 1, got {frames}")
+    if orbit and frames is None:
+        raise InputError("--orbit is for the scripted mode: give --frames N too")
+    if not math.isfinite(orbit):
+        raise InputError(f"orbit must be a finite number of degrees per frame, got {orbit}")
+    if target is not None and eye is None and camera is None:
+        raise InputError("--target needs --eye (without camera flags the model is framed automatically)")
+    options = RenderOptions(cutoff=cutoff, prefilter=prefilter, depth_epsilon=depth_epsilon,
+                            cull_backfaces=cull_backfaces)
+    background = tuple(float(x) for x in np.asarray(background, dtype=float).reshape(-1))
+    if len(background) != 3 or not all(0.0 <= x <= 1.0 for x in background):
+        raise InputError(f"background must be 3 numbers in [0, 1], got {background}")
+    if title is None:
+        title = source if isinstance(source, str) else (Path(source).name if isinstance(source, Path)
+                                                          else "SplatCloud")
+
+    check_source(source)
+    # The window before loading: without a display, fail before a possibly long load.
+    glfw, window, ctx = open_window(width, height, f"surfsplat - {title}")
+    viewer = None
+    try:
+        ctx.clear(*background)
+        glfw.swap_buffers(window)
+        glfw.poll_events()
+        cloud = load_source(source, k=k)
+        if camera is None and eye is not None:
+            lo, hi = cloud.bounds()
+            camera = Camera(eye=tuple(eye), target=tuple(0.5 * (lo + hi) if target is None else target),
+                            up=tuple(up), fov=fov)
+        viewer = Viewer(glfw, window, ctx, cloud, camera, technique=technique, lights=lights or Lights(),
+                        options=options, background=background, up=up, fov=fov, tolerance=tolerance,
+                        motion=motion, motion_budget=int(motion_budget), motion_scale=motion_scale, hud=hud)
+        if frames is None:
+            stats = viewer.run_interactive()
+        else:
+            stats = viewer.run_scripted(int(frames), float(orbit), screenshot)
+            progress.message(
+                f"{stats.frames} frames of {stats.splats:,} splats at {stats.size[0]}x{stats.size[1]} in "
+                f"{stats.seconds:.2f} s: {stats.fps:.2f} frames/s "
+                f"({'preview' if stats.preview_frames else technique}, {ctx.info['GL_RENDERER']})")
+            if stats.screenshot is not None:
+                progress.message(f"screenshot -> {stats.screenshot}")
+        return stats
+    finally:
+        if viewer is not None:
+            viewer.release()
+        ctx.release()
+        glfw.destroy_window(window)
+        glfw.terminate()
+        glfw.set_error_callback(None)

@@ -1,0 +1,388 @@
+"""The interactive viewer: camera-control math without a window, then the window itself on a
+virtual X server (Xvfb, started here) in the scripted mode.
+
+The window tests run the viewer in subprocesses: a glfw (GLX) context and the test
+session's headless EGL context are never current in the same process.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import select
+import shutil
+import subprocess
+import sys
+import textwrap
+import time
+
+import numpy as np
+import pytest
+from PIL import Image
+
+import surfsplat
+from surfsplat import Camera, auto_camera
+from surfsplat.errors import InputError, RenderError
+from surfsplat.viewer import camera_control as cc
+from surfsplat.viewer.app import preview_cloud, save_image, unique_screenshot_path
+
+# -- camera control (no window) -----------------------------------------------------------------
+
+
+@pytest.fixture
+def camera() -> Camera:
+    return Camera(eye=(0.5, 0.8, 3.0), target=(0.1, -0.2, 0.3), up=(0, 1, 0), fov=40, width=320, height=240)
+
+
+def dist(c: Camera) -> float:
+    return float(np.linalg.norm(np.subtract(c.eye, c.target)))
+
+
+def project(c: Camera, point) -> np.ndarray:
+    """Window pixel (x right, y down) of a world point."""
+    p = c.view_matrix @ np.append(point, 1.0)
+    x = c.width / 2 + c.focal_px * p[0] / -p[2]
+    y = c.height / 2 - c.focal_px * p[1] / -p[2]
+    return np.array([x, y])
+
+
+def test_orbit_keeps_the_distance_and_turns_about_up(camera):
+    for yaw, pitch in [(30, 0), (-75, 20), (200, -35), (0, 80)]:
+        moved = cc.orbit(camera, yaw, pitch)
+        assert dist(moved) == pytest.approx(dist(camera), rel=1e-12)
+        assert moved.target == camera.target
+    # a pure yaw turns about the up axis through the target: the height stays, a full turn returns
+    turned = cc.orbit(camera, 50)
+    assert turned.eye[1] == pytest.approx(camera.eye[1], abs=1e-12)
+    assert np.allclose(cc.orbit(turned, 310).eye, camera.eye, atol=1e-12)
+    # pitch is clamped short of the pole (no flip, up stays valid)
+    top = cc.orbit(camera, 0, 500)
+    offset = np.subtract(top.eye, top.target) / dist(top)
+    assert np.degrees(np.arcsin(offset[1])) == pytest.approx(cc.MAX_ELEVATION_DEG)
+    # near/far are left to the renderer (set from the model's bounds per view)
+    assert turned.near is None and turned.far is None
+
+
+def test_pan_moves_eye_and_target_together_under_the_cursor(camera):
+    moved = cc.pan(camera, 25.0, -10.0)
+    shift = np.subtract(moved.eye, camera.eye)
+    assert np.allclose(np.subtract(moved.target, camera.target), shift, atol=1e-12)
+    assert np.linalg.norm(shift) > 0 and dist(moved) == pytest.approx(dist(camera))
+    # "grab": the point at the old target follows the cursor by exactly (dx, dy) pixels
+    assert np.allclose(project(moved, camera.target) - project(camera, camera.target), [25.0, -10.0], atol=1e-6)
+
+
+def test_zoom_changes_the_distance_toward_the_target(camera):
+    closer = cc.zoom(camera, 2, factor=0.8)
+    assert dist(closer) == pytest.approx(dist(camera) * 0.64)
+    assert closer.target == camera.target
+    direction = lambda c: np.subtract(c.eye, c.target) / dist(c)  # noqa: E731
+    assert np.allclose(direction(closer), direction(camera))
+    assert dist(cc.zoom(camera, -1, factor=0.8)) == pytest.approx(dist(camera) / 0.8)
+    assert dist(cc.zoom(camera, 1000, min_distance=1e-3)) == pytest.approx(1e-3)  # never reaches the target
+
+
+def test_fly_and_look(camera):
+    forward = np.subtract(camera.target, camera.eye) / dist(camera)
+    moved = cc.fly(camera, forward=0.5, right=0.0, upward=0.25)
+    assert np.allclose(np.subtract(moved.eye, camera.eye), 0.5 * forward + [0, 0.25, 0])
+    assert np.allclose(np.subtract(moved.target, moved.eye), np.subtract(camera.target, camera.eye))
+    looked = cc.look(camera, 30, 10)
+    assert looked.eye == camera.eye and dist(looked) == pytest.approx(dist(camera))
+
+
+def test_controller_reset_equals_auto_camera_and_input_signs():
+    cloud = surfsplat.scenes.torus(60, 24)
+    home = lambda w, h: auto_camera(cloud, w, h, 40.0, up=(0, 0, 1))  # noqa: E731
+    control = cc.CameraController(home(320, 240), home, scale=1.4, up=np.array([0.0, 0.0, 1.0]))
+    control.drag("left", 40, 15)
+    control.drag("right", 10, 5)
+    control.scroll(3)
+    control.toggle_mode()
+    assert control.keys((1, 1, 1), (1, 0), 0.1)
+    assert not control.keys((0, 0, 0), (0, 0), 0.1)
+    control.toggle_mode()
+    control.resize(400, 300)
+    control.reset()
+    assert control.camera == auto_camera(cloud, 400, 300, 40.0, up=(0, 0, 1))
+    # wheel forward moves closer; orbit keeps the up axis
+    before = dist(control.camera)
+    control.scroll(1)
+    assert dist(control.camera) < before
+    height = control.camera.eye[2]
+    control.drag("left", 100, 0)
+    assert control.camera.eye[2] == pytest.approx(height)
+
+
+def test_preview_cloud_covers_with_fewer_splats_and_keeps_clip_planes():
+    cube = surfsplat.scenes.cube(40)
+    small = preview_cloud(cube, 2000)
+    assert 0.85 * 2000 <= len(small) <= 2000
+    assert preview_cloud(cube, len(cube)) is None and preview_cloud(cube, 0) is None
+    # a clip line cuts the same world plane after the axes were stretched
+    rng = np.random.default_rng(1)
+    index = np.flatnonzero(np.abs(small.clip_lines[:, 0, :2]).sum(1) > 0)[:50]
+    st = rng.uniform(-1, 1, size=(len(index), 2))
+    world = small.positions[index] + st[:, :1] * small.u[index] + st[:, 1:] * small.v[index]
+    # the same splat in the full cloud: same center
+    lookup = {tuple(p): i for i, p in enumerate(cube.positions)}
+    full = np.array([lookup[tuple(p)] for p in small.positions[index]])
+    rel = world - cube.positions[full]
+    s0 = (rel * cube.u[full]).sum(1) / (cube.u[full] ** 2).sum(1)
+    t0 = (rel * cube.v[full]).sum(1) / (cube.v[full] ** 2).sum(1)
+    a, b, c = (cube.clip_lines[full, 0, i] for i in range(3))
+    a2, b2, c2 = (small.clip_lines[index, 0, i] for i in range(3))
+    assert np.allclose(a * s0 + b * t0 + c, a2 * st[:, 0] + b2 * st[:, 1] + c2, atol=1e-4)
+
+
+def test_screenshots_never_overwrite(tmp_path):
+    image = np.zeros((4, 5, 3), np.uint8)
+    first = unique_screenshot_path(tmp_path, now=0.0)
+    assert first.name.startswith("surfsplat-") and first.suffix == ".png"
+    paths = [save_image(image, first, exclusive=True) for _ in range(3)]
+    assert len(set(paths)) == 3 and all(p.exists() for p in paths)
+    assert unique_screenshot_path(tmp_path, now=0.0) not in paths
+
+
+def test_hud_text_panel_is_premultiplied_rgba():
+    from surfsplat.viewer.hud import render_text
+
+    panel = render_text("ewa\t1,000 splats\nP\tprefilter", size_px=14)
+    assert panel.ndim == 3 and panel.shape[2] == 4 and panel.dtype == np.uint8
+    assert (panel[..., :3] <= panel[..., 3:]).all()  # premultiplied: color <= alpha
+    assert panel[..., 3].min() > 0 and (panel[..., 0] > 200).any()  # translucent panel, white text
+
+
+def test_view_command_options():
+    from surfsplat.cli import _add_view_options
+    from surfsplat.viewer.cli import add_view_command
+
+    parser = argparse.ArgumentParser()
+    add_view_command(parser.add_subparsers(dest="command"), _add_view_options)
+    args = parser.parse_args(["view", "demo:torus", "--frames", "3", "--orbit", "5", "--screenshot", "x.png"])
+    assert args.size == [1280, 720] or tuple(args.size) == (1280, 720)
+    assert args.width is None and args.frames == 3 and args.orbit == 5.0 and args.technique == "ewa"
+    with pytest.raises(InputError, match="orbit"):
+        surfsplat.viewer.view("demo:torus", orbit=5.0)  # --orbit without --frames: refused before any window
+    with pytest.raises(InputError, match="demo scene"):
+        surfsplat.viewer.view("demo:nope", frames=1)  # checked before the window opens
+
+
+# -- the window, on a virtual X server -------------------------------------------------------------
+
+
+@pytest.fixture(scope="session")
+def xvfb_display():
+    """A private Xvfb server for the session; yields its DISPLAY value (":N")."""
+    pytest.importorskip("glfw", reason="the viewer needs the glfw package (pip install 'surfsplat[viewer]')")
+    exe = shutil.which("Xvfb")
+    if exe is None:
+        pytest.skip("Xvfb is not installed (Debian/Ubuntu: apt-get install xvfb): window tests skipped")
+    # -displayfd: the server picks a free display number and writes it to our pipe when ready;
+    # -noreset: an X server resets when its last client leaves and refuses connections meanwhile,
+    # which would fail the next test's window at random
+    read_end, write_end = os.pipe()
+    server = subprocess.Popen([exe, "-displayfd", str(write_end), "-screen", "0", "1280x1024x24",
+                               "-nolisten", "tcp", "-noreset"], pass_fds=(write_end,),
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    os.close(write_end)
+    # read up to the newline, and keep our end open while the server runs: it may write the
+    # number and the newline separately and dies of SIGPIPE if the pipe is closed in between
+    received, deadline = b"", time.monotonic() + 15.0
+    while not received.endswith(b"\n") and time.monotonic() < deadline:
+        ready, _, _ = select.select([read_end], [], [], max(0.0, deadline - time.monotonic()))
+        chunk = os.read(read_end, 64) if ready else b""
+        if not chunk:
+            break
+        received += chunk
+    number = received.decode().strip()
+    if not number.isdigit():
+        server.kill()
+        server.wait()
+        os.close(read_end)
+        pytest.skip("Xvfb did not start (no display number within 15 s): window tests skipped")
+    try:
+        yield f":{number}"
+    finally:
+        server.terminate()
+        try:
+            server.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            server.kill()
+            server.wait()
+        os.close(read_end)
+
+
+def run_python(code: str, display: str | None, timeout: float = 120, cwd=None) -> subprocess.CompletedProcess:
+    env = {key: value for key, value in os.environ.items() if key not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    if display is not None:
+        env["DISPLAY"] = display
+    return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], env=env, capture_output=True,
+                          text=True, timeout=timeout, cwd=cwd)
+
+
+def run_view(args: list, display: str | None, timeout: float = 120) -> subprocess.CompletedProcess:
+    code = f"import sys; from surfsplat.viewer.cli import main; sys.exit(main({[str(a) for a in args]!r}))"
+    return run_python(code, display, timeout)
+
+
+def test_scripted_screenshot_matches_render(xvfb_display, tmp_path):
+    out = tmp_path / "view.png"
+    result = run_view(["-q", "view", "demo:torus", "--frames", 1, "--orbit", 0, "--size", 400, 300,
+                       "--screenshot", out], xvfb_display)
+    assert result.returncode == 0, result.stderr
+    shot = np.asarray(Image.open(out)).astype(int)
+    assert shot.shape == (300, 400, 3)
+    # the same view rendered headless (automatic framing at the same size)
+    expected = surfsplat.render(surfsplat.demo_scene("torus"), width=400, height=300).image().astype(int)
+    diff = np.abs(shot - expected).max(axis=2)
+    # same renderer, same camera: only the float -> 8-bit conversion may differ by one level
+    assert diff.mean() < 1.0 and (diff <= 2).mean() >= 0.999
+
+
+def test_every_technique_runs_in_the_window(xvfb_display, tmp_path):
+    result = run_python(f"""
+        import json
+        from surfsplat.render.technique import TECHNIQUES, get_technique
+        from surfsplat.viewer import view
+        get_technique("ewa")
+        stats = {{}}
+        for name in sorted(TECHNIQUES):
+            s = view("demo:torus", technique=name, size=(256, 192), frames=3, orbit=10.0,
+                     motion="flat", motion_budget=20_000, screenshot=r"{tmp_path}/" + name + ".png")
+            stats[name] = [s.frames, s.preview_frames, s.full_frames, s.preview_splats]
+        print(json.dumps(stats))
+        """, xvfb_display)
+    assert result.returncode == 0, result.stderr
+    stats = json.loads(result.stdout.strip().splitlines()[-1])
+    assert stats, "no technique registered"
+    for name, (frames, previews, fulls, preview_splats) in stats.items():
+        assert frames == 3 and previews == 3 and fulls == 0  # moving: previews only (the screenshot is extra)
+        assert preview_splats <= 20_000
+        image = np.asarray(Image.open(tmp_path / f"{name}.png"))
+        assert image.shape == (192, 256, 3)
+        covered = (image < 250).any(axis=2).mean()
+        assert 0.05 < covered < 0.95, f"{name}: the screenshot is empty or all model"
+
+
+def test_window_shows_the_image_and_the_hud(xvfb_display):
+    # drive the Viewer frame by frame: the window holds the full image plus the HUD in the top left
+    result = run_python("""
+        import numpy as np
+        from surfsplat.lighting import Lights
+        from surfsplat.render.technique import RenderOptions
+        from surfsplat.viewer import app
+        glfw, window, ctx = app.open_window(320, 240, "test")
+        viewer = app.Viewer(glfw, window, ctx, app.load_source("demo:torus"), None, technique="flat",
+                            lights=Lights(), options=RenderOptions(), background=(1, 1, 1), up=(0, 1, 0),
+                            fov=40.0, tolerance=1.0, motion="flat", motion_budget=0, motion_scale=1.0, hud=True)
+        image = viewer.full_image()
+        viewer.present(1.0)
+        screen = viewer.screen_image()
+        hud_h, hud_w = viewer.hud.status.size[1], viewer.hud.status.size[0]
+        uploads = viewer.hud.status.uploads
+        for _ in range(5):
+            viewer.present(1.0)  # same text: no new upload
+        assert viewer.hud.status.uploads == uploads
+        outside = np.ones(image.shape[:2], bool)
+        outside[: hud_h + 10, : hud_w + 10] = False
+        assert (screen[outside] == image[outside]).all()
+        assert (screen[~outside] != image[~outside]).any()
+        viewer.release()
+        glfw.terminate()
+        print("ok")
+        """, xvfb_display)
+    assert result.returncode == 0 and result.stdout.strip().endswith("ok"), result.stderr
+
+
+def test_input_drives_the_view(xvfb_display, tmp_path):
+    # synthetic input through the viewer's own glfw callbacks, one loop turn at a time
+    result = run_python("""
+        import time
+        from surfsplat.lighting import Lights
+        from surfsplat.render.technique import RenderOptions
+        from surfsplat.viewer import app
+        glfw, window, ctx = app.open_window(320, 240, "test")
+        v = app.Viewer(glfw, window, ctx, app.load_source("demo:torus"), None, technique="ewa",
+                       lights=Lights(), options=RenderOptions(), background=(1, 1, 1), up=(0, 1, 0),
+                       fov=40.0, tolerance=1.0, motion="flat", motion_budget=20000, motion_scale=0.5, hud=True)
+        G = glfw
+        v.step(wait=False)
+        assert (v.full_frames, v.preview_frames) == (1, 0)
+        home = v.controller.camera
+        # left drag: previews while moving, then one full frame cross-faded in once still
+        v._on_button(window, G.MOUSE_BUTTON_LEFT, G.PRESS, 0)
+        for _ in range(3):
+            x, y = v._cursor
+            v._on_cursor(window, x + 20, y + 5)
+            v.step(wait=False)
+        v._on_button(window, G.MOUSE_BUTTON_LEFT, G.RELEASE, 0)
+        assert v.preview_frames == 3 and v.full_frames == 1 and v.showing_preview
+        deadline = time.perf_counter() + 20
+        while (v.showing_preview or v.fade_from is not None) and time.perf_counter() < deadline:
+            v.step()
+        assert v.full_frames == 2 and not v.showing_preview
+        frames = v.full_frames + v.preview_frames
+        for _ in range(3):
+            v.step(wait=False)  # still: the full frame is shown again, not re-rendered
+        assert v.full_frames + v.preview_frames == frames
+        assert v.controller.camera != home
+        # keys: technique, prefilter, lighting, culling, help, tolerance, screenshots, reset
+        for key in (G.KEY_T, G.KEY_P, G.KEY_L, G.KEY_B, G.KEY_H):
+            v._on_key(window, key, 0, G.PRESS, 0)
+        v._on_char(window, ord("+"))
+        v._on_key(window, G.KEY_S, 0, G.PRESS, 0)
+        v._on_key(window, G.KEY_S, 0, G.PRESS, 0)
+        v._on_key(window, G.KEY_R, 0, G.PRESS, 0)
+        v.step(wait=False)
+        assert v.technique == v.techniques[(v.techniques.index("ewa") + 1) % len(v.techniques)]
+        assert not v.options.prefilter and not v.lights.enabled and v.options.cull_backfaces
+        assert v.hud.show_help and abs(v.tolerance - 2 ** 0.5) < 1e-9
+        assert v.controller.camera == v.controller.home(*v.size)
+        v._on_key(window, G.KEY_2, 0, G.PRESS, 0)
+        v.step(wait=False)
+        assert v.technique == v.techniques[1]
+        # resize: the camera and the targets follow the framebuffer
+        glfw.set_window_size(window, 400, 260)
+        for _ in range(50):
+            v.step(wait=False)
+            if v.size == (400, 260):
+                break
+            time.sleep(0.02)
+        assert v.size == (400, 260) and v.controller.camera.width == 400
+        assert v.full_image().shape == (260, 400, 3)
+        # fly mode: Q moves instead of quitting; Esc quits
+        v._on_key(window, G.KEY_F, 0, G.PRESS, 0)
+        v._on_key(window, G.KEY_Q, 0, G.PRESS, 0)
+        assert v.step(wait=False) and v.controller.mode == "fly"
+        v._on_key(window, G.KEY_ESCAPE, 0, G.PRESS, 0)
+        assert v.step(wait=False) is False
+        v.release()
+        glfw.terminate()
+        print("ok")
+        """, xvfb_display, cwd=tmp_path)
+    assert result.returncode == 0 and result.stdout.strip().endswith("ok"), result.stderr
+    shots = sorted(tmp_path.glob("surfsplat-*.png"))
+    assert len(shots) == 2  # the second S did not overwrite the first
+    assert np.asarray(Image.open(shots[0])).shape == (240, 320, 3)
+
+
+def test_no_display_is_a_clear_error(monkeypatch):
+    glfw = pytest.importorskip("glfw", reason="the viewer needs the glfw package")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    glfw.set_error_callback(lambda code, text: None)
+    try:
+        if glfw.init():
+            glfw.terminate()
+            pytest.skip("glfw found a display platform even without DISPLAY")
+    finally:
+        glfw.set_error_callback(None)
+    with pytest.raises(RenderError, match="surfsplat render") as error:
+        surfsplat.viewer.view("demo:torus", frames=1)
+    assert "xvfb-run" in str(error.value)
+    # the command: exit status 2 and the same advice
+    result = run_view(["view", "demo:torus", "--frames", 1], display=None)
+    assert result.returncode == 2
+    assert "surfsplat render" in result.stderr and "xvfb-run" in result.stderr
