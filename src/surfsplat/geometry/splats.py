@@ -208,6 +208,13 @@ def _row_max(dist: np.ndarray) -> np.ndarray:
     return out
 
 
+def _check_ellipse_options(coverage: float, max_anisotropy: float) -> None:
+    if not coverage > 0:
+        raise InputError(f"coverage must be > 0, got {coverage}")
+    if not max_anisotropy >= 1:
+        raise InputError(f"max_anisotropy must be >= 1, got {max_anisotropy}")
+
+
 def elliptical_splats(positions, normals, indices, distances, *, coverage: float = ELLIPSE_COVERAGE,
                       max_anisotropy: float = MAX_ANISOTROPY) -> tuple[np.ndarray, np.ndarray]:
     """Elliptical splats that enclose each point's k-neighbourhood in its tangent plane.
@@ -239,10 +246,7 @@ def elliptical_splats(positions, normals, indices, distances, *, coverage: float
         semi-axis, ``v`` the minor one; ``u . n = v . n = u . v = 0`` and
         ``u x v`` along ``n``.
     """
-    if not coverage > 0:
-        raise InputError(f"coverage must be > 0, got {coverage}")
-    if not max_anisotropy >= 1:
-        raise InputError(f"max_anisotropy must be >= 1, got {max_anisotropy}")
+    _check_ellipse_options(coverage, max_anisotropy)
     pts = _check_vectors(positions, "positions")
     n = len(pts)
     nrm = _check_vectors(normals, "normals", n)
@@ -281,10 +285,7 @@ def normals_and_ellipses(positions, indices, distances, *, coverage: float = ELL
     Returns:
         ``(normals, u, v)``: three (N, 3) float32 arrays.
     """
-    if not coverage > 0:
-        raise InputError(f"coverage must be > 0, got {coverage}")
-    if not max_anisotropy >= 1:
-        raise InputError(f"max_anisotropy must be >= 1, got {max_anisotropy}")
+    _check_ellipse_options(coverage, max_anisotropy)
     pts = _check_vectors(positions, "positions")
     n = len(pts)
     idx = _check_indices(indices, n)

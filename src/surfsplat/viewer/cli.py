@@ -9,8 +9,6 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .. import progress
-from ..errors import SurfsplatError
 
 VIEW_EPILOG = """\
 keys in the window: mouse left drag orbit, right/middle drag pan, wheel zoom; F fly mode
@@ -79,23 +77,9 @@ def cmd_view(args) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """``surfsplat view`` on its own (``python -m surfsplat.viewer.cli view ...``); returns the exit status."""
-    from ..cli import _add_view_options
+    from ..cli import main as surfsplat_main
 
-    parser = argparse.ArgumentParser(prog="surfsplat")
-    parser.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
-    sub = parser.add_subparsers(dest="command", required=True)
-    add_view_command(sub, _add_view_options)
-    args = parser.parse_args(argv)
-    progress.enable(not args.quiet)
-    try:
-        args.func(args)
-    except SurfsplatError as exc:
-        print(f"surfsplat: error: {exc}", file=sys.stderr)
-        return 2
-    except (FileNotFoundError, PermissionError, IsADirectoryError) as exc:
-        print(f"surfsplat: error: {exc.filename}: {exc.strerror}", file=sys.stderr)
-        return 2
-    return 0
+    return surfsplat_main(argv)
 
 
 if __name__ == "__main__":
