@@ -66,6 +66,15 @@ def distance(camera: Camera) -> float:
     return float(np.linalg.norm(np.subtract(camera.eye, camera.target)))
 
 
+def _turned(offset: np.ndarray, up: np.ndarray, yaw_deg: float, pitch_deg: float,
+            max_elevation_deg: float) -> np.ndarray:
+    """``offset`` turned by ``yaw_deg`` about ``up`` and raised by ``pitch_deg`` (elevation clamped)."""
+    horizontal, elevation = _split(offset, up)
+    horizontal = rotate(horizontal, up, yaw_deg)
+    elevation = float(np.clip(elevation + pitch_deg, -max_elevation_deg, max_elevation_deg))
+    return np.linalg.norm(offset) * _join(horizontal, elevation, up)
+
+
 def orbit(camera: Camera, yaw_deg: float, pitch_deg: float = 0.0, up=None,
           max_elevation_deg: float = MAX_ELEVATION_DEG) -> Camera:
     """Turn the eye around the target, keeping its distance.
@@ -78,11 +87,7 @@ def orbit(camera: Camera, yaw_deg: float, pitch_deg: float = 0.0, up=None,
     """
     up = _world_up(camera, up)
     target = np.asarray(camera.target)
-    offset = np.asarray(camera.eye) - target
-    horizontal, elevation = _split(offset, up)
-    horizontal = rotate(horizontal, up, yaw_deg)
-    elevation = float(np.clip(elevation + pitch_deg, -max_elevation_deg, max_elevation_deg))
-    eye = target + np.linalg.norm(offset) * _join(horizontal, elevation, up)
+    eye = target + _turned(np.asarray(camera.eye) - target, up, yaw_deg, pitch_deg, max_elevation_deg)
     return _moved(camera, eye, target, up)
 
 
@@ -134,11 +139,7 @@ def look(camera: Camera, yaw_deg: float, pitch_deg: float = 0.0, up=None,
     """
     up = _world_up(camera, up)
     eye = np.asarray(camera.eye)
-    offset = np.asarray(camera.target) - eye
-    horizontal, elevation = _split(offset, up)
-    horizontal = rotate(horizontal, up, yaw_deg)
-    elevation = float(np.clip(elevation + pitch_deg, -max_elevation_deg, max_elevation_deg))
-    target = eye + np.linalg.norm(offset) * _join(horizontal, elevation, up)
+    target = eye + _turned(np.asarray(camera.target) - eye, up, yaw_deg, pitch_deg, max_elevation_deg)
     return _moved(camera, eye, target, up)
 
 
