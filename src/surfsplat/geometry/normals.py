@@ -83,20 +83,25 @@ def _workers() -> int:
     return max(1, min(cores, 8))
 
 
-def _for_blocks(fn, n: int) -> None:
-    """Call ``fn(slice)`` for every block of ``range(n)``, on a thread per core.
+def _parallel(fn, items) -> None:
+    """Call ``fn(item)`` for every item, on a thread per core (NumPy releases the GIL in its loops).
 
     ``fn`` must write only its own rows. Exceptions propagate.
     """
-    blocks = _blocks(n)
-    workers = min(_workers(), len(blocks))
+    items = list(items)
+    workers = min(_workers(), len(items))
     if workers <= 1:
-        for sl in blocks:
-            fn(sl)
+        for item in items:
+            fn(item)
         return
     with ThreadPoolExecutor(workers) as pool:
-        for _ in pool.map(fn, blocks):
+        for _ in pool.map(fn, items):
             pass
+
+
+def _for_blocks(fn, n: int) -> None:
+    """Call ``fn(slice)`` for every block of ``range(n)``, on a thread per core."""
+    _parallel(fn, _blocks(n))
 
 
 def _block_offsets(cols: list[np.ndarray], idx: np.ndarray, sl: slice) -> list[np.ndarray]:

@@ -42,7 +42,6 @@ from __future__ import annotations
 import argparse
 import math
 import numbers
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -52,7 +51,7 @@ from scipy.spatial import cKDTree
 
 from ..cloud import NO_CLIP
 from ..errors import InputError
-from .normals import _check_indices, _check_vectors, _for_blocks, _workers, smallest_eigenvectors
+from .normals import _check_indices, _check_vectors, _for_blocks, _parallel, smallest_eigenvectors
 
 #: Neighbours per point for feature detection on raw points (the point itself
 #: excluded). It should reach the other side of a feature wherever a splat
@@ -591,18 +590,6 @@ def detect_sharp_features(positions, normals, indices, sharp_angle: float, *, ne
 
     _parallel(block, range(0, len(rows), _BLOCK))
     return result
-
-
-def _parallel(fn, starts) -> None:
-    """``fn(start)`` for every start, on a thread per core (NumPy releases the GIL in its loops)."""
-    workers = min(_workers(), len(starts))
-    if workers <= 1:
-        for s in starts:
-            fn(s)
-        return
-    with ThreadPoolExecutor(workers) as pool:
-        for _ in pool.map(fn, starts):
-            pass
 
 
 def _fit(x: np.ndarray, member: np.ndarray):
