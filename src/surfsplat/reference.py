@@ -60,6 +60,12 @@ def ewa_jacobian(camera: Camera, p_cam: np.ndarray, u_cam: np.ndarray, v_cam: np
     return np.stack([du, dv], axis=-1)
 
 
+def prefilter_variance(prefilter: bool) -> float:
+    """Variance of the EWA prefilter ``H = h I`` in pixels^2: 1 (one pixel) when on, and a tiny
+    regularizer when off, so an edge-on splat's variance stays invertible."""
+    return 1.0 if prefilter else 1e-4
+
+
 def ewa_variance(jacobian: np.ndarray, cutoff: float = 1.0, prefilter: bool = True) -> np.ndarray:
     """(N, 2, 2) screen-space resampling variance ``J V_r J^T + H`` in pixels^2.
 
@@ -69,7 +75,7 @@ def ewa_variance(jacobian: np.ndarray, cutoff: float = 1.0, prefilter: bool = Tr
     ``H = I`` (one pixel) with the prefilter, a tiny regularizer without it.
     """
     v = jacobian @ np.swapaxes(jacobian, 1, 2) / (2.0 * cutoff)
-    h = 1.0 if prefilter else 1e-4
+    h = prefilter_variance(prefilter)
     return v + h * np.eye(2)
 
 
@@ -360,7 +366,7 @@ def perspective_footprint(camera: Camera, p_cam: np.ndarray, n_cam: np.ndarray, 
     offset = (big_u * u[:, 2:3] + big_v * v[:, 2:3]) / h[:, None]  # eq. 7
     outer = lambda a: a[:, :, None] * a[:, None, :]  # noqa: E731
     shape = outer(offset) + (outer(big_u) + outer(big_v)) / h[:, None, None]  # eq. 10-11
-    eta = (1.0 if prefilter else 1e-4) if filter_variance is None else float(filter_variance)
+    eta = prefilter_variance(prefilter) if filter_variance is None else float(filter_variance)
     variance = shape / (2.0 * cutoff) + eta * np.eye(2)
     # det S / tr(S)^2 from det S = f^4 ((u x v) . p)^2 / h^3 (closed form, scale-free)
     trace_s = np.trace(shape, axis1=1, axis2=2)

@@ -6,13 +6,13 @@ cutoff contour, Gaussian weights, visibility splatting with per-fragment depth
 correction (sec. 5), accumulation and per-pixel normalization (sec. 7).
 """
 
-from .technique import Technique, register
+from .technique import Technique, filter_uniforms, register
 
 EWA = register(Technique(
     name="ewa",
     vertex="ewa.vert",
     fragment="ewa.frag",
     blended=True,
-    uniforms=lambda o: {"u_cutoff": o.cutoff, "u_prefilter": 1.0 if o.prefilter else 1e-4},
+    uniforms=filter_uniforms,
     description="screen-space EWA splatting, three passes (Guennebaud & Paulin 2003)",
 ))

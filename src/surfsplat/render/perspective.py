@@ -19,13 +19,13 @@ Passes as ewa: visibility with exact ray-cast disks (depth + epsilon),
 accumulation with the kernel above, per-pixel normalization.
 """
 
-from .technique import Technique, register
+from .technique import Technique, filter_uniforms, register
 
 PERSPECTIVE = register(Technique(
     name="perspective",
     vertex="perspective.vert",
     fragment="perspective.frag",
     blended=True,
-    uniforms=lambda o: {"u_cutoff": o.cutoff, "u_prefilter": 1.0 if o.prefilter else 1e-4},
+    uniforms=filter_uniforms,
     description="perspective accurate EWA splatting, three passes (Zwicker et al. 2004)",
 ))

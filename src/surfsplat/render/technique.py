@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 from ..errors import InputError
+from ..reference import prefilter_variance
 
 
 @dataclass(frozen=True)
@@ -61,6 +62,11 @@ class RenderOptions:
             raise InputError(f"cutoff must be positive, got {self.cutoff}")
         if not (self.depth_epsilon >= 0):
             raise InputError(f"depth epsilon must be non-negative, got {self.depth_epsilon}")
+
+
+def filter_uniforms(options: RenderOptions) -> dict:
+    """Uniforms of the EWA-filtered techniques: cutoff c and prefilter variance (pixels^2)."""
+    return {"u_cutoff": options.cutoff, "u_prefilter": prefilter_variance(options.prefilter)}
 
 
 TECHNIQUES: dict[str, Technique] = {}
