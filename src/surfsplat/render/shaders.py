@@ -19,12 +19,12 @@ _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.MULTILINE)
 
 
 @lru_cache(maxsize=None)
-def read_glsl(name: str) -> str:
-    """The text of ``glsl/<name>`` inside the package (cached)."""
+def read_glsl(name: str, package: str = __package__) -> str:
+    """The text of ``glsl/<name>`` inside ``package`` (default: the renderer's; cached)."""
     try:
-        return resources.files(__package__).joinpath("glsl", name).read_text(encoding="utf-8")
+        return resources.files(package).joinpath("glsl", name).read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise RenderError(f"shader file glsl/{name} is missing from the package") from None
+        raise RenderError(f"shader file {package}/glsl/{name} is missing from the package") from None
 
 
 def _expand(name: str, stack: tuple[str, ...], seen: set[str]) -> str:

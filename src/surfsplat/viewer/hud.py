@@ -10,26 +10,16 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
-from importlib import resources
 
 import moderngl
 import numpy as np
 
 from ..errors import RenderError
-from ..render.shaders import GLSL_VERSION, build_source
+from ..render.shaders import GLSL_VERSION, build_source, read_glsl
 
 #: Panel colors: white text on a translucent dark panel, readable on any background.
 TEXT_RGB = (1.0, 1.0, 1.0)
 PANEL_RGBA = (0.08, 0.08, 0.1, 0.62)
-
-
-@lru_cache(maxsize=None)
-def read_viewer_glsl(name: str) -> str:
-    """The text of ``surfsplat/viewer/glsl/<name>`` (cached)."""
-    try:
-        return resources.files(__package__).joinpath("glsl", name).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise RenderError(f"shader file viewer/glsl/{name} is missing from the package") from None
 
 
 def viewer_program(ctx: moderngl.Context, vertex: str, fragment: str) -> moderngl.Program:
@@ -39,7 +29,7 @@ def viewer_program(ctx: moderngl.Context, vertex: str, fragment: str) -> moderng
     def source(name: str) -> str:
         if name.startswith("render:"):
             return build_source(name[len("render:"):])
-        return GLSL_VERSION + "\n#line 1\n" + read_viewer_glsl(name)
+        return GLSL_VERSION + "\n#line 1\n" + read_glsl(name, __package__)
 
     try:
         return ctx.program(vertex_shader=source(vertex), fragment_shader=source(fragment))
