@@ -30,8 +30,8 @@ from ..errors import InputError
 from .neighbors import _LEAFSIZE, _as_points, knn, spatial_order
 from .normals import _orientation_signs, estimate_normals, orient_normals
 from .sharp import check_sharp_angle, detect_sharp_features, feature_clip_lines
-from .splats import (CIRCLE_COVERAGE, ELLIPSE_COVERAGE, MAX_ANISOTROPY, circular_splats, elliptical_splats,
-                     normals_and_ellipses)
+from .splats import (CIRCLE_COVERAGE, ELLIPSE_COVERAGE, MAX_ANISOTROPY, _check_ellipse_options, circular_splats,
+                     elliptical_splats, normals_and_ellipses)
 
 SHAPES = ("ellipse", "circle")
 
@@ -86,10 +86,7 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
         raise InputError(f"k must be a positive integer, got {k!r}")
     if coverage is None:
         coverage = ELLIPSE_COVERAGE if shape == "ellipse" else CIRCLE_COVERAGE
-    if not coverage > 0:
-        raise InputError(f"coverage must be > 0, got {coverage}")
-    if not max_anisotropy >= 1:
-        raise InputError(f"max_anisotropy must be >= 1, got {max_anisotropy}")
+    _check_ellipse_options(coverage, max_anisotropy)
     if sharp_angle is not None:
         sharp_angle = check_sharp_angle(sharp_angle)
     cloud = cloud.validated(source)
@@ -101,11 +98,10 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
     need_axes = cloud.u is None or cloud.v is None
     if not need_axes:
         if need_normals:
-            normals = np.cross(cloud.u, cloud.v)
-            cloud = cloud.replace(normals=normals)
+            cloud = cloud.replace(normals=np.cross(cloud.u, cloud.v)).validated(source)
         if sharp_angle is not None and n > 1:
-            cloud = _add_clip_lines(cloud.validated(source), sharp_angle)
-        return cloud.validated(source)
+            cloud = _add_clip_lines(cloud, sharp_angle).validated(source)
+        return cloud
     if n < 2:
         raise InputError(f"{source}: preprocessing needs at least 2 points to size the splats, got {n}")
     k = int(k)
