@@ -370,20 +370,20 @@ def circular_axes(normals: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, 
     """Tangent axes u, v of circular splats: (N, 3) float32 each, |u| = |v| = radius.
 
     ``u``, ``v`` and the unit normal form a right-handed orthogonal frame
-    (``u x v`` along ``n``). The frame starts from the coordinate axis least
-    aligned with ``n`` (robust for every direction). Zero-length normals give
-    NaN axes and non-positive or non-finite radii give zero axes; validation
-    drops both.
+    (``u x v`` along ``n``; :func:`surfsplat.geometry.splats.tangent_frame`).
+    Zero-length or non-finite normals give NaN axes and non-positive or
+    non-finite radii give zero axes; validation drops both.
     """
+    from ..geometry.splats import tangent_frame
+
     n = np.asarray(normals, dtype=np.float64)
     r = np.asarray(radius, dtype=np.float64)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        n = n / np.linalg.norm(n, axis=1, keepdims=True)
-        axis = np.argmin(np.abs(np.nan_to_num(n)), axis=1)
-        helper = np.eye(3)[axis]
-        t1 = np.cross(n, helper)
-        t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
-        t2 = np.cross(n, t1)
+    length = np.linalg.norm(n, axis=1)
+    ok = np.isfinite(length) & (length > 0)
+    t1 = np.full(n.shape, np.nan)
+    t2 = np.full(n.shape, np.nan)
+    if ok.any():
+        t1[ok], t2[ok] = tangent_frame(n[ok])
     r = np.where(np.isfinite(r) & (r > 0), r, 0.0)[:, None]
     return (t1 * r).astype(np.float32), (t2 * r).astype(np.float32)
 
