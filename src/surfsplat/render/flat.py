@@ -8,7 +8,7 @@ from .technique import Technique, register
 
 FLAT = register(Technique(
     name="flat",
-    vertex="flat.vert",
+    vertex="disk.vert",
     fragment="flat.frag",
     blended=False,
     description="opaque elliptical disks, one pass (baseline)",

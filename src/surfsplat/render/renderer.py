@@ -93,6 +93,8 @@ class Renderer:
                   "u": cloud.u, "v": cloud.v}
         if cloud.clip_lines is not None:
             arrays["clip0"], arrays["clip1"] = cloud.clip_lines[:, 0], cloud.clip_lines[:, 1]
+        if cloud.normal_field is not None:
+            arrays["normal_field"] = cloud.normal_field
         buffers = {name: self.ctx.buffer(np.ascontiguousarray(a, dtype="f4")) for name, a in arrays.items()}
         return GpuSplats(buffers, len(cloud), cloud.bounds(), float(cloud.radii.max()))
 
@@ -100,9 +102,9 @@ class Renderer:
         key = id(program)
         if key not in splats._vaos:
             content = [(self._quad, "2f", "in_corner")]
-            # attributes without a buffer keep OpenGL's default (0, 0, 0): no clip lines
-            content += [(splats.buffers[name], "3f/i", f"in_{name}") for name in technique.attributes
-                        if f"in_{name}" in program and name in splats.buffers]
+            # attributes without a buffer keep OpenGL's default (0, 0, 0): no clip lines, no normal field
+            content += [(splats.buffers[name], "2f/i" if name == "normal_field" else "3f/i", f"in_{name}")
+                        for name in technique.attributes if f"in_{name}" in program and name in splats.buffers]
             splats._vaos[key] = self.ctx.vertex_array(program, content)
         return splats._vaos[key]
 
@@ -153,6 +155,7 @@ class Renderer:
             "u_material": (lights.ambient, lights.diffuse, lights.specular, lights.shininess),
             "u_depth_epsilon": float(options.depth_epsilon),
             "u_cull_backfaces": bool(options.cull_backfaces),
+            "u_deferred": bool(options.deferred),
         }
 
     def draw(self, splats: GpuSplats, camera: Camera, technique: Technique | str = "ewa",
@@ -203,7 +206,9 @@ class Renderer:
         out.use()
         normalize = self._fullscreen.program
         targets["accum"].use(location=0)
-        self._set_uniforms(normalize, {"u_accum": 0, "u_background": tuple(map(float, background))})
+        targets["aux"].use(location=1)
+        self._set_uniforms(normalize, uniforms | {"u_accum": 0, "u_aux": 1,
+                                                  "u_background": tuple(map(float, background))})
         self._fullscreen.render(moderngl.TRIANGLES, vertices=3)
 
     def render(self, splats: GpuSplats | SplatCloud, camera: Camera, technique: Technique | str = "ewa",

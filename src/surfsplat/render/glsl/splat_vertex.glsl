@@ -7,18 +7,24 @@ flat out vec3 v_udual;    // u / |u|^2: dot(q, v_udual) is the s coordinate of q
 flat out vec3 v_vdual;
 flat out vec2 v_uvz;      // (u.z, v.z): depth change along the axes
 flat out float v_radius;  // largest semi-axis, model units
-flat out vec3 v_color;
-flat out vec3 v_normal;
+flat out vec3 v_color;    // lit color (the albedo when shading is deferred)
+flat out vec3 v_albedo;
+flat out vec3 v_normal;   // center shading normal, on the eye's side of the plane
+flat out vec3 v_field_u;  // alpha * u_hat and beta * v_hat, signed like v_normal: the normal
+flat out vec3 v_field_v;  // at (s, t) is v_normal + s v_field_u + t v_field_v (Botsch 2004, eq. 2)
 flat out vec3 v_clip0;    // clip lines, passed through (Botsch 2004, sec. 4; Zwicker 2004, sec. 5)
 flat out vec3 v_clip1;
 
 uniform bool u_cull_backfaces;   // closed, outward-oriented models only
 
+uniform bool u_deferred;         // lighting after blending: splats carry their albedo
+
 struct Splat {
     vec3 p;   // center, camera space
-    vec3 n;   // unit normal, camera space, facing the eye
+    vec3 n;   // unit normal of the splat's plane (u x v), camera space, facing the eye
     vec3 u;   // scaled tangent axes, camera space
     vec3 v;
+    vec3 shading;   // unit center shading normal (in_normal), on the side of n
 };
 
 // Fills s and the flat outputs; false when the splat lies outside [near, far]
@@ -26,13 +32,23 @@ struct Splat {
 bool camera_splat(out Splat s) {
     s.p = (u_view * vec4(in_position, 1.0)).xyz;
     mat3 r = mat3(u_view);
-    s.n = normalize(r * in_normal);
     s.u = r * in_u;
     s.v = r * in_v;
+    s.shading = normalize(r * in_normal);
+    // The plane is spanned by the axes; the stored normal is the center shading normal,
+    // which a Phong splat tilts away from the plane's (Botsch 2004, sec. 3).
+    s.n = normalize(cross(s.u, s.v));
+    if (dot(s.n, s.shading) < 0.0) s.n = -s.n;
+    vec3 field_u = in_normal_field.x * normalize(s.u);
+    vec3 field_v = in_normal_field.y * normalize(s.v);
     float np = dot(s.n, s.p);
-    // The eye lies on one side of the splat's plane: the whole splat faces away or none of it.
-    if (u_cull_backfaces && np > 0.0) return false;
-    if (np > 0.0) { s.n = -s.n; np = -np; }
+    if (u_cull_backfaces && np > 0.0) {
+        // The eye sees the back of the plane. Conservative test of the normal field
+        // (Botsch 2004, sec. 4.1): cull only when no normal of the disk faces the eye.
+        vec3 e = -s.p;
+        if (dot(s.shading, e) + length(vec2(dot(field_u, e), dot(field_v, e))) <= 0.0) return false;
+    }
+    if (np > 0.0) { s.n = -s.n; s.shading = -s.shading; field_u = -field_u; field_v = -field_v; np = -np; }
     float z = -s.p.z;
     float zext = length(vec2(s.u.z, s.v.z));   // half depth range of the ellipse
     if (z + zext < u_near_far.x || z - zext > u_near_far.y) return false;
@@ -43,8 +59,11 @@ bool camera_splat(out Splat s) {
     v_vdual = s.v / dot(s.v, s.v);
     v_uvz = vec2(s.u.z, s.v.z);
     v_radius = max(length(s.u), length(s.v));
-    v_color = shade(in_color, s.n, normalize(-s.p));
-    v_normal = s.n;
+    v_color = u_deferred ? in_color : shade(in_color, s.shading, normalize(-s.p));
+    v_albedo = in_color;
+    v_normal = s.shading;
+    v_field_u = field_u;
+    v_field_v = field_v;
     v_clip0 = in_clip0;
     v_clip1 = in_clip1;
     return true;

@@ -1,4 +1,5 @@
-// Technique "flat": opaque elliptical disks, ray-cast per pixel, z-buffer only (the baseline).
+// Quad of a splat drawn as its exact elliptical disk, ray-cast per pixel: the
+// techniques "flat", "phong" and "blend" (and every visibility pass uses disk_bounds).
 #include "camera.glsl"
 #include "lighting.glsl"
 #include "splat_attributes.glsl"

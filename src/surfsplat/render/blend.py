@@ -1,0 +1,27 @@
+"""Technique ``blend``: object-space blending kernels (Pajarola, Sainz & Guidotti 2003, sec. 4-5).
+
+The kernel ``psi_E(r) = exp(-a (r / b)^n)`` (EQ 12; a, b, n from the render
+options, the paper's 6, 1.5, 3 by default) or the Gaussian ``psi_G`` (EQ 11),
+mapped onto each elliptical disk by scaling (fig. 11: ``r = b sqrt(s^2 + t^2)``)
+and evaluated in object space at the exact ray/splat intersection; epsilon-z-
+buffer visibility splatting (sec. 5.3), accumulation of ``psi c`` and ``psi``
+(EQ 10) and per-pixel normalization (EQ 9, sec. 5.4). Splats of coarse
+hierarchy nodes carry a normal field (the smooth shading of sec. 5.2, fig. 14);
+it is evaluated per pixel.
+"""
+
+from .technique import Technique, register
+
+
+def _uniforms(options) -> dict:
+    return {"u_kernel": options.blend_kernel(), "u_deferred": bool(options.deferred)}
+
+
+BLEND = register(Technique(
+    name="blend",
+    vertex="disk.vert",
+    fragment="object_space.frag",
+    blended=True,
+    uniforms=_uniforms,
+    description="object-space blending kernels psi_E, epsilon-z-buffer, normalization (Pajarola et al. 2003)",
+))

@@ -1,0 +1,27 @@
+"""Technique ``phong``: Phong splatting (Botsch, Spernat & Kobbelt 2004, sec. 4).
+
+Each pixel of a splat's exact disk quad casts its viewing ray onto the splat's
+plane (eq. 6), takes the exact ``(s, t)`` (eq. 1), discards outside the ellipse
+and on the cut side of clip lines, evaluates the linear normal field (eq. 2)
+and lights the pixel with it (Blinn-Phong, ``surfsplat.lighting``), with the
+exact depth. Weights decrease radially, ``exp(-c (s^2 + t^2))`` with the
+cutoff c (the Gaussian of [BK03] cut at the ellipse); three passes: visibility,
+accumulation, normalization. Splats without a normal field are lit per pixel
+with their constant normal.
+"""
+
+from .technique import Technique, register
+
+
+def _uniforms(options) -> dict:
+    return {"u_kernel": (float(options.cutoff), 2.0), "u_deferred": bool(options.deferred)}
+
+
+PHONG = register(Technique(
+    name="phong",
+    vertex="disk.vert",
+    fragment="object_space.frag",
+    blended=True,
+    uniforms=_uniforms,
+    description="Phong splats: per-pixel ray cast, linear normal fields, per-pixel lighting (Botsch et al. 2004)",
+))
