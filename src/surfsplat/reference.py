@@ -159,6 +159,44 @@ def shade(albedo: np.ndarray, n: np.ndarray, view: np.ndarray, light_dirs: np.nd
     return albedo * (lights.ambient + lights.diffuse * diffuse[..., None]) + lights.specular * specular[..., None]
 
 
+
+# -- techniques "phong" and "blend": object-space kernels at the exact ray/splat hit -------------
+
+def plane_normals(normals: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(N, 3) unit normals of the splats' planes, ``u x v`` turned to the side of ``normals``.
+
+    The plane is spanned by the axes; ``normals`` is the center shading normal,
+    which a Phong splat tilts away from the plane's (Botsch 2004, sec. 3).
+    """
+    n = np.cross(u, v)
+    n = n / np.linalg.norm(n, axis=-1, keepdims=True)
+    return np.where(np.sum(n * normals, axis=-1, keepdims=True) < 0, -n, n)
+
+
+def field_normals(normals: np.ndarray, u: np.ndarray, v: np.ndarray, normal_field: np.ndarray,
+                  st: np.ndarray) -> np.ndarray:
+    """Unit normals of linear normal fields at normalized coordinates (Botsch 2004, eq. 2).
+
+    ``n(s, t) = n + s alpha u_hat + t beta v_hat``, normalized. ``normals``, ``u``,
+    ``v``: (N, 3); ``normal_field``: (N, 2) (alpha, beta); ``st``: (N, ..., 2).
+    """
+    extra = st.ndim - 2
+    shape = normals.shape[:1] + (1,) * extra + (3,)
+    u_hat = (u / np.linalg.norm(u, axis=-1, keepdims=True)) * normal_field[:, :1]
+    v_hat = (v / np.linalg.norm(v, axis=-1, keepdims=True)) * normal_field[:, 1:]
+    n = normals.reshape(shape) + st[..., :1] * u_hat.reshape(shape) + st[..., 1:] * v_hat.reshape(shape)
+    return n / np.linalg.norm(n, axis=-1, keepdims=True)
+
+
+def object_space_weight(st: np.ndarray, a: float, n: float) -> np.ndarray:
+    """Kernel ``exp(-a rho^n)`` at normalized radius ``rho = |st|``, 0 outside the ellipse.
+
+    Pajarola 2003, EQ 12 with rho = r / b (``n = 2``: the Gaussians of EQ 11 and of
+    Botsch 2004's technique, ``a`` = cutoff). ``st``: (..., 2).
+    """
+    rho = np.sqrt(np.sum(np.asarray(st, dtype=np.float64) ** 2, axis=-1))
+    return np.where(rho <= 1.0, np.exp(-a * rho ** n), 0.0)
+
 # -- technique "perspective": perspective accurate splatting (Zwicker et al. 2004) ---------------
 #
 # Conventions. The paper writes points as row vectors: x = u M (eq. 4). Here M_k maps the
