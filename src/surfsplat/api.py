@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -80,29 +81,38 @@ def as_splats(source: SplatCloud | str | Path, *, k: int = 8) -> SplatCloud:
     return source
 
 
+def render_options(**options) -> RenderOptions:
+    """RenderOptions from keyword arguments, with a clear error for an unknown name."""
+    known = {f.name for f in dataclasses.fields(RenderOptions)}
+    unknown = sorted(set(options) - known)
+    if unknown:
+        raise InputError(f"unknown render option {', '.join(unknown)}; known: {', '.join(sorted(known))}")
+    return RenderOptions(**options)
+
+
 def render(source: SplatCloud | str | Path, camera: Camera | None = None, *, technique: str = "ewa",
            width: int = 512, height: int = 512, lights: Lights | None = None, background=(1.0, 1.0, 1.0),
-           prefilter: bool = True, cutoff: float = 1.0, depth_epsilon: float = 1.0,
-           cull_backfaces: bool = False, k: int = 8) -> Frame:
+           k: int = 8, **options) -> Frame:
     """Render a SplatCloud or a point file to a :class:`Frame`.
 
     Args:
         source: a SplatCloud (preprocessed if it lacks normals or splat axes) or a path.
         camera: the view; None frames the model automatically at ``width`` x ``height``.
-        technique: "ewa" (Guennebaud 2003), "perspective" (Zwicker 2004), both three
-            passes, or "flat" (opaque disks, one pass).
+        technique: "ewa" (Guennebaud 2003), "perspective" (Zwicker 2004), "phong"
+            (Botsch 2004), "blend" (Pajarola 2003), all three passes, or "flat"
+            (opaque disks, one pass).
         lights: lighting and material; None is a headlight with the default material.
         background: RGB in [0, 1].
-        prefilter, cutoff, depth_epsilon, cull_backfaces: see
-            :class:`~surfsplat.render.technique.RenderOptions`.
         k: neighbours for preprocessing when needed.
+        **options: fields of :class:`~surfsplat.render.technique.RenderOptions`:
+            prefilter, cutoff, depth_epsilon, cull_backfaces, deferred, kernel,
+            kernel_a, kernel_b, kernel_n, kernel_sigma.
     """
+    render_settings = render_options(**options)
     cloud = as_splats(source, k=k)
     background = tuple(float(x) for x in np.asarray(background, dtype=float).reshape(-1))
     if len(background) != 3 or not all(0.0 <= x <= 1.0 for x in background):
         raise InputError(f"background must be 3 numbers in [0, 1], got {background}")
     if camera is None:
         camera = auto_camera(cloud, width, height)
-    options = RenderOptions(cutoff=cutoff, prefilter=prefilter, depth_epsilon=depth_epsilon,
-                            cull_backfaces=cull_backfaces)
-    return default_renderer().render(cloud, camera, technique, lights or Lights(), options, background)
+    return default_renderer().render(cloud, camera, technique, lights or Lights(), render_settings, background)

@@ -15,7 +15,7 @@ from .errors import InputError, SurfsplatError
 
 
 def _add_view_options(p: argparse.ArgumentParser) -> None:
-    from .render.technique import TECHNIQUES, get_technique
+    from .render.technique import KERNELS, TECHNIQUES, get_technique
 
     get_technique("ewa")  # registers the techniques
     p.add_argument("--technique", default="ewa", choices=sorted(TECHNIQUES), help="rendering technique (default ewa)")
@@ -38,6 +38,25 @@ def _add_view_options(p: argparse.ArgumentParser) -> None:
                    help="visibility offset along the viewing rays, in splat radii (default 1)")
     p.add_argument("--cull-backfaces", action="store_true",
                    help="drop splats facing away from the eye (closed models with outward normals only)")
+    p.add_argument("--deferred", action="store_true",
+                   help="deferred shading: blend albedo and normals, light each pixel once (any technique)")
+    p.add_argument("--kernel", choices=KERNELS, default="pajarola",
+                   help="blend technique's kernel: pajarola exp(-a (r/b)^n) or gaussian exp(-r^2 / 2 sigma^2) "
+                        "(default pajarola)")
+    p.add_argument("--kernel-a", type=float, default=6.0, metavar="A", help="a of the pajarola kernel (default 6)")
+    p.add_argument("--kernel-b", type=float, default=1.5, metavar="B",
+                   help="b: the kernel's support radius r at the splat's rim (default 1.5)")
+    p.add_argument("--kernel-n", type=float, default=3.0, metavar="N", help="n of the pajarola kernel (default 3)")
+    p.add_argument("--kernel-sigma", type=float, default=0.5, metavar="S",
+                   help="sigma of the gaussian kernel, units of b (default 0.5)")
+
+
+def _render_options(args) -> dict:
+    """The RenderOptions fields from the shared view options."""
+    return dict(prefilter=not args.no_prefilter, cutoff=args.cutoff, depth_epsilon=args.depth_epsilon,
+                cull_backfaces=args.cull_backfaces, deferred=args.deferred, kernel=args.kernel,
+                kernel_a=args.kernel_a, kernel_b=args.kernel_b, kernel_n=args.kernel_n,
+                kernel_sigma=args.kernel_sigma)
 
 
 def _camera(args, cloud):
@@ -64,8 +83,7 @@ def _render_and_save(cloud, args, out: Path, inputs: tuple[Path, ...] = ()) -> N
     lights = Lights(directions=tuple(map(tuple, args.light)) if args.light else None, enabled=not args.no_lighting)
     start = time.perf_counter()
     frame = render(cloud, camera, technique=args.technique, lights=lights, background=args.background,
-                   prefilter=not args.no_prefilter, cutoff=args.cutoff, depth_epsilon=args.depth_epsilon,
-                   cull_backfaces=args.cull_backfaces)
+                   **_render_options(args))
     elapsed = time.perf_counter() - start
     frame.save(out)
     progress.message(f"rendered {len(cloud):,} splats with {args.technique} at {camera.width}x{camera.height} "

@@ -36,6 +36,7 @@ from typing import Callable, Literal
 import numpy as np
 
 from .. import progress
+from ..api import render_options
 from ..camera import Camera
 from ..cloud import SplatCloud
 from ..errors import InputError, RenderError
@@ -762,11 +763,10 @@ class Viewer:
 
 def view(source, camera: Camera | None = None, *, technique: str = "ewa", size: tuple[int, int] = (1280, 720),
          eye=None, target=None, up=(0.0, 1.0, 0.0), fov: float = 40.0, lights: Lights | None = None,
-         background=(1.0, 1.0, 1.0), prefilter: bool = True, cutoff: float = 1.0, depth_epsilon: float = 1.0,
-         cull_backfaces: bool = False, tolerance: float = 1.0, motion: Motion = "auto",
+         background=(1.0, 1.0, 1.0), tolerance: float = 1.0, motion: Motion = "auto",
          motion_budget: int = DEFAULT_MOTION_BUDGET, motion_scale: float = DEFAULT_MOTION_SCALE, hud: bool = True,
          frames: int | None = None, orbit: float = 0.0, screenshot=None, k: int = 8,
-         title: str | None = None) -> ViewStats:
+         title: str | None = None, **options) -> ViewStats:
     """Open an interactive window on a splat model (press H in it for the keys).
 
     Args:
@@ -779,7 +779,7 @@ def view(source, camera: Camera | None = None, *, technique: str = "ewa", size: 
             framebuffer's size (larger on HiDPI screens).
         eye, target: camera position and point looked at (world); target defaults to the
             model's center. up: the world up axis orbits turn about. fov: vertical, degrees.
-        lights, background, prefilter, cutoff, depth_epsilon, cull_backfaces: as for
+        lights, background, **options (prefilter, cutoff, deferred, kernel, ...): as for
             :func:`surfsplat.render`.
         tolerance: LOD screen tolerance in pixels (+/- change it; no effect until the
             hierarchy exists, see :func:`level_of_detail`).
@@ -827,8 +827,7 @@ def view(source, camera: Camera | None = None, *, technique: str = "ewa", size: 
         raise InputError(f"orbit must be a finite number of degrees per frame, got {orbit}")
     if target is not None and eye is None and camera is None:
         raise InputError("--target needs --eye (without camera flags the model is framed automatically)")
-    options = RenderOptions(cutoff=cutoff, prefilter=prefilter, depth_epsilon=depth_epsilon,
-                            cull_backfaces=cull_backfaces)
+    options = render_options(**options)
     background = tuple(float(x) for x in np.asarray(background, dtype=float).reshape(-1))
     if len(background) != 3 or not all(0.0 <= x <= 1.0 for x in background):
         raise InputError(f"background must be 3 numbers in [0, 1], got {background}")
