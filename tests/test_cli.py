@@ -117,3 +117,29 @@ def test_bad_numbers_are_rejected(tmp_path, capsys):
     assert run(capsys, "render", ply, "-o", out, "--width", 0)[0] == 2
     assert run(capsys, "render", ply, "-o", out, "--light", 0, 0, 0)[0] == 2
     assert not out.exists()
+
+
+@pytest.mark.parametrize("flags", [["--technique", "phong"], ["--technique", "blend", "--kernel", "gaussian",
+                                                              "--kernel-sigma", 0.4],
+                                   ["--technique", "blend", "--kernel-a", 4, "--kernel-n", 5],
+                                   ["--technique", "ewa", "--deferred"]])
+def test_demo_with_object_space_techniques_and_deferred_shading(tmp_path, capsys, flags):
+    out = tmp_path / "demo.png"
+    status, _, err = run(capsys, "demo", "--scene", "sphere", "-o", out, "--width", 96, "--height", 96, *flags)
+    assert status == 0, err
+    covered = (np.asarray(Image.open(out)) < 250).any(axis=2)
+    assert 0.3 < covered.mean() < 0.95
+
+
+def test_bad_kernel_option_is_a_clear_error(tmp_path, capsys):
+    status, _, err = run(capsys, "demo", "-o", tmp_path / "x.png", "--technique", "blend", "--kernel-n", -1)
+    assert status == 2 and "kernel n must be a positive number" in err
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_api_rejects_unknown_render_options():
+    import surfsplat
+    from surfsplat.errors import InputError
+
+    with pytest.raises(InputError, match="unknown render option kernal"):
+        surfsplat.render(noisy_sphere(200), kernal="gaussian")
