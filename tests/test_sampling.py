@@ -155,3 +155,19 @@ def test_sample_real_mesh(shared_data):
     assert np.isfinite(cloud.normals).all()
     validated = cloud.validated("samples")
     assert len(validated) == 50_000
+
+
+def test_smooth_normals_interpolate_the_vertex_normals():
+    """On an icosphere with radial vertex normals the interpolated normal is far closer to the sphere's."""
+    sphere = trimesh.creation.icosphere(subdivisions=2, radius=2.0)
+    mesh = Mesh(sphere.vertices, sphere.faces, vertex_normals=sphere.vertices / 2.0)
+    face = sample_mesh(mesh, 5000, seed=4)
+    smooth = sample_mesh(mesh, 5000, seed=4, smooth_normals=True)
+    np.testing.assert_array_equal(face.positions, smooth.positions)
+    np.testing.assert_allclose(np.linalg.norm(smooth.normals, axis=1), 1.0, atol=1e-6)
+    radial = smooth.positions / np.linalg.norm(smooth.positions, axis=1, keepdims=True)
+    err_face = np.degrees(np.arccos(np.clip(np.sum(face.normals * radial, axis=1), -1, 1)))
+    err_smooth = np.degrees(np.arccos(np.clip(np.sum(smooth.normals * radial, axis=1), -1, 1)))
+    assert err_smooth.mean() < 0.25 * err_face.mean()
+    with pytest.raises(InputError, match="smooth_normals needs"):
+        sample_mesh(Mesh(sphere.vertices, sphere.faces), 10, smooth_normals=True)

@@ -163,7 +163,8 @@ def cmd_sample(args) -> None:
     _refuse_overwriting_inputs(out, (Path(args.mesh),))
     mesh = load_mesh(args.mesh)
     with progress.stage(f"sampling {args.n:,} points", count=args.n):
-        cloud = sample_mesh(mesh, args.n, seed=args.seed, sharp_angle=args.sharp_angle)
+        cloud = sample_mesh(mesh, args.n, seed=args.seed, sharp_angle=args.sharp_angle,
+                            smooth_normals=args.smooth_normals)
     save_ply(cloud, out, overwrite=args.force)
     progress.message(f"wrote {len(cloud):,} samples -> {out}")
 
@@ -212,6 +213,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-n", type=int, required=True, help="number of samples")
     p.add_argument("-o", "--output", required=True, help="output .ply")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--smooth-normals", action="store_true",
+                   help="interpolate the vertex normals (as Phong shading of the mesh does) instead of "
+                        "giving each sample its face's normal")
     p.add_argument("--sharp-angle", type=sharp_angle_argument, metavar="DEG",
                    help="also give the samples splats, and clip lines where they cross an edge whose faces' "
                         "normals differ by more than DEG degrees (0 < DEG < 180; default: points only)")

@@ -16,7 +16,7 @@ from .sharp import check_sharp_angle, mesh_clip_lines
 
 
 def sample_mesh(mesh: Mesh, n: int, *, seed: int = 0, sharp_angle: float | None = None, k: int = 8,
-                shape: str = "circle", coverage: float | None = None) -> SplatCloud:
+                shape: str = "circle", coverage: float | None = None, smooth_normals: bool = False) -> SplatCloud:
     """Sample ``n`` points uniformly by area on the surface of ``mesh``.
 
     Each sample picks a face with probability proportional to its area, then a
@@ -32,6 +32,10 @@ def sample_mesh(mesh: Mesh, n: int, *, seed: int = 0, sharp_angle: float | None 
             angle in degrees, in (0, 180): then every sample also gets its
             splat, and splats that reach over an edge sharper than this get
             clip lines from the faces there (see below).
+        smooth_normals: give each sample the normalized barycentric interpolation
+            of the vertex normals (the normals a Phong-shaded rendering of the
+            mesh uses) instead of its face's normal; needs vertex normals (a
+            mesh read from a file always has them: stored or area-weighted).
         k, shape, coverage: splat sizes when ``sharp_angle`` is given, as in
             :func:`surfsplat.geometry.preprocess.preprocess` with the face
             normals kept: ``k`` neighbours; ``shape`` ``"circle"`` (default:
@@ -49,7 +53,7 @@ def sample_mesh(mesh: Mesh, n: int, *, seed: int = 0, sharp_angle: float | None 
         float32 unit: the face's geometric normal (right-hand rule on its
         vertex order), flipped where it disagrees (negative dot product) with
         the barycentric interpolation of the mesh's vertex normals, when the
-        mesh has them; colors (n, 3) float32 interpolated from the vertex
+        mesh has them (or that interpolation itself with ``smooth_normals``); colors (n, 3) float32 interpolated from the vertex
         colors, when the mesh has them. No splat axes (u, v are None).
 
     Raises:
@@ -63,6 +67,8 @@ def sample_mesh(mesh: Mesh, n: int, *, seed: int = 0, sharp_angle: float | None 
     if sharp_angle is not None:
         sharp_angle = check_sharp_angle(sharp_angle, "sample_mesh: sharp_angle")
     mesh = mesh.validated("sample_mesh: mesh")
+    if smooth_normals and mesh.vertex_normals is None:
+        raise InputError("sample_mesh: smooth_normals needs a mesh with vertex normals")
     areas = mesh.face_areas()
     total = float(areas.sum())
     if not np.isfinite(total) or total <= 0:
@@ -86,6 +92,10 @@ def sample_mesh(mesh: Mesh, n: int, *, seed: int = 0, sharp_angle: float | None 
         smooth = np.einsum("nk,nkd->nd", bary, mesh.vertex_normals.astype(np.float64)[corners])
         flip = np.einsum("nd,nd->n", normals, smooth) < 0
         normals[flip] *= -1.0
+        if smooth_normals:
+            length = np.linalg.norm(smooth, axis=1, keepdims=True)
+            # opposite vertex normals can cancel: keep the face normal there
+            normals = np.where(length > 1e-6, smooth / np.maximum(length, 1e-30), normals)
 
     colors = None
     if mesh.vertex_colors is not None:
