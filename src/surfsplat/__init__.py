@@ -7,7 +7,7 @@ Quick start::
     frame.save("bunny.png")
 """
 
-from .api import as_splats, auto_camera, render
+from .api import as_splats, auto_camera, render, render_mesh
 from .camera import Camera
 from .cloud import SplatCloud
 from .errors import InputError, RenderError, SurfsplatError
@@ -36,4 +36,4 @@ def preprocess(cloud: SplatCloud, **kwargs) -> SplatCloud:
 
 __all__ = ["Camera", "Frame", "InputError", "Lights", "RenderError", "RenderOptions", "SplatCloud",
            "SurfsplatError", "as_splats", "auto_camera", "demo_scene", "load", "preprocess", "render",
-           "view", "__version__"]
+           "render_mesh", "view", "__version__"]

@@ -116,3 +116,23 @@ def render(source: SplatCloud | str | Path, camera: Camera | None = None, *, tec
     if camera is None:
         camera = auto_camera(cloud, width, height)
     return default_renderer().render(cloud, camera, technique, lights or Lights(), render_settings, background)
+
+
+def render_mesh(source, camera: Camera | None = None, *, width: int = 512, height: int = 512,
+                lights: Lights | None = None, background=(1.0, 1.0, 1.0), supersample: int = 4,
+                smooth: bool = True) -> Frame:
+    """Render a triangle mesh (a :class:`~surfsplat.io.Mesh` or a PLY/OBJ path): the ground truth.
+
+    Same camera conventions, lighting and linear depth as :func:`render`, per-pixel
+    shading of the interpolated vertex normals (``smooth``) or the face normals,
+    antialiased by ``supersample`` x ``supersample`` samples per pixel. With no
+    camera the mesh's vertices are framed like :func:`auto_camera` frames a cloud.
+    """
+    from .io import Mesh, load_mesh
+    from .render.mesh import render_mesh as _render_mesh
+
+    mesh = source if isinstance(source, Mesh) else load_mesh(source)
+    if camera is None:
+        camera = auto_camera(SplatCloud(mesh.vertices), width, height)
+    return _render_mesh(mesh, camera, lights or Lights(), background=background, supersample=supersample,
+                        smooth=smooth, renderer=default_renderer())
