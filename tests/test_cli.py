@@ -163,3 +163,34 @@ def test_render_mesh_ground_truth_matches_its_splats(tmp_path, capsys):
     assert np.abs(centroid[0] - centroid[1]).max() < 0.5
     status, _, err = run(capsys, "render", mesh_path, "--mesh", "-o", mesh_path)
     assert status == 2 and "refusing to overwrite" in err
+
+
+def test_build_info_and_render_a_hierarchy(tmp_path, capsys):
+    ply = save_ply(noisy_sphere(4000), tmp_path / "points.ply")
+    model = tmp_path / "model.npz"
+    status, _, err = run(capsys, "build", ply, "-o", model)
+    assert status == 0, err
+    status, out, _ = run(capsys, "info", model)
+    assert status == 0 and "points:     4,000" in out and "LOD hierarchy" in out and "capacity 8" in out
+    assert run(capsys, "build", ply, "-o", tmp_path / "small.npz", "--leaf-capacity", 2)[0] == 0
+    assert "capacity 2" in run(capsys, "info", tmp_path / "small.npz")[1]
+    assert run(capsys, "build", ply, "-o", model)[0] == 2           # exists: needs --force
+    assert run(capsys, "build", ply, "-o", tmp_path / "model.ply")[0] == 2   # wrong suffix
+    images = {}
+    for tau in (0, 1, 64):
+        out_png = tmp_path / f"tau{tau}.png"
+        status, _, err = run(capsys, "render", model, "-o", out_png, "--lod-tolerance", tau, "--width", 128,
+                             "--height", 128)
+        assert status == 0, err
+        images[tau] = (np.asarray(Image.open(out_png)) < 250).any(axis=2)
+    assert images[0].mean() > 0.2
+    # coarser cuts still cover the same silhouette (conservative ellipses: no holes, a little wider)
+    for tau in (1, 64):
+        assert (images[0] & ~images[tau]).sum() < 0.01 * images[0].sum()
+    # a point file rendered with a tolerance builds its hierarchy on the fly: same picture as the saved one
+    status, _, err = run(capsys, "render", ply, "-o", tmp_path / "direct.png", "--lod-tolerance", 64,
+                         "--width", 128, "--height", 128)
+    assert status == 0, err
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "direct.png")), np.asarray(Image.open(tmp_path / "tau64.png")))
+    status, _, err = run(capsys, "render", tmp_path / "missing.npz", "-o", tmp_path / "x.png")
+    assert status == 2 and "missing.npz" in err

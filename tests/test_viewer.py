@@ -230,12 +230,14 @@ def run_view(args: list, display: str | None, timeout: float = 120) -> subproces
 def test_scripted_screenshot_matches_render(xvfb_display, tmp_path):
     out = tmp_path / "view.png"
     result = run_view(["-q", "view", "demo:torus", "--frames", 1, "--orbit", 0, "--size", 400, 300,
-                       "--screenshot", out], xvfb_display)
+                       "--lod-tolerance", 4, "--screenshot", out], xvfb_display)
     assert result.returncode == 0, result.stderr
     shot = np.asarray(Image.open(out)).astype(int)
     assert shot.shape == (300, 400, 3)
-    # the same view rendered headless (automatic framing at the same size)
-    expected = surfsplat.render(surfsplat.demo_scene("torus"), width=400, height=300).image().astype(int)
+    # the same view rendered headless (automatic framing at the same size, the same LOD cut)
+    torus = surfsplat.demo_scene("torus")
+    expected = surfsplat.render(torus, width=400, height=300, lod_tolerance=4).image().astype(int)
+    assert (expected != surfsplat.render(torus, width=400, height=300).image()).any(), "LOD changed nothing"
     diff = np.abs(shot - expected).max(axis=2)
     # same renderer, same camera: only the float -> 8-bit conversion may differ by one level
     assert diff.mean() < 1.0 and (diff <= 2).mean() >= 0.999

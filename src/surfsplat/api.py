@@ -90,31 +90,89 @@ def render_options(**options) -> RenderOptions:
     return RenderOptions(**options)
 
 
-def render(source: SplatCloud | str | Path, camera: Camera | None = None, *, technique: str = "ewa",
+#: LOD screen tolerance tau (pixels) used when a hierarchy is rendered without one.
+DEFAULT_LOD_TOLERANCE = 1.0
+
+#: Suffix of hierarchy files (``surfsplat build``).
+HIERARCHY_SUFFIX = ".npz"
+
+
+def load_model(source, *, k: int = 8):
+    """A Hierarchy for a hierarchy file (``.npz``, ``surfsplat build``) or a Hierarchy;
+    else a render-ready SplatCloud (see :func:`as_splats`)."""
+    from .hierarchy import Hierarchy, load_hierarchy
+
+    if isinstance(source, Hierarchy):
+        return source
+    if isinstance(source, (str, Path)) and Path(source).suffix.lower() == HIERARCHY_SUFFIX:
+        return load_hierarchy(source)
+    return as_splats(source, k=k)
+
+
+def lod_splats(hierarchy, camera: Camera, tolerance_px: float = DEFAULT_LOD_TOLERANCE, *,
+               cull_backfaces: bool = False, shading: str = "fit"):
+    """The splats of a hierarchy to draw for a view, and the selection (Pajarola 2003, sec. 5.1).
+
+    Nodes whose projected ellipse is at most ``tolerance_px`` pixels wide are
+    drawn as one splat, others are refined; nodes outside the view frustum (and
+    with ``cull_backfaces`` those whose normal cone faces away) are dropped with
+    their subtrees. ``shading`` is the normal field of node splats: "fit"
+    (least-squares linear field), "cone" (Pajarola 2003, fig. 14) or "flat".
+
+    Returns:
+        (SplatCloud, :class:`~surfsplat.hierarchy.Selection`).
+    """
+    from .hierarchy import select
+
+    selection = select(hierarchy, camera, tolerance_px, cull_backfaces=cull_backfaces, shading=shading)
+    return hierarchy.splats(selection), selection
+
+
+def render(source, camera: Camera | None = None, *, technique: str = "ewa",
            width: int = 512, height: int = 512, lights: Lights | None = None, background=(1.0, 1.0, 1.0),
-           k: int = 8, **options) -> Frame:
-    """Render a SplatCloud or a point file to a :class:`Frame`.
+           lod_tolerance: float | None = None, lod_shading: str = "fit", k: int = 8, **options) -> Frame:
+    """Render a SplatCloud, a hierarchy or a file to a :class:`Frame`.
 
     Args:
-        source: a SplatCloud (preprocessed if it lacks normals or splat axes) or a path.
+        source: a SplatCloud (preprocessed if it lacks normals or splat axes), a
+            :class:`~surfsplat.hierarchy.Hierarchy`, or a path: a point/splat/mesh
+            file or a hierarchy file (``.npz`` from ``surfsplat build``).
         camera: the view; None frames the model automatically at ``width`` x ``height``.
         technique: "ewa" (Guennebaud 2003), "perspective" (Zwicker 2004), "phong"
             (Botsch 2004), "blend" (Pajarola 2003), all three passes, or "flat"
             (opaque disks, one pass).
         lights: lighting and material; None is a headlight with the default material.
         background: RGB in [0, 1].
+        lod_tolerance: LOD screen tolerance tau in pixels (see :func:`lod_splats`).
+            Hierarchies default to :data:`DEFAULT_LOD_TOLERANCE`; a cloud given a
+            tolerance is turned into a hierarchy first (``surfsplat build`` saves one).
+        lod_shading: normal field of coarse LOD splats: "fit", "cone" or "flat".
         k: neighbours for preprocessing when needed.
         **options: fields of :class:`~surfsplat.render.technique.RenderOptions`:
             prefilter, cutoff, depth_epsilon, cull_backfaces, deferred, kernel,
             kernel_a, kernel_b, kernel_n, kernel_sigma.
     """
+    from .hierarchy import Hierarchy, build_hierarchy
+
     render_settings = render_options(**options)
-    cloud = as_splats(source, k=k)
     background = tuple(float(x) for x in np.asarray(background, dtype=float).reshape(-1))
     if len(background) != 3 or not all(0.0 <= x <= 1.0 for x in background):
         raise InputError(f"background must be 3 numbers in [0, 1], got {background}")
-    if camera is None:
-        camera = auto_camera(cloud, width, height)
+    model = load_model(source, k=k)
+    if lod_tolerance is not None and not isinstance(model, Hierarchy):
+        model = build_hierarchy(model)
+    if isinstance(model, Hierarchy):
+        if camera is None:
+            camera = auto_camera(model.points, width, height)
+        tau = DEFAULT_LOD_TOLERANCE if lod_tolerance is None else lod_tolerance
+        cloud, _ = lod_splats(model, camera, tau, cull_backfaces=render_settings.cull_backfaces,
+                              shading=lod_shading)
+        if len(cloud) == 0:
+            return Frame.empty(camera, background)
+    else:
+        cloud = model
+        if camera is None:
+            camera = auto_camera(cloud, width, height)
     return default_renderer().render(cloud, camera, technique, lights or Lights(), render_settings, background)
 
 

@@ -51,6 +51,18 @@ def _add_view_options(p: argparse.ArgumentParser) -> None:
                    help="sigma of the gaussian kernel, units of b (default 0.5)")
 
 
+def _add_lod_options(p: argparse.ArgumentParser) -> None:
+    from .hierarchy import SHADINGS
+
+    p.add_argument("--lod-tolerance", type=float, metavar="PX",
+                   help="level of detail: draw hierarchy nodes whose projected size is at most PX pixels as "
+                        "one splat (default 1 for a hierarchy MODEL.npz; a point file given PX gets its "
+                        "hierarchy built first; 0: every original splat)")
+    p.add_argument("--lod-shading", choices=SHADINGS, default="fit",
+                   help="normal field of coarse LOD splats: fit (least squares, default), cone (the normal "
+                        "cone, Pajarola 2003 fig. 14) or flat")
+
+
 def _render_options(args) -> dict:
     """The RenderOptions fields from the shared view options."""
     return dict(prefilter=not args.no_prefilter, cutoff=args.cutoff, depth_epsilon=args.depth_epsilon,
@@ -74,19 +86,35 @@ def _camera(args, cloud):
     return camera.with_clip_from_bounds(lo, hi, margin=float(cloud.radii.max()) if cloud.u is not None else 0.0)
 
 
-def _render_and_save(cloud, args, out: Path, inputs: tuple[Path, ...] = ()) -> None:
-    from .api import render
+def _render_and_save(model, args, out: Path, inputs: tuple[Path, ...] = ()) -> None:
+    from .api import DEFAULT_LOD_TOLERANCE, lod_splats, render
+    from .hierarchy import Hierarchy, build_hierarchy
     from .lighting import Lights
+    from .render.frame import Frame
 
     _refuse_overwriting_inputs(out, inputs)
-    camera = _camera(args, cloud)
+    tau = getattr(args, "lod_tolerance", None)
+    if tau is not None and not isinstance(model, Hierarchy):
+        with progress.stage(f"building the LOD hierarchy of {len(model):,} splats"):
+            model = build_hierarchy(model)
+    camera = _camera(args, model.points if isinstance(model, Hierarchy) else model)
     lights = Lights(directions=tuple(map(tuple, args.light)) if args.light else None, enabled=not args.no_lighting)
     start = time.perf_counter()
-    frame = render(cloud, camera, technique=args.technique, lights=lights, background=args.background,
-                   **_render_options(args))
+    what = f"{len(model):,} splats"
+    if isinstance(model, Hierarchy):
+        tau = DEFAULT_LOD_TOLERANCE if tau is None else tau
+        model, selection = lod_splats(model, camera, tau, cull_backfaces=args.cull_backfaces,
+                                      shading=args.lod_shading)
+        what = (f"{len(model):,} LOD splats (tolerance {tau:g} px, {selection.node_count:,} nodes, "
+                f"{selection.point_total:,} points)")
+    if len(model):
+        frame = render(model, camera, technique=args.technique, lights=lights, background=args.background,
+                       **_render_options(args))
+    else:
+        frame = Frame.empty(camera, args.background)
     elapsed = time.perf_counter() - start
     frame.save(out)
-    progress.message(f"rendered {len(cloud):,} splats with {args.technique} at {camera.width}x{camera.height} "
+    progress.message(f"rendered {what} with {args.technique} at {camera.width}x{camera.height} "
                      f"in {elapsed:.2f} s -> {out}")
     depth = getattr(args, "depth", None)
     if depth:
@@ -102,17 +130,23 @@ def _refuse_overwriting_inputs(out: Path, inputs: tuple[Path, ...]) -> None:
 
 
 def cmd_render(args) -> None:
-    from .api import as_splats
+    from .api import HIERARCHY_SUFFIX, as_splats
+    from .hierarchy import load_hierarchy
     from .io import load
 
     if args.mesh:
         _render_mesh(args)
         return
-    with progress.stage(f"loading {args.input}"):
-        cloud = load(args.input)
-    progress.message(f"{len(cloud):,} points")
-    cloud = as_splats(cloud, k=args.k)
-    _render_and_save(cloud, args, Path(args.output), (Path(args.input),))
+    if Path(args.input).suffix.lower() == HIERARCHY_SUFFIX:
+        with progress.stage(f"loading the hierarchy {args.input}"):
+            model = load_hierarchy(args.input)
+        progress.message(f"{len(model.points):,} points, {len(model):,} nodes in {model.levels} levels")
+    else:
+        with progress.stage(f"loading {args.input}"):
+            cloud = load(args.input)
+        progress.message(f"{len(cloud):,} points")
+        model = as_splats(cloud, k=args.k)
+    _render_and_save(model, args, Path(args.output), (Path(args.input),))
 
 
 def _render_mesh(args) -> None:
@@ -145,9 +179,13 @@ def cmd_demo(args) -> None:
 
 
 def cmd_info(args) -> None:
+    from .api import HIERARCHY_SUFFIX
     from .geometry.preprocess import neighbour_spacing
     from .io import load
 
+    if Path(args.input).suffix.lower() == HIERARCHY_SUFFIX:
+        _hierarchy_info(args.input)
+        return
     cloud = load(args.input)
     lo, hi = cloud.bounds()
     print(f"file:       {args.input}")
@@ -163,6 +201,46 @@ def cmd_info(args) -> None:
     if len(cloud) > 1:
         stats = neighbour_spacing(cloud.positions)
         print("neighbour spacing: " + "  ".join(f"{key} {value:.4g}" for key, value in stats.items()))
+
+
+def _hierarchy_info(path) -> None:
+    from .hierarchy import load_hierarchy
+
+    d = load_hierarchy(path).describe()
+    print(f"file:       {path} (surfsplat LOD hierarchy, format {d['format_version']})")
+    print(f"points:     {d['points']:,}")
+    print(f"nodes:      {d['nodes']:,} in {d['levels']} levels ({d['leaves']:,} leaves, capacity "
+          f"{d['leaf_capacity']}, mean {d['mean_leaf_points']:.2f} points a leaf)")
+    print(f"per level:  {', '.join(f'{n:,}' for n in d['nodes_per_level'])}")
+    lo, hi = (np.array(b) for b in d["bounds"])
+    print(f"bounds:     min {np.array2string(lo, precision=4)}  max {np.array2string(hi, precision=4)}")
+    present = [name for name in ("colors", "normal_field", "clip_lines") if d[f"has_{name}"]]
+    print(f"properties: positions, normals, u, v{', ' + ', '.join(present) if present else ''}")
+    print(f"memory:     {d['bytes'] / 2**20:.1f} MiB")
+
+
+def cmd_build(args) -> None:
+    from .api import as_splats
+    from .hierarchy import build_hierarchy
+    from .io import load
+
+    out = Path(args.output)
+    _refuse_overwriting_inputs(out, (Path(args.input),))
+    if out.suffix.lower() != ".npz":
+        raise InputError(f"{out}: a hierarchy is saved as .npz; name the output MODEL.npz")
+    if out.exists() and not args.force:
+        raise InputError(f"{out}: exists; use --force to overwrite it")
+    with progress.stage(f"loading {args.input}"):
+        cloud = load(args.input)
+    progress.message(f"{len(cloud):,} points")
+    cloud = as_splats(cloud, k=args.k)
+    start = time.perf_counter()
+    with progress.stage(f"building the point-octree of {len(cloud):,} splats"):
+        hierarchy = build_hierarchy(cloud, args.leaf_capacity, source=args.input)
+    seconds = time.perf_counter() - start
+    hierarchy.save(out, overwrite=args.force)
+    progress.message(f"{len(hierarchy):,} nodes in {hierarchy.levels} levels, built in {seconds:.2f} s "
+                     f"({len(cloud) / max(seconds, 1e-9):,.0f} points/s) -> {out}")
 
 
 def cmd_preprocess(args) -> None:
@@ -201,11 +279,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     sub = parser.add_subparsers(dest="command", required=True)
 
-    p = sub.add_parser("render", help="render a point cloud or splat model to an image")
-    p.add_argument("input", help="PLY, OBJ or LAS file")
+    p = sub.add_parser("render", help="render a point cloud, splat model or LOD hierarchy to an image")
+    p.add_argument("input", help="PLY, OBJ or LAS file, or a hierarchy MODEL.npz (surfsplat build)")
     p.add_argument("-o", "--output", required=True, help="output image (.png)")
     p.add_argument("--k", type=int, default=8, help="neighbours for preprocessing raw points (default 8)")
     p.add_argument("--depth", metavar="OUT.npy", help="also save the depth map (camera-space, inf = empty)")
+    _add_lod_options(p)
     p.add_argument("--mesh", action="store_true",
                    help="render the input's triangles instead (the ground truth: same camera and lighting, "
                         "per-pixel shading, 4x4 supersampled); camera and lighting flags apply")
@@ -215,10 +294,20 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("demo", help="render a built-in procedural scene (no input file needed)")
     p.add_argument("-o", "--output", default="demo.png", help="output image (default demo.png)")
     p.add_argument("--scene", default="torus", choices=sorted(SCENES), help="scene (default torus)")
+    _add_lod_options(p)
     _add_view_options(p)
     p.set_defaults(func=cmd_demo)
 
-    p = sub.add_parser("info", help="counts, bounds, properties and spacing of a point file")
+    p = sub.add_parser("build", help="build the point-octree LOD hierarchy of a model; save it as one .npz file")
+    p.add_argument("input", help="PLY, OBJ or LAS file (raw points are preprocessed first)")
+    p.add_argument("-o", "--output", required=True, help="output hierarchy MODEL.npz")
+    p.add_argument("--leaf-capacity", type=int, default=8, metavar="N",
+                   help="at most N points in a leaf node (default 8)")
+    p.add_argument("--k", type=int, default=8, help="neighbours for preprocessing raw points (default 8)")
+    p.add_argument("--force", action="store_true", help="overwrite an existing output file")
+    p.set_defaults(func=cmd_build)
+
+    p = sub.add_parser("info", help="counts, bounds, properties and spacing of a point file or hierarchy")
     p.add_argument("input")
     p.set_defaults(func=cmd_info)
 

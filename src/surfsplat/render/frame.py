@@ -29,6 +29,14 @@ class Frame:
     weight: np.ndarray
     camera: Camera
 
+    @classmethod
+    def empty(cls, camera: Camera, background=(1.0, 1.0, 1.0)) -> "Frame":
+        """A frame with nothing drawn: the background color, depth inf, weight 0."""
+        h, w = camera.height, camera.width
+        color = np.empty((h, w, 3), dtype=np.float32)
+        color[:] = np.asarray(background, dtype=np.float32)
+        return cls(color, np.full((h, w), np.inf, dtype=np.float32), np.zeros((h, w), dtype=np.float32), camera)
+
     @property
     def mask(self) -> np.ndarray:
         """(H, W) bool: pixels covered by at least one splat."""

@@ -6,6 +6,6 @@ tests and by people without a mouse. Needs the optional ``glfw`` package
 (``pip install 'surfsplat[viewer]'``) and a display.
 """
 
-from .app import ViewStats, level_of_detail, view
+from .app import LevelOfDetail, ViewStats, view
 
-__all__ = ["ViewStats", "level_of_detail", "view"]
+__all__ = ["LevelOfDetail", "ViewStats", "view"]

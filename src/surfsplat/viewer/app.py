@@ -18,7 +18,7 @@ Why this preview: on Mesa's llvmpipe (2 cores) the cost of a frame is about prop
 the number of splats (vertex and setup bound), not to the pixels: 1 M splats at 1280x720
 take 0.7 s with ``flat``, 1.6-1.9 s with ``ewa``, and halving the resolution saves only
 20-30%. Cutting the splat count is what makes moving interactive; the LOD hierarchy
-(Pajarola 2003) will do this properly, see :func:`level_of_detail`.
+(Pajarola 2003, :class:`LevelOfDetail`) draws fewer splats where they are small on screen.
 
 Rendering off-screen also gives screenshots without the HUD, independent of the window's
 pixel ownership, and lets a still view be re-shown without re-rendering.
@@ -31,7 +31,7 @@ import math
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Callable, Literal
+from typing import Literal
 
 import numpy as np
 
@@ -99,9 +99,10 @@ class ViewStats:
 
 # -- inputs ----------------------------------------------------------------
 
-def load_source(source, k: int = 8) -> SplatCloud:
-    """A render-ready SplatCloud from a SplatCloud, a file path, or ``"demo:NAME"`` (a built-in scene)."""
-    from ..api import as_splats
+def load_source(source, k: int = 8):
+    """The model to view: a Hierarchy for a hierarchy (``.npz`` file or object), else a
+    render-ready SplatCloud from a SplatCloud, a file path, or ``"demo:NAME"`` (a built-in scene)."""
+    from ..api import load_model
 
     if isinstance(source, str) and source.startswith("demo:"):
         from ..scenes import demo_scene
@@ -110,8 +111,8 @@ def load_source(source, k: int = 8) -> SplatCloud:
             return demo_scene(source[5:])
     if isinstance(source, (str, Path)):
         with progress.stage(f"loading {source}"):
-            return as_splats(source, k=k)
-    return as_splats(source, k=k)
+            return load_model(source, k=k)
+    return load_model(source, k=k)
 
 
 def check_source(source) -> None:
@@ -193,21 +194,43 @@ def preview_cloud(cloud: SplatCloud, budget: int) -> SplatCloud | None:
     return sub.replace(u=sub.u * gu, v=sub.v * gv, clip_lines=clip, normal_field=None)
 
 
-def level_of_detail(splats, camera: Camera, tolerance_px: float):
-    """Hook for view-dependent level of detail: the splats to draw for ``camera``.
+class LevelOfDetail:
+    """View-dependent level of detail for the viewer's full-quality frames (Pajarola 2003, sec. 5.1).
 
-    ``tolerance_px`` is the LOD screen tolerance tau in pixels (Pajarola 2003,
-    sec. 4): a hierarchy node is drawn instead of its children when its projected
-    size error is below tau. There is no hierarchy yet (``surfsplat.hierarchy``
-    is empty), so this draws every splat and ignores the tolerance; the viewer
-    already stores tau, changes it with +/-, shows it in the HUD and calls this
-    once per full-quality frame. A hierarchy-backed version returns the selection
-    (a few index ranges of level-ordered buffers) and the count drawn.
-
-    Returns:
-        (GpuSplats to draw, number of splats drawn).
+    Holds the model's point-octree; per frame it selects the cut for the camera and
+    the screen tolerance tau (nodes whose projected ellipse is at most tau pixels are
+    drawn as one splat; frustum culling, and back-face culling when the render
+    options ask for it), gathers the splats and uploads them, replacing the previous
+    cut. A cut is reused while the camera, tau and culling stay the same.
     """
-    return splats, splats.count
+
+    def __init__(self, renderer, hierarchy, shading: str = "fit"):
+        self.renderer, self.hierarchy, self.shading = renderer, hierarchy, shading
+        self._key = None
+        self._splats = None
+        self.count = 0
+        self.select_ms = 0.0
+
+    def __call__(self, camera: Camera, tolerance_px: float, cull_backfaces: bool):
+        """(GpuSplats or None when nothing is visible, number of splats drawn)."""
+        from ..api import lod_splats
+
+        key = (camera, float(tolerance_px), bool(cull_backfaces))
+        if key != self._key:
+            start = time.perf_counter()
+            cloud, _ = lod_splats(self.hierarchy, camera, tolerance_px, cull_backfaces=cull_backfaces,
+                                  shading=self.shading)
+            self.select_ms = 1000.0 * (time.perf_counter() - start)
+            self.release()
+            self._splats = self.renderer.upload(cloud) if len(cloud) else None
+            self.count, self._key = len(cloud), key
+        return self._splats, self.count
+
+    def release(self) -> None:
+        """Free the uploaded cut."""
+        if self._splats is not None:
+            self._splats.release()
+        self._splats, self._key, self.count = None, None, 0
 
 
 # -- the window ------------------------------------------------------------
@@ -315,7 +338,7 @@ T, Shift+T\tnext / previous technique
 P\tEWA prefilter on / off
 L\tlighting on / off
 B\tback-face culling on / off
-+ / -\tLOD tolerance (stored only: no hierarchy yet)
++ / -\tLOD screen tolerance (pixels)
 S, Ctrl+S\tscreenshot surfsplat-<time>.png (fly mode: Ctrl+S)
 H\tthis help
 Esc, Q\tquit (fly mode: Esc)"""
@@ -327,11 +350,11 @@ class Viewer:
     Built by :func:`view`; usable directly for tests that drive it frame by frame.
     """
 
-    def __init__(self, glfw, window, ctx, cloud: SplatCloud, camera: Camera | None, *, technique: str,
+    def __init__(self, glfw, window, ctx, model, camera: Camera | None, *, technique: str,
                  lights: Lights, options: RenderOptions, background, up, fov: float, tolerance: float,
-                 motion: Motion, motion_budget: int, motion_scale: float, hud: bool,
-                 lod: Callable = level_of_detail):
+                 motion: Motion, motion_budget: int, motion_scale: float, hud: bool):
         from ..api import auto_camera
+        from ..hierarchy import Hierarchy, build_hierarchy
         from ..render.renderer import Renderer
         from .hud import Hud, viewer_program
 
@@ -342,12 +365,18 @@ class Viewer:
         self.lights, self.options, self.background = lights, options, tuple(background)
         self.tolerance = float(tolerance)
         self.motion, self.motion_scale = motion, float(motion_scale)
-        self.lod = lod
 
-        with progress.stage(f"uploading {len(cloud):,} splats", count=len(cloud), unit="splats"):
-            self.splats = self.renderer.upload(cloud)
-            small = preview_cloud(cloud, motion_budget) if motion != "off" else None
-            self.preview_splats = self.renderer.upload(small) if small is not None else self.splats
+        if isinstance(model, Hierarchy):
+            hierarchy, cloud = model, model.points
+        else:
+            cloud = model
+            with progress.stage(f"building the LOD hierarchy of {len(cloud):,} splats"):
+                hierarchy = build_hierarchy(cloud)
+        self.lod = LevelOfDetail(self.renderer, hierarchy)
+        self.model_splats = len(cloud)
+        small = preview_cloud(cloud, motion_budget) if motion != "off" else None
+        with progress.stage(f"uploading {len(small or cloud):,} preview splats"):
+            self.preview_splats = self.renderer.upload(small if small is not None else cloud)
 
         fb_w, fb_h = glfw.get_framebuffer_size(window)
         fb_w, fb_h = max(fb_w, 1), max(fb_h, 1)
@@ -383,7 +412,7 @@ class Viewer:
         self.should_quit = False
         # counters for the HUD and the stats
         self.preview_frames = self.full_frames = 0
-        self.drawn = self.splats.count
+        self.drawn = 0
         self.last_render_s = {"preview": 0.0, "full": 0.0}
         self._fps_window_start, self._fps_count, self.fps = time.perf_counter(), 0, None
         self._message: tuple[str, float] | None = None
@@ -413,9 +442,8 @@ class Viewer:
         self.ctx.screen.use()
         for name in ("full_fbo", "preview_fbo", "full", "preview"):
             self._targets[name].release()
-        if self.preview_splats is not self.splats:
-            self.preview_splats.release()
-        self.splats.release()
+        self.preview_splats.release()
+        self.lod.release()
         if self.hud is not None:
             self.hud.release()
 
@@ -580,7 +608,7 @@ class Viewer:
         """Render the current view off-screen: full quality, or the motion preview."""
         camera = self.controller.camera
         if full:
-            splats, self.drawn = self.lod(self.splats, camera, self.tolerance)
+            splats, self.drawn = self.lod(camera, self.tolerance, self.options.cull_backfaces)
             technique, fbo = self.technique, self._targets["full_fbo"]
         else:
             splats, self.drawn = self.preview_splats, self.preview_splats.count
@@ -588,7 +616,11 @@ class Viewer:
             fbo = self._targets["preview_fbo"]
             camera = camera.resized(*self._targets["preview_size"])
         start = time.perf_counter()
-        self.renderer.draw(splats, camera, technique, self.lights, self.options, self.background, output=fbo)
+        if splats is None:  # nothing in view
+            fbo.use()
+            fbo.clear(*self.background, 0.0)
+        else:
+            self.renderer.draw(splats, camera, technique, self.lights, self.options, self.background, output=fbo)
         self.ctx.finish()  # llvmpipe works asynchronously: wait, so frame times are real
         self.last_render_s["full" if full else "preview"] = time.perf_counter() - start
         if full:
@@ -648,7 +680,8 @@ class Viewer:
         lines = [
             f"{self.technique}   {self.drawn:,} splats   {rate}   ({ms:.0f} ms/frame)",
             f"prefilter {on[self.options.prefilter]}   lighting {on[self.lights.enabled]}   "
-            f"culling {on[self.options.cull_backfaces]}   LOD tolerance {self.tolerance:.3g} px (no hierarchy)",
+            f"culling {on[self.options.cull_backfaces]}   LOD tolerance {self.tolerance:.3g} px "
+            f"({self.lod.select_ms:.0f} ms to select)",
             f"{self.controller.mode} mode   {quality}   H: help",
         ]
         if self._message is not None:
@@ -758,7 +791,7 @@ class Viewer:
 
     def _stats(self, frames: int, seconds: float) -> ViewStats:
         return ViewStats(frames, seconds, frames / seconds if seconds > 0 else 0.0, self.preview_frames,
-                         self.full_frames, self.splats.count, self.preview_splats.count, self.size)
+                         self.full_frames, self.model_splats, self.preview_splats.count, self.size)
 
 
 def view(source, camera: Camera | None = None, *, technique: str = "ewa", size: tuple[int, int] = (1280, 720),
@@ -781,8 +814,9 @@ def view(source, camera: Camera | None = None, *, technique: str = "ewa", size: 
             model's center. up: the world up axis orbits turn about. fov: vertical, degrees.
         lights, background, **options (prefilter, cutoff, deferred, kernel, ...): as for
             :func:`surfsplat.render`.
-        tolerance: LOD screen tolerance in pixels (+/- change it; no effect until the
-            hierarchy exists, see :func:`level_of_detail`).
+        tolerance: LOD screen tolerance tau in pixels (+/- change it): the model's
+            point-octree (built on loading, or a ``.npz`` from ``surfsplat build``) is cut
+            per view where nodes project to at most tau pixels, see :class:`LevelOfDetail`.
         motion: what is drawn while the camera moves: "flat" (opaque one-pass disks) or
             "same" (the chosen technique), both on about ``motion_budget`` splats (0: all) at
             ``motion_scale`` of the resolution; "off": full quality always; "auto" (default):
@@ -843,12 +877,12 @@ def view(source, camera: Camera | None = None, *, technique: str = "ewa", size: 
         ctx.clear(*background)
         glfw.swap_buffers(window)
         glfw.poll_events()
-        cloud = load_source(source, k=k)
+        model = load_source(source, k=k)
         if camera is None and eye is not None:
-            lo, hi = cloud.bounds()
+            lo, hi = model.bounds()
             camera = Camera(eye=tuple(eye), target=tuple(0.5 * (lo + hi) if target is None else target),
                             up=tuple(up), fov=fov)
-        viewer = Viewer(glfw, window, ctx, cloud, camera, technique=technique, lights=lights or Lights(),
+        viewer = Viewer(glfw, window, ctx, model, camera, technique=technique, lights=lights or Lights(),
                         options=options, background=background, up=up, fov=fov, tolerance=tolerance,
                         motion=motion, motion_budget=int(motion_budget), motion_scale=motion_scale, hud=hud)
         if frames is None:

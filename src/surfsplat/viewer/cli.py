@@ -27,7 +27,8 @@ def add_view_command(subparsers, add_view_options) -> argparse.ArgumentParser:
         "view", help="open an interactive window on a model (orbit, pan, zoom, fly; H for help)",
         description="Interactive viewer: the same renderer as `surfsplat render`, in a window.",
         epilog=VIEW_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("input", help="PLY, OBJ or LAS file, or demo:NAME for a built-in scene (e.g. demo:torus)")
+    p.add_argument("input", help="PLY, OBJ or LAS file, a hierarchy MODEL.npz (surfsplat build), or demo:NAME "
+                                 "for a built-in scene (e.g. demo:torus)")
     p.add_argument("--k", type=int, default=8, help="neighbours for preprocessing raw points (default 8)")
     add_view_options(p)
     # The window's size is --size; --width/--height (from the shared options) override one side.
@@ -37,9 +38,9 @@ def add_view_command(subparsers, add_view_options) -> argparse.ArgumentParser:
             action.help = f"window {action.dest} in pixels (overrides --size)"
     p.add_argument("--size", type=int, nargs=2, metavar=("W", "H"), default=(1280, 720),
                    help="window size in pixels (default 1280 720; larger framebuffer on HiDPI screens)")
-    p.add_argument("--tolerance", type=float, default=1.0,
-                   help="LOD screen tolerance in pixels (default 1; +/- in the window; "
-                        "no effect until the LOD hierarchy exists)")
+    p.add_argument("--lod-tolerance", "--tolerance", dest="tolerance", type=float, default=1.0, metavar="PX",
+                   help="LOD screen tolerance in pixels (default 1; +/- in the window): the model's point-octree "
+                        "is cut where nodes project to at most PX pixels")
     p.add_argument("--motion", choices=("auto", "flat", "same", "off"), default="auto",
                    help="while the camera moves draw: flat one-pass disks, the same technique, or full "
                         "quality (off); auto (default): flat where a full-quality frame takes over 50 ms")

@@ -1,0 +1,352 @@
+"""View-dependent level-of-detail selection over a :class:`~surfsplat.hierarchy.octree.Hierarchy`.
+
+Pajarola, Sainz & Guidotti 2003, sec. 5.1, step 1: a top-down traversal
+refines a node (visits its children) while its projected size exceeds the
+screen tolerance tau; nodes outside the view frustum or entirely back-facing
+are dropped with their subtrees (Guennebaud & Paulin 2003, sec. 8: view-frustum
+culling and back-face culling with visibility cones). The traversal runs level
+by level, vectorized over all nodes of a level: no Python call per node.
+
+Projected size (pixels) of a node, conservative: ``focal_px * 2 a / (|c - eye|
+- R)`` with ``a`` the major semi-axis of its ellipse, ``c`` its center and
+``R`` its bounding-sphere radius; the distance is taken as at least ``near``,
+and a node whose sphere reaches closer than ``near`` to the eye (or contains
+it) is always refined. An unrefined node contributes its representative
+splat; a refined leaf contributes its original points. At tau = 0 every node
+is refined: the selection is the original cloud, less culled leaves.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..camera import Camera
+from ..errors import InputError
+from .octree import Hierarchy, _check_shading, ranges_to_indices
+
+#: Candidates of a level are tested by gathering their rows when they are
+#: fewer than this fraction of the level, else on the whole level with a mask.
+SPARSE = 0.25
+
+#: Relative slack on bounding spheres in the frustum test (float32 rounding).
+CULL_SLACK = 1e-5
+
+
+@dataclass(frozen=True, eq=False)
+class Selection:
+    """The result of :func:`select`: index arrays into a hierarchy, no splat data.
+
+    Attributes:
+        nodes: per level, int64 global indices of the selected nodes (their
+            representative splats are drawn).
+        leaves: per level, int64 global indices of refined leaves (their
+            original points are drawn).
+        point_start, point_count: (K,) int64 ranges of the selected original
+            points in ``hierarchy.points`` (one per refined leaf, in the order
+            of ``leaves``).
+        shading: normal-field mode of the node splats (``"fit"``, ``"cone"``, ``"flat"``).
+        tolerance_px: the screen tolerance tau, pixels.
+        visited: nodes tested.
+        culled_frustum, culled_backface: nodes dropped (each with its subtree).
+    """
+
+    nodes: tuple
+    leaves: tuple
+    point_start: np.ndarray
+    point_count: np.ndarray
+    shading: str
+    tolerance_px: float
+    visited: int
+    culled_frustum: int
+    culled_backface: int
+
+    @property
+    def node_count(self) -> int:
+        """Number of selected representative (node) splats."""
+        return int(sum(len(x) for x in self.nodes))
+
+    @property
+    def point_total(self) -> int:
+        """Number of selected original points."""
+        return int(self.point_count.sum())
+
+    def __len__(self) -> int:
+        """Number of splats the selection draws (nodes + points)."""
+        return self.node_count + self.point_total
+
+    @property
+    def level_counts(self) -> list[int]:
+        """Selected node splats per level."""
+        return [len(x) for x in self.nodes]
+
+    def node_indices(self) -> np.ndarray:
+        """All selected node indices, level by level (int64)."""
+        return np.concatenate(self.nodes) if self.nodes else np.zeros(0, dtype=np.int64)
+
+    def point_indices(self) -> np.ndarray:
+        """Indices of the selected original points in ``hierarchy.points`` (int64)."""
+        return ranges_to_indices(self.point_start, self.point_count)
+
+    def merged_point_ranges(self) -> tuple[np.ndarray, np.ndarray]:
+        """The selected point ranges sorted and with adjacent ranges merged: ``(start, count)`` int64.
+
+        Fewer, longer ranges, e.g. for drawing straight from a buffer holding
+        ``hierarchy.points`` (Guennebaud 2003, sec. 8) instead of gathering.
+        """
+        if len(self.point_start) == 0:
+            return self.point_start.copy(), self.point_count.copy()
+        order = np.argsort(self.point_start, kind="stable")
+        start, count = self.point_start[order], self.point_count[order]
+        end = start + count
+        new = np.concatenate([[True], start[1:] != end[:-1]])
+        first = np.flatnonzero(new)
+        last = np.concatenate([first[1:], [len(start)]]) - 1
+        return start[first], end[last] - start[first]
+
+    def summary(self) -> dict:
+        """Counts for reports: splats, nodes, points, visited and culled nodes."""
+        return {"splats": len(self), "nodes": self.node_count, "points": self.point_total,
+                "tolerance_px": self.tolerance_px, "visited": self.visited,
+                "culled_frustum": self.culled_frustum, "culled_backface": self.culled_backface}
+
+
+class _LodArrays:
+    """Contiguous float32 columns of the node data the traversal reads (built once per hierarchy)."""
+
+    def __init__(self, h: Hierarchy):
+        pos, nrm = h.node_positions, h.node_normals
+        self.cx, self.cy, self.cz = (np.ascontiguousarray(pos[:, k]) for k in range(3))
+        self.nx, self.ny, self.nz = (np.ascontiguousarray(nrm[:, k]) for k in range(3))
+        self.radius = h.node_radius.astype(np.float32)
+        self.cull_radius = (h.node_radius * np.float32(1.0 + CULL_SLACK)).astype(np.float32)
+        self.diameter = (2.0 * np.linalg.norm(h.node_u, axis=1)).astype(np.float32)
+        cone = h.node_cone.astype(np.float64)
+        self.sin_cone = np.sin(cone).astype(np.float32)
+        self.cos_cone = np.cos(cone).astype(np.float32)
+        self.leaf = h.node_child_count == 0
+        off = h.level_offsets
+        counts = h.node_child_count.astype(np.int64)
+        self.child_count = counts
+        level = np.repeat(np.arange(h.levels), h.level_sizes)
+        self.child_first_local = h.node_child_start - off[np.minimum(level + 1, h.levels)]
+        # local index (within its parent's level) of each node's parent, per level
+        self.parent_local = [None] + [np.repeat(np.arange(off[L + 1] - off[L], dtype=np.int64),
+                                                counts[off[L]:off[L + 1]]) for L in range(h.levels - 1)]
+
+
+def _lod_arrays(h: Hierarchy) -> _LodArrays:
+    arrays = h._cache.get("lod")
+    if arrays is None:
+        arrays = h._cache["lod"] = _LodArrays(h)
+    return arrays
+
+
+@dataclass(frozen=True)
+class _View:
+    """Camera quantities for the tests, float32 where they meet node columns."""
+
+    eye: np.ndarray
+    right: np.ndarray
+    up: np.ndarray
+    forward: np.ndarray
+    tan_h: float
+    tan_v: float
+    cos_h: float
+    cos_v: float
+    near: float
+    far: float
+    focal: float
+
+    @classmethod
+    def of(cls, camera: Camera, h: Hierarchy) -> "_View":
+        if camera.near is None or camera.far is None:
+            camera = camera.with_clip_from_bounds(*h.sphere_bounds())
+        m = camera.view_matrix
+        tan_v = float(np.tan(np.radians(camera.fov) / 2.0))
+        tan_h = tan_v * camera.width / camera.height
+        return cls(eye=np.asarray(camera.eye, dtype=np.float64), right=m[0, :3], up=m[1, :3], forward=-m[2, :3],
+                   tan_h=tan_h, tan_v=tan_v, cos_h=1.0 / np.sqrt(1.0 + tan_h * tan_h),
+                   cos_v=1.0 / np.sqrt(1.0 + tan_v * tan_v), near=float(camera.near), far=float(camera.far),
+                   focal=float(camera.focal_px))
+
+
+def select(hierarchy: Hierarchy, camera: Camera, tolerance_px: float, *, cull_frustum: bool = True,
+           cull_backfaces: bool = False, shading: str = "fit") -> Selection:
+    """Select the splats to draw for a view: the LOD cut at screen tolerance tau, culled.
+
+    Pajarola 2003, sec. 5.1 (top-down traversal with tolerance tau),
+    Guennebaud 2003, sec. 8 (frustum and visibility-cone culling); see the
+    module docstring for the projected-size test.
+
+    Args:
+        hierarchy: the hierarchy.
+        camera: the view; where its near/far are None they are set from the
+            hierarchy's bounding sphere (``Camera.with_clip_from_bounds``).
+        tolerance_px: tau >= 0, pixels: a node whose projected ellipse
+            diameter is at most tau is drawn as one splat. 0 selects all
+            original points.
+        cull_frustum: drop nodes whose bounding sphere lies entirely outside
+            one of the six frustum planes.
+        cull_backfaces: drop nodes whose normal cone faces away from the eye
+            from every point of their bounding sphere (conservative
+            cone-vs-sphere test). Off by default: two-sided rendering and open
+            surfaces need back faces.
+        shading: normal field of the node splats in :meth:`Hierarchy.splats`:
+            ``"fit"`` (least-squares linear field), ``"cone"`` (normal-cone
+            spread, Pajarola 2003 fig. 14) or ``"flat"``.
+
+    Returns:
+        A :class:`Selection`; ``hierarchy.splats(selection)`` gathers the SplatCloud.
+    """
+    if not isinstance(hierarchy, Hierarchy):
+        raise InputError(f"select needs a Hierarchy, got {type(hierarchy).__name__}")
+    if not isinstance(camera, Camera):
+        raise InputError(f"select needs a Camera, got {type(camera).__name__}")
+    tau = float(tolerance_px)
+    if not (np.isfinite(tau) and tau >= 0):
+        raise InputError(f"LOD tolerance must be a finite number of pixels >= 0, got {tolerance_px!r}")
+    _check_shading(shading)
+    lod = _lod_arrays(hierarchy)
+    view = _View.of(camera, hierarchy)
+    off = hierarchy.level_offsets
+    nodes, leaves = [], []
+    visited = culled_frustum = culled_backface = 0
+    reach = None  # None: every node of the level; bool array: a mask over the level; int array: local indices
+    frustum = cull_frustum  # False once every node left is entirely inside the frustum
+    for level in range(hierarchy.levels):
+        lo, hi = int(off[level]), int(off[level + 1])
+        if isinstance(reach, np.ndarray) and reach.dtype != bool:
+            rows = reach + lo
+        else:
+            rows = slice(lo, hi)
+        out, inside, back, refine = _test(lod, rows, view, tau, frustum, cull_backfaces)
+        live = ~(out | back)
+        if isinstance(reach, np.ndarray) and reach.dtype == bool:
+            live &= reach
+            visited += int(reach.sum())
+            culled_frustum += int((out & reach).sum())
+            culled_backface += int((back & ~out & reach).sum())
+        else:
+            visited += len(live)
+            culled_frustum += int(out.sum())
+            culled_backface += int((back & ~out).sum())
+        if frustum and not (live & ~inside).any():
+            frustum = False  # the subtrees of nodes entirely inside need no frustum test
+        leaf = lod.leaf[rows]
+        chosen = live & ~refine
+        opened = live & refine
+        points = opened & leaf
+        opened &= ~leaf
+        if isinstance(reach, np.ndarray) and reach.dtype != bool:
+            local = reach
+            nodes.append(lo + local[chosen])
+            leaves.append(lo + local[points])
+            go = local[opened]
+        else:
+            nodes.append(lo + np.flatnonzero(chosen))
+            leaves.append(lo + np.flatnonzero(points))
+            go = np.flatnonzero(opened)
+        if level + 1 == hierarchy.levels or len(go) == 0:
+            break
+        counts = lod.child_count[lo + go]
+        total = int(counts.sum())
+        size = int(off[level + 2] - off[level + 1])
+        if total == size:
+            reach = None
+        elif total >= SPARSE * size:
+            full = np.zeros(hi - lo, dtype=bool)
+            full[go] = True
+            reach = full[lod.parent_local[level + 1]]
+        else:
+            reach = ranges_to_indices(lod.child_first_local[lo + go], counts)
+    leaf_index = np.concatenate(leaves) if leaves else np.zeros(0, dtype=np.int64)
+    return Selection(nodes=tuple(nodes), leaves=tuple(leaves),
+                     point_start=hierarchy.node_point_start[leaf_index],
+                     point_count=hierarchy.node_point_count[leaf_index],
+                     shading=shading, tolerance_px=tau, visited=visited, culled_frustum=culled_frustum,
+                     culled_backface=culled_backface)
+
+
+def _test(lod: _LodArrays, rows, view: _View, tau: float, frustum: bool, cull_backfaces: bool):
+    """Frustum, back-face and refinement tests of some nodes (``rows``: slice or global indices).
+
+    Returns four bool arrays: outside the frustum, entirely inside it (None
+    when ``frustum`` is False), back-facing, to refine.
+    """
+    e = view.eye.astype(np.float32)
+    dx = lod.cx[rows] - e[0]
+    dy = lod.cy[rows] - e[1]
+    dz = lod.cz[rows] - e[2]
+    radius = lod.radius[rows]
+    d2 = dx * dx
+    d2 += dy * dy
+    d2 += dz * dz
+    n = len(d2)
+    if frustum:
+        out, inside = _frustum(dx, dy, dz, lod.cull_radius[rows], view)
+    else:
+        out, inside = np.zeros(n, dtype=bool), None
+    if cull_backfaces:
+        back = _backfacing(dx, dy, dz, d2, radius, lod, rows)
+    else:
+        back = np.zeros(n, dtype=bool)
+    # Pajarola 2003, sec. 5.1: refine while the projected size exceeds tau. The size
+    # focal * 2a / max(|c - eye| - R, near) exceeds tau iff |c - eye| < R + max(near, focal * 2a / tau).
+    if tau > 0:
+        reach = lod.diameter[rows] * np.float32(view.focal / tau)
+        np.maximum(reach, np.float32(view.near), out=reach)
+        reach += radius
+        reach *= reach
+        refine = d2 < reach
+    else:
+        refine = np.ones(n, dtype=bool)
+    return out, inside, back, refine
+
+
+def _frustum(dx, dy, dz, radius, view: _View):
+    """Bounding spheres (center offsets from the eye) entirely outside one of the six frustum
+    planes, and entirely inside all of them."""
+    f, r, u = (x.astype(np.float32) for x in (view.forward, view.right, view.up))
+    depth = dx * f[0] + dy * f[1] + dz * f[2]
+    near = depth - np.float32(view.near)  # signed distances inside the near and far planes
+    far = np.float32(view.far) - depth
+    out = near < -radius
+    out |= far < -radius
+    inside = near >= radius
+    inside &= far >= radius
+    for axis, tan, cos in ((r, view.tan_h, view.cos_h), (u, view.tan_v, view.cos_v)):
+        x = np.abs(dx * axis[0] + dy * axis[1] + dz * axis[2])
+        x -= np.float32(tan) * depth
+        x *= np.float32(cos)  # signed distance outside the pair of side planes
+        out |= x > radius
+        inside &= x <= -radius
+    return out, inside
+
+
+def _backfacing(dx, dy, dz, d2, radius, lod: _LodArrays, rows) -> np.ndarray:
+    """Cone-vs-sphere back-face test (normal cones, Shirman & Abi-Ezzi 1993; Guennebaud 2003 sec. 8).
+
+    Every normal within theta of the axis n faces away from every point of
+    the sphere seen from the eye iff the angle between n and the direction to
+    the eye exceeds 90 deg + theta + phi, ``sin(phi) = R / |c - eye|``: that
+    is ``n . (c - eye) / |c - eye| > sin(theta + phi)`` with
+    ``theta + phi < 90 deg``. Multiplied by ``|c - eye|``, with
+    ``w = sqrt(|c - eye|^2 - R^2)``: ``n . (c - eye) > sin(theta) w +
+    cos(theta) R`` and ``cos(theta) w > sin(theta) R`` (false when the eye is
+    inside the sphere, w = 0).
+    """
+    s_t, c_t = lod.sin_cone[rows], lod.cos_cone[rows]
+    w = d2 - radius * radius
+    np.maximum(w, np.float32(0.0), out=w)
+    np.sqrt(w, out=w)
+    ndot = dx * lod.nx[rows]
+    ndot += dy * lod.ny[rows]
+    ndot += dz * lod.nz[rows]
+    bound = s_t * w
+    bound += c_t * radius
+    bound += np.float32(1e-6) * w
+    back = ndot > bound
+    back &= c_t * w > s_t * radius
+    return back

@@ -1,0 +1,218 @@
+"""One-file storage of a :class:`~surfsplat.hierarchy.octree.Hierarchy`.
+
+The file is an uncompressed NumPy ``.npz`` archive (a zip of ``.npy``
+arrays, loaded without pickle) holding, besides the arrays of
+:meth:`Hierarchy.arrays <surfsplat.hierarchy.octree.Hierarchy.arrays>`:
+
+- ``format``: the string ``"surfsplat-hierarchy"``,
+- ``format_version``: int, :data:`FORMAT_VERSION` (files of a newer version are refused),
+- ``leaf_capacity``, ``max_depth``: ints, the build parameters.
+
+Arrays (M nodes, N points, L levels): ``order`` (N,) int64, ``level_offsets``
+(L + 1,) int64, ``origin`` (3,) float64; node arrays ``node_positions``,
+``node_normals``, ``node_u``, ``node_v`` (M, 3) float32, ``node_colors`` (M, 3)
+float32 (optional), ``node_normal_field`` (M, 2) float32, ``node_radius``,
+``node_cone`` (M,) float32, ``node_covariance`` (M, 10) float64,
+``node_point_start``, ``node_point_count``, ``node_child_start``,
+``node_child_count`` (M,) int64; point arrays (the reordered SplatCloud)
+``point_positions``, ``point_normals``, ``point_u``, ``point_v`` (N, 3)
+float32, optional ``point_colors`` (N, 3), ``point_normal_field`` (N, 2),
+``point_clip_lines`` (N, 2, 3) float32.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import zipfile
+import zlib
+from pathlib import Path
+
+import numpy as np
+
+from ..cloud import SplatCloud
+from ..errors import InputError
+from .octree import Hierarchy
+
+#: Value of the ``format`` member.
+FORMAT = "surfsplat-hierarchy"
+
+#: Version of the file layout written by this code.
+FORMAT_VERSION = 1
+
+#: name -> (dtype, shape after the first axis, first axis: "nodes", "points", "levels+1" or a number, required)
+_SPEC = {
+    "order": (np.int64, (), "points", True),
+    "level_offsets": (np.int64, (), "levels+1", True),
+    "origin": (np.float64, (), 3, True),
+    "node_positions": (np.float32, (3,), "nodes", True),
+    "node_normals": (np.float32, (3,), "nodes", True),
+    "node_colors": (np.float32, (3,), "nodes", False),
+    "node_u": (np.float32, (3,), "nodes", True),
+    "node_v": (np.float32, (3,), "nodes", True),
+    "node_normal_field": (np.float32, (2,), "nodes", True),
+    "node_radius": (np.float32, (), "nodes", True),
+    "node_cone": (np.float32, (), "nodes", True),
+    "node_covariance": (np.float64, (10,), "nodes", True),
+    "node_point_start": (np.int64, (), "nodes", True),
+    "node_point_count": (np.int64, (), "nodes", True),
+    "node_child_start": (np.int64, (), "nodes", True),
+    "node_child_count": (np.int64, (), "nodes", True),
+    "point_positions": (np.float32, (3,), "points", True),
+    "point_normals": (np.float32, (3,), "points", True),
+    "point_colors": (np.float32, (3,), "points", False),
+    "point_u": (np.float32, (3,), "points", True),
+    "point_v": (np.float32, (3,), "points", True),
+    "point_normal_field": (np.float32, (2,), "points", False),
+    "point_clip_lines": (np.float32, (2, 3), "points", False),
+}
+
+
+def save_hierarchy(hierarchy: Hierarchy, path, *, overwrite: bool = False) -> Path:
+    """Write a hierarchy to one uncompressed ``.npz`` file (see the module docstring) and return its Path.
+
+    The name is used as given (no extension is added; ``.npz`` is the
+    convention). An existing file is replaced only with ``overwrite=True``
+    (then atomically: written beside it and renamed).
+
+    Raises:
+        InputError: the file exists (without ``overwrite``), is a directory,
+            or cannot be written; the message names the file.
+    """
+    path = Path(path)
+    if not isinstance(hierarchy, Hierarchy):
+        raise InputError(f"{path}: save_hierarchy needs a Hierarchy, got {type(hierarchy).__name__}")
+    if path.is_dir():
+        raise InputError(f"{path}: is a directory, not a file")
+    members = dict(hierarchy.arrays())
+    members["format"] = np.array(FORMAT)
+    members["format_version"] = np.array(FORMAT_VERSION, dtype=np.int64)
+    members["leaf_capacity"] = np.array(hierarchy.leaf_capacity, dtype=np.int64)
+    members["max_depth"] = np.array(hierarchy.max_depth, dtype=np.int64)
+    target = path if not overwrite else path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        handle = open(target, "xb")
+    except FileExistsError:
+        raise InputError(f"{path}: file exists; pass overwrite=True (--overwrite) to replace it") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot write: {exc.strerror or exc}") from None
+    try:
+        with handle:
+            np.savez(handle, **members)
+        if overwrite:
+            os.replace(target, path)
+    except BaseException as exc:
+        target.unlink(missing_ok=True)
+        if isinstance(exc, OSError):
+            raise InputError(f"{path}: cannot write: {exc.strerror or exc}") from None
+        raise
+    return path
+
+
+def load_hierarchy(path) -> Hierarchy:
+    """Read a hierarchy written by :func:`save_hierarchy`, validating it.
+
+    Raises:
+        InputError naming the file: missing, a directory, not an ``.npz``
+            archive, corrupt (truncated, bad checksums), not a surfsplat
+            hierarchy, a newer format version, missing or malformed arrays
+            (dtypes, shapes, counts), non-finite values, or inconsistent
+            structure (levels, child or point ranges out of bounds).
+    """
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"{path}: no such file")
+    if path.is_dir():
+        raise InputError(f"{path}: is a directory, not a file")
+    try:
+        archive = np.load(path, allow_pickle=False)
+        if not isinstance(archive, np.lib.npyio.NpzFile):
+            raise InputError(f"{path}: not a surfsplat hierarchy file (a single NumPy array)")
+        with archive:
+            members = {name: archive[name] for name in archive.files}
+    except InputError:
+        raise
+    except (zipfile.BadZipFile, zlib.error, ValueError, OSError, EOFError, KeyError, pickle.UnpicklingError) as exc:
+        raise InputError(f"{path}: not a readable surfsplat hierarchy file ({exc})") from None
+    return _from_members(members, str(path))
+
+
+def _scalar(members: dict, name: str, source: str, kind) -> object:
+    if name not in members:
+        raise InputError(f"{source}: not a surfsplat hierarchy file (no '{name}' entry)")
+    value = members[name]
+    if value.shape != () or not np.issubdtype(value.dtype, kind):
+        raise InputError(f"{source}: malformed '{name}' entry")
+    return value.item()
+
+
+def _from_members(members: dict[str, np.ndarray], source: str) -> Hierarchy:
+    """Validate the archive members and build the Hierarchy."""
+    if _scalar(members, "format", source, np.str_) != FORMAT:
+        raise InputError(f"{source}: not a surfsplat hierarchy file (format {members['format'].item()!r})")
+    version = _scalar(members, "format_version", source, np.integer)
+    if version > FORMAT_VERSION or version < 1:
+        raise InputError(f"{source}: hierarchy format version {version} is not supported "
+                         f"(this surfsplat reads version {FORMAT_VERSION}); rebuild it")
+    leaf_capacity = _scalar(members, "leaf_capacity", source, np.integer)
+    max_depth = _scalar(members, "max_depth", source, np.integer)
+    sizes = {"nodes": None, "points": None, "levels+1": None}
+    if "node_positions" in members and members["node_positions"].ndim >= 1:
+        sizes["nodes"] = len(members["node_positions"])
+    if "point_positions" in members and members["point_positions"].ndim >= 1:
+        sizes["points"] = len(members["point_positions"])
+    if "level_offsets" in members and members["level_offsets"].ndim >= 1:
+        sizes["levels+1"] = len(members["level_offsets"])
+    arrays = {}
+    for name, (dtype, tail, first, required) in _SPEC.items():
+        if name not in members:
+            if required:
+                raise InputError(f"{source}: missing array '{name}'")
+            arrays[name] = None
+            continue
+        value = members[name]
+        want = (first if isinstance(first, int) else sizes[first],) + tail
+        if value.dtype != dtype or value.shape != want:
+            raise InputError(f"{source}: array '{name}' has dtype {value.dtype} and shape {value.shape}, "
+                             f"expected {np.dtype(dtype)} {want}")
+        if np.issubdtype(dtype, np.floating) and not np.isfinite(value).all():
+            raise InputError(f"{source}: array '{name}' has non-finite values")
+        arrays[name] = value
+    _check_structure(arrays, source)
+    points = SplatCloud(**{name: arrays["point_" + name] for name in
+                           ("positions", "normals", "colors", "u", "v", "normal_field", "clip_lines")})
+    return Hierarchy(points=points, order=arrays["order"], level_offsets=arrays["level_offsets"],
+                     origin=arrays["origin"], leaf_capacity=int(leaf_capacity), max_depth=int(max_depth),
+                     **{name: arrays[name] for name in _SPEC if name.startswith("node_")})
+
+
+def _check_structure(a: dict[str, np.ndarray], source: str) -> None:
+    """Levels, child ranges and point ranges consistent (vectorized)."""
+    off = a["level_offsets"]
+    m, n = len(a["node_positions"]), len(a["point_positions"])
+
+    def fail(what: str):
+        raise InputError(f"{source}: corrupt hierarchy: {what}")
+
+    if n == 0 or m == 0:
+        fail("no points or no nodes")
+    if len(off) < 2 or off[0] != 0 or off[-1] != m or off[1] != 1 or np.any(np.diff(off) <= 0):
+        fail("bad level offsets")
+    start, count = a["node_point_start"], a["node_point_count"]
+    if np.any(count < 1) or np.any(start < 0) or np.any(start + count > n) or count[0] != n:
+        fail("node point ranges out of bounds")
+    cstart, ccount = a["node_child_start"], a["node_child_count"]
+    level = np.repeat(np.arange(len(off) - 1), np.diff(off))
+    inner = ccount > 0
+    nxt_lo = off[np.minimum(level + 1, len(off) - 1)]
+    nxt_hi = off[np.minimum(level + 2, len(off) - 1)]
+    if np.any(ccount < 0) or np.any(ccount > 8) or np.any(
+            inner & ((cstart < nxt_lo) | (cstart + ccount > nxt_hi))):
+        fail("child ranges out of bounds")
+    if int(ccount.sum()) != m - 1:
+        fail("child counts do not add up to the number of nodes")
+    if int(count[~inner].sum()) != n:
+        fail("leaves do not cover the points exactly once")
+    order = a["order"]
+    if np.any(order < 0) or np.any(order >= n) or np.any(np.bincount(order, minlength=n) != 1):
+        fail("'order' is not a permutation of the points")
