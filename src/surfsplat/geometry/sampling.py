@@ -4,13 +4,14 @@ splats with clip lines at the mesh's sharp edges)."""
 from __future__ import annotations
 
 import numbers
+from dataclasses import replace
 
 import numpy as np
 
 from .. import progress
 from ..cloud import SplatCloud
 from ..errors import InputError
-from ..io.mesh import Mesh
+from ..io.mesh import Mesh, area_weighted_normals
 from .preprocess import preprocess
 from .sharp import check_sharp_angle, mesh_clip_lines
 
@@ -34,8 +35,8 @@ def sample_mesh(mesh: Mesh, n: int, *, seed: int = 0, sharp_angle: float | None 
             clip lines from the faces there (see below).
         smooth_normals: give each sample the normalized barycentric interpolation
             of the vertex normals (the normals a Phong-shaded rendering of the
-            mesh uses) instead of its face's normal; needs vertex normals (a
-            mesh read from a file always has them: stored or area-weighted).
+            mesh uses; area-weighted face normals where the mesh stores none)
+            instead of its face's normal.
         k, shape, coverage: splat sizes when ``sharp_angle`` is given, as in
             :func:`surfsplat.geometry.preprocess.preprocess` with the face
             normals kept: ``k`` neighbours; ``shape`` ``"circle"`` (default:
@@ -68,7 +69,7 @@ def sample_mesh(mesh: Mesh, n: int, *, seed: int = 0, sharp_angle: float | None 
         sharp_angle = check_sharp_angle(sharp_angle, "sample_mesh: sharp_angle")
     mesh = mesh.validated("sample_mesh: mesh")
     if smooth_normals and mesh.vertex_normals is None:
-        raise InputError("sample_mesh: smooth_normals needs a mesh with vertex normals")
+        mesh = replace(mesh, vertex_normals=area_weighted_normals(mesh.vertices, mesh.faces))
     areas = mesh.face_areas()
     total = float(areas.sum())
     if not np.isfinite(total) or total <= 0:

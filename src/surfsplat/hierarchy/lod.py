@@ -8,8 +8,10 @@ culling and back-face culling with visibility cones). The traversal runs level
 by level, vectorized over all nodes of a level: no Python call per node.
 
 Projected size (pixels) of a node, conservative: ``focal_px * 2 a / (|c - eye|
-- R)`` with ``a`` the major semi-axis of its ellipse, ``c`` its center and
-``R`` its bounding-sphere radius; the distance is taken as at least ``near``,
+- R)`` with ``a`` the major semi-axis of the ellipse bounding its points
+(``node_extent``, Pajarola 2003 fig. 6 a: the sampling scale the node stands
+for; the splat drawn is the larger ellipse covering the points' disks, fig. 6 b),
+``c`` its center and ``R`` its bounding-sphere radius; the distance is taken as at least ``near``,
 and a node whose sphere reaches closer than ``near`` to the eye (or contains
 it) is always refined. An unrefined node contributes its representative
 splat; a refined leaf contributes its original points. At tau = 0 every node
@@ -121,7 +123,7 @@ class _LodArrays:
         self.nx, self.ny, self.nz = (np.ascontiguousarray(nrm[:, k]) for k in range(3))
         self.radius = h.node_radius.astype(np.float32)
         self.cull_radius = (h.node_radius * np.float32(1.0 + CULL_SLACK)).astype(np.float32)
-        self.diameter = (2.0 * np.linalg.norm(h.node_u, axis=1)).astype(np.float32)
+        self.diameter = (2.0 * h.node_extent).astype(np.float32)
         cone = h.node_cone.astype(np.float64)
         self.sin_cone = np.sin(cone).astype(np.float32)
         self.cos_cone = np.cos(cone).astype(np.float32)

@@ -233,6 +233,30 @@ def ellipse_radius2(dx, dy, dz, e1, e2, inv_ratio):
     return x
 
 
+def disk_radius2(dx, dy, dz, ux, uy, uz, vx, vy, vz, e1, e2, inv_ratio):
+    """Squared normalized radius (as :func:`ellipse_radius2`) bounding a whole disk ``d + s u + t v``.
+
+    The disk projects into the ellipse frame as an ellipse with center
+    ``c = (x_d, y_d)`` and axes the columns of ``A = [[x_u, x_v], [y_u, y_v]]``;
+    its points lie within ``|c| + sigma_max(A)`` of the origin (the triangle
+    inequality; exact for a disk centered on an axis). Pajarola 2003 (sec. 3.4,
+    fig. 6 b) bounds the disks by their boxes ``d +- u +- v``, which is up to
+    sqrt(2) larger. ``sigma_max^2 = (S + sqrt(S^2 - 4 det^2)) / 2`` with ``S`` the
+    sum of squares of A's entries.
+    """
+    def frame(wx, wy, wz):
+        return (wx * e1[0] + wy * e1[1] + wz * e1[2]) * inv_ratio, wx * e2[0] + wy * e2[1] + wz * e2[2]
+
+    xd, yd = frame(dx, dy, dz)
+    xu, yu = frame(ux, uy, uz)
+    xv, yv = frame(vx, vy, vz)
+    s = xu * xu + xv * xv + yu * yu + yv * yv
+    det = xu * yv - xv * yu
+    sigma = np.sqrt(0.5 * (s + np.sqrt(np.maximum(s * s - 4.0 * det * det, 0.0))))
+    r = np.sqrt(xd * xd + yd * yd) + sigma
+    return r * r
+
+
 def normal_field_fit(normal_moments, normal_sums, covariance, center, e1, e2, a, b) -> np.ndarray:
     """Linear normal field ``(alpha, beta)`` least-squares fitted to a node's normals.
 

@@ -88,8 +88,13 @@ class Hierarchy:
         node_normals: (M, 3) float32 unit average normal (normal-cone axis).
         node_colors: (M, 3) float32 average color, or None (cloud without colors).
         node_u, node_v: (M, 3) float32 scaled major / minor ellipse axes,
-            model units: the ellipse covers the children's disks and all
-            points of the subtree (projected into its plane).
+            model units: the ellipse covers every splat disk of the subtree
+            projected into its plane (Pajarola 2003, sec. 3.4), hence its
+            children's disks' union and all its points.
+        node_extent: (M,) float32 major semi-axis (model units) of the
+            ellipse of the same axes and aspect bounding only the subtree's
+            points (fig. 6 a): the sampling scale the node stands for, which
+            the LOD selection compares with the screen tolerance.
         node_normal_field: (M, 2) float32 fitted ``(alpha, beta)``.
         node_radius: (M,) float32 radius of the bounding sphere (about
             ``node_positions``) of all splat disks of the subtree.
@@ -116,6 +121,7 @@ class Hierarchy:
     node_normal_field: np.ndarray
     node_radius: np.ndarray
     node_cone: np.ndarray
+    node_extent: np.ndarray
     node_covariance: np.ndarray
     node_point_start: np.ndarray
     node_point_count: np.ndarray
@@ -311,7 +317,7 @@ class Hierarchy:
 
 #: Node arrays of :class:`Hierarchy` (node_colors may be None).
 NODE_ARRAYS = ("node_positions", "node_normals", "node_colors", "node_u", "node_v", "node_normal_field",
-               "node_radius", "node_cone", "node_covariance", "node_point_start", "node_point_count",
+               "node_radius", "node_cone", "node_extent", "node_covariance", "node_point_start", "node_point_count",
                "node_child_start", "node_child_count")
 
 #: SplatCloud arrays of the points (all but positions may be None).
@@ -535,7 +541,8 @@ def _node_sums(points: SplatCloud, topo: dict, origin: np.ndarray) -> dict[str, 
 
     ``covariance``: packed ``M_bar`` (Pajarola 2003, EQ 2) relative to
     ``origin``; ``normal_sums``: ``sum n``; ``normal_moments``: ``G = sum n
-    p^T`` (row-major 9); ``color_sums`` or None. Leaves sum their points
+    p^T`` (row-major 9); ``disk_moments``: ``sum u u^T + v v^T`` of the splat
+    axes (6 columns, ``SYM_ENTRIES``); ``color_sums`` or None. Leaves sum their points
     (segment sums over the leaf ranges, which tile the reordered points);
     inner nodes sum their children's sums (EQ 4).
     """
@@ -547,7 +554,7 @@ def _node_sums(points: SplatCloud, topo: dict, origin: np.ndarray) -> dict[str, 
     bounds = topo["point_start"][leaves]
     p = [c.astype(np.float64) - o for c, o in zip(_float32_columns(points.positions), origin)]
     nrm = [c.astype(np.float64) for c in _float32_columns(points.normals)]
-    width = 10 + 3 + 9 + (3 if points.colors is not None else 0)
+    width = 10 + 3 + 9 + 6 + (3 if points.colors is not None else 0)
     # column-major (one contiguous row per quantity): scatters and segment sums stay sequential
     sums = np.zeros((width, m))
 
@@ -557,12 +564,19 @@ def _node_sums(points: SplatCloud, topo: dict, origin: np.ndarray) -> dict[str, 
     jobs = [(row, p[i], None if j == 3 else p[j]) for row, (i, j) in enumerate(nm.COVARIANCE_ENTRIES) if i < 3]
     jobs += [(10 + a, nrm[a], None) for a in range(3)]
     jobs += [(13 + 3 * a + b, nrm[a], p[b]) for a in range(3) for b in range(3)]
+    # second moments of the disks themselves: sum (u u^T + v v^T) (a disk's is a quarter of it)
+    pu, pv = _float32_columns(points.u), _float32_columns(points.v)
+    jobs += [(22 + k, (pu[i], pu[j]), (pv[i], pv[j])) for k, (i, j) in enumerate(nm.SYM_ENTRIES)]
     if colors is not None:
-        jobs += [(22 + a, colors[a], None) for a in range(3)]
+        jobs += [(28 + a, colors[a], None) for a in range(3)]
 
     def leaf_sum(job):
         row, x, y = job
-        sums[row, leaves] = np.add.reduceat(x if y is None else x * y, bounds, dtype=np.float64)
+        if isinstance(x, tuple):  # disk moments: u_i u_j + v_i v_j
+            value = x[0].astype(np.float64) * x[1] + y[0].astype(np.float64) * y[1]
+        else:
+            value = x if y is None else x * y
+        sums[row, leaves] = np.add.reduceat(value, bounds, dtype=np.float64)
 
     sums[nm.COUNT, leaves] = topo["point_count"][leaves]
     with ThreadPoolExecutor(_workers()) as pool:
@@ -578,7 +592,8 @@ def _node_sums(points: SplatCloud, topo: dict, origin: np.ndarray) -> dict[str, 
         "covariance": np.ascontiguousarray(sums[:10].T),
         "normal_sums": sums[10:13].T,
         "normal_moments": sums[13:22].T,
-        "color_sums": sums[22:25].T if points.colors is not None else None,
+        "disk_moments": sums[22:28].T,
+        "color_sums": sums[28:31].T if points.colors is not None else None,
     }
 
 
@@ -644,35 +659,6 @@ def _segment_maxima(fn, start: np.ndarray, count: np.ndarray, node, outputs: int
     return out
 
 
-def _corners_radius2(d, u, v, seg, e1col, e2col, inv_ratio) -> np.ndarray:
-    """Largest squared normalized radius of the box corners ``d +- u +- v`` of each row (float32).
-
-    ``d``, ``u``, ``v``: three coordinate arrays each (offset from the node
-    center, disk axes); ``seg``: the node of each row.
-    """
-    e1 = [c[seg] for c in e1col]
-    e2 = [c[seg] for c in e2col]
-    ir = inv_ratio[seg]
-
-    def dots(w):
-        x = w[0] * e1[0] + w[1] * e1[1] + w[2] * e1[2]
-        x *= ir
-        y = w[0] * e2[0] + w[1] * e2[1] + w[2] * e2[2]
-        return x, y
-
-    (xd, yd), (xu, yu), (xv, yv) = dots(d), dots(u), dots(v)
-    best = None
-    for su in (1.0, -1.0):
-        for sv in (1.0, -1.0):
-            x = xd + su * xu + sv * xv
-            y = yd + su * yu + sv * yv
-            x *= x
-            y *= y
-            x += y
-            best = x if best is None else np.maximum(best, x, out=best)
-    return best
-
-
 def _node_splats(points: SplatCloud, topo: dict, origin: np.ndarray, sums: dict,
                  max_anisotropy: float) -> dict[str, np.ndarray]:
     """Representative splats, spheres, cones and normal fields of all nodes (Pajarola 2003, sec. 3.4)."""
@@ -688,7 +674,12 @@ def _node_splats(points: SplatCloud, topo: dict, origin: np.ndarray, sums: dict,
     c3 = nm.covariance_about(cov, mean)
     normals = nm.average_normals(sums["normal_sums"], count, c3)
     normals32 = normals.astype(np.float32)
-    e1, e2, ratio = nm.tangent_ellipses(c3, normals32.astype(np.float64), max_anisotropy)
+    # The ellipse's shape follows the second moment of the union of the subtree's disks,
+    # not of their centers alone (EQ 5-6 on the points): a node of two points would
+    # otherwise be a needle, stretched to the anisotropy cap to cover round disks.
+    # A uniform disk with axes u, v has the second moment (u u^T + v v^T) / 4.
+    shape = c3 + 0.25 * sums["disk_moments"]
+    e1, e2, ratio = nm.tangent_ellipses(shape, normals32.astype(np.float64), max_anisotropy)
     e1_32, e2_32 = e1.astype(np.float32), e2.astype(np.float32)
     inv_ratio = (1.0 / ratio).astype(np.float32)
     # per-point float32 columns (the reordered points) and per-node columns
@@ -705,12 +696,19 @@ def _node_splats(points: SplatCloud, topo: dict, origin: np.ndarray, sums: dict,
     chord2 = np.empty(m, dtype=np.float64)
     semi = np.empty((m, 2), dtype=np.float64)
 
+    extent = np.empty(m, dtype=np.float64)
+
     def subtree_pass(rows, seg):
-        """Per point of a subtree: squared ellipse radius, sphere distance, squared cone chord."""
+        """Per point of a subtree: squared ellipse radii of its disk and of its center, sphere
+        distance, squared cone chord."""
         px, py, pz = (c[rows] for c in pos)
         dx, dy, dz = px - ccol[0][seg], py - ccol[1][seg], pz - ccol[2][seg]
-        # all points of the subtree inside the ellipse (projected into its plane)
-        q = nm.ellipse_radius2(dx, dy, dz, [c[seg] for c in e1col], [c[seg] for c in e2col], inv_ratio[seg])
+        e1s, e2s, irs = [c[seg] for c in e1col], [c[seg] for c in e2col], inv_ratio[seg]
+        # Pajarola 2003, sec. 3.4: the node's ellipse covers every disk of its subtree, not
+        # just the points (fig. 6): bounding the original disks, not the children's node
+        # ellipses, keeps the cover from compounding level over level.
+        q = nm.disk_radius2(dx, dy, dz, *(c[rows] for c in pu), *(c[rows] for c in pv), e1s, e2s, irs)
+        q_points = nm.ellipse_radius2(dx, dy, dz, e1s, e2s, irs)
         # bounding sphere of the subtree's disks: |p - c| + radius of the disk
         dist = dx * dx
         dist += dy * dy
@@ -723,39 +721,19 @@ def _node_splats(points: SplatCloud, topo: dict, origin: np.ndarray, sums: dict,
             g = nrm[a][rows] - ncol[a][seg]
             g *= g
             chord += g
-        return q, dist, chord
+        return q, q_points, dist, chord
 
-    def leaf_pass(rows, seg):
-        """Per point of a leaf: squared ellipse radius of its disk's bounding box p +- u +- v (fig. 6)."""
-        d = [pos[a][rows] - ccol[a][seg] for a in range(3)]
-        return (_corners_radius2(d, [c[rows] for c in pu], [c[rows] for c in pv], seg, e1col, e2col, inv_ratio),)
-
-    for level in range(len(offsets) - 2, -1, -1):  # bottom-up: children's disks are final first
+    for level in range(len(offsets) - 1):
         lo, hi = int(offsets[level]), int(offsets[level + 1])
         start, cnt = pstart[lo:hi], pcount[lo:hi]
-        q, rad, chord = _segment_maxima(subtree_pass, start, cnt, lo, 3)
+        q, q_points, rad, chord = _segment_maxima(subtree_pass, start, cnt, lo, 4)
         radius[lo:hi], chord2[lo:hi] = rad, chord
-        leaf = child_count[lo:hi] == 0
-        if leaf.any():
-            # a leaf covers its points' disks, approximated by their bounding boxes (fig. 6)
-            lsel = np.flatnonzero(leaf)
-            (qc,) = _segment_maxima(leaf_pass, start[lsel], cnt[lsel], lo + lsel, 1)
-            q[lsel] = np.maximum(q[lsel], qc)
-        if not leaf.all():
-            # an inner node covers its children's disks p_c +- u_c +- v_c (sec. 3.4, fig. 6)
-            inner = np.flatnonzero(~leaf)
-            nch = child_count[lo:hi][inner]
-            cseg = np.repeat(lo + inner, nch)
-            clo, chi = int(offsets[level + 1]), int(offsets[level + 2])
-            d = [ccol[a][clo:chi] - ccol[a][cseg] for a in range(3)]
-            cu, cv = node_u[clo:chi], node_v[clo:chi]
-            qc = _corners_radius2(d, [cu[:, a] for a in range(3)], [cv[:, a] for a in range(3)], cseg,
-                                  e1col, e2col, inv_ratio)
-            q[inner] = np.maximum(q[inner], np.maximum.reduceat(qc, _exclusive_cumsum(nch)))
         f = np.sqrt(q) * (1.0 + COVER_MARGIN)
         f = np.maximum(f, np.finfo(np.float32).tiny)
-        a = f / inv_ratio[lo:hi].astype(np.float64)
+        ratio = 1.0 / inv_ratio[lo:hi].astype(np.float64)
+        a = f * ratio
         semi[lo:hi, 0], semi[lo:hi, 1] = a, f
+        extent[lo:hi] = np.sqrt(q_points) * ratio
         node_u[lo:hi] = e1_32[lo:hi] * a[:, None].astype(np.float32)
         node_v[lo:hi] = e2_32[lo:hi] * f[:, None].astype(np.float32)
     cone = nm.cone_angle(chord2) + CONE_MARGIN
@@ -773,4 +751,5 @@ def _node_splats(points: SplatCloud, topo: dict, origin: np.ndarray, sums: dict,
         "node_normal_field": field.astype(np.float32),
         "node_radius": (radius * (1.0 + COVER_MARGIN)).astype(np.float32),
         "node_cone": cone.astype(np.float32),
+        "node_extent": extent.astype(np.float32),
     }

@@ -12,7 +12,7 @@ Arrays (M nodes, N points, L levels): ``order`` (N,) int64, ``level_offsets``
 (L + 1,) int64, ``origin`` (3,) float64; node arrays ``node_positions``,
 ``node_normals``, ``node_u``, ``node_v`` (M, 3) float32, ``node_colors`` (M, 3)
 float32 (optional), ``node_normal_field`` (M, 2) float32, ``node_radius``,
-``node_cone`` (M,) float32, ``node_covariance`` (M, 10) float64,
+``node_cone``, ``node_extent`` (M,) float32, ``node_covariance`` (M, 10) float64,
 ``node_point_start``, ``node_point_count``, ``node_child_start``,
 ``node_child_count`` (M,) int64; point arrays (the reordered SplatCloud)
 ``point_positions``, ``point_normals``, ``point_u``, ``point_v`` (N, 3)
@@ -38,7 +38,7 @@ from .octree import Hierarchy
 FORMAT = "surfsplat-hierarchy"
 
 #: Version of the file layout written by this code.
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 
 #: name -> (dtype, shape after the first axis, first axis: "nodes", "points", "levels+1" or a number, required)
 _SPEC = {
@@ -53,6 +53,7 @@ _SPEC = {
     "node_normal_field": (np.float32, (2,), "nodes", True),
     "node_radius": (np.float32, (), "nodes", True),
     "node_cone": (np.float32, (), "nodes", True),
+    "node_extent": (np.float32, (), "nodes", True),
     "node_covariance": (np.float64, (10,), "nodes", True),
     "node_point_start": (np.int64, (), "nodes", True),
     "node_point_count": (np.int64, (), "nodes", True),
@@ -151,7 +152,7 @@ def _from_members(members: dict[str, np.ndarray], source: str) -> Hierarchy:
     if _scalar(members, "format", source, np.str_) != FORMAT:
         raise InputError(f"{source}: not a surfsplat hierarchy file (format {members['format'].item()!r})")
     version = _scalar(members, "format_version", source, np.integer)
-    if version > FORMAT_VERSION or version < 1:
+    if version != FORMAT_VERSION:
         raise InputError(f"{source}: hierarchy format version {version} is not supported "
                          f"(this surfsplat reads version {FORMAT_VERSION}); rebuild it")
     leaf_capacity = _scalar(members, "leaf_capacity", source, np.integer)
