@@ -194,3 +194,21 @@ def test_build_info_and_render_a_hierarchy(tmp_path, capsys):
     assert np.array_equal(np.asarray(Image.open(tmp_path / "direct.png")), np.asarray(Image.open(tmp_path / "tau64.png")))
     status, _, err = run(capsys, "render", tmp_path / "missing.npz", "-o", tmp_path / "x.png")
     assert status == 2 and "missing.npz" in err
+
+
+def test_phong_command_writes_splats_with_normal_fields(tmp_path, capsys):
+    ply = save_ply(noisy_sphere(6000), tmp_path / "samples.ply")
+    out = tmp_path / "phong.ply"
+    status, _, err = run(capsys, "phong", ply, "-o", out, "--count", 300)
+    assert status == 0, err
+    splats = load(out)
+    assert splats.normal_field is not None and 250 <= len(splats) <= 350
+    # a unit sphere: the fields tilt the normals outward (alpha, beta > 0 for outward normals)
+    outward = np.sum(splats.normals * splats.positions, axis=1) > 0
+    field = np.where(outward[:, None], splats.normal_field, -splats.normal_field)
+    assert np.median(field) > 0.05
+    image = tmp_path / "phong.png"
+    assert run(capsys, "render", out, "-o", image, "--technique", "phong", "--width", 96, "--height", 96)[0] == 0
+    assert run(capsys, "phong", ply, "-o", out, "--count", 300)[0] == 2            # exists
+    status, _, err = run(capsys, "phong", ply, "-o", tmp_path / "x.ply")
+    assert status == 2 and "exactly one of --error" in err

@@ -34,6 +34,20 @@ def preprocess(cloud: SplatCloud, **kwargs) -> SplatCloud:
     return _preprocess(cloud, **kwargs)
 
 
+def phong_splats(cloud: SplatCloud, error: float | None = None, **kwargs) -> SplatCloud:
+    """Phong splats with linear normal fields; see :func:`surfsplat.geometry.phong.phong_splats`."""
+    from .geometry.phong import phong_splats as _phong_splats
+
+    return _phong_splats(cloud, error, **kwargs)
+
+
+def build_hierarchy(cloud: SplatCloud, leaf_capacity: int = 8, **kwargs):
+    """The point-octree LOD hierarchy; see :func:`surfsplat.hierarchy.build_hierarchy`."""
+    from .hierarchy import build_hierarchy as _build_hierarchy
+
+    return _build_hierarchy(cloud, leaf_capacity, **kwargs)
+
+
 __all__ = ["Camera", "Frame", "InputError", "Lights", "RenderError", "RenderOptions", "SplatCloud",
-           "SurfsplatError", "as_splats", "auto_camera", "demo_scene", "load", "preprocess", "render",
-           "render_mesh", "view", "__version__"]
+           "SurfsplatError", "as_splats", "auto_camera", "build_hierarchy", "demo_scene", "load", "phong_splats",
+           "preprocess", "render", "render_mesh", "view", "__version__"]

@@ -1,4 +1,4 @@
-"""Command line: ``surfsplat render|demo|info|preprocess|sample``."""
+"""Command line: ``surfsplat render|demo|build|info|preprocess|phong|sample|view``."""
 
 from __future__ import annotations
 
@@ -243,6 +243,28 @@ def cmd_build(args) -> None:
                      f"({len(cloud) / max(seconds, 1e-9):,.0f} points/s) -> {out}")
 
 
+def cmd_phong(args) -> None:
+    from .geometry.phong import phong_splats
+    from .io import load, save_ply
+
+    out = Path(args.output)
+    _refuse_overwriting_inputs(out, (Path(args.input),))
+    if (args.error is None) == (args.count is None):
+        raise InputError("give exactly one of --error EPS (model units) and --count N")
+    if out.exists() and not args.force:
+        raise InputError(f"{out}: exists; use --force to overwrite it")
+    with progress.stage(f"loading {args.input}"):
+        cloud = load(args.input)
+    progress.message(f"{len(cloud):,} samples")
+    start = time.perf_counter()
+    splats = phong_splats(cloud, args.error, count=args.count, sharp_angle=args.sharp_angle, relax=args.relax,
+                          source=args.input)
+    seconds = time.perf_counter() - start
+    save_ply(splats, out, overwrite=args.force)
+    progress.message(f"{len(splats):,} Phong splats from {len(cloud):,} samples in {seconds:.1f} s "
+                     f"({len(cloud) / max(seconds, 1e-9):,.0f} samples/s) -> {out}")
+
+
 def cmd_preprocess(args) -> None:
     from .geometry.preprocess import preprocess
     from .io import load, save_ply
@@ -323,6 +345,18 @@ def build_parser() -> argparse.ArgumentParser:
                         "more than DEG degrees apart (0 < DEG < 180; default: none)")
     p.add_argument("--force", action="store_true", help="overwrite an existing output file")
     p.set_defaults(func=cmd_preprocess)
+
+    p = sub.add_parser("phong", help="Phong splats: far fewer splats with linear normal fields (Botsch 2004)")
+    p.add_argument("input", help="dense samples: PLY, OBJ or LAS (normals estimated where missing)")
+    p.add_argument("-o", "--output", required=True, help="output .ply (splats with alpha beta normal fields)")
+    p.add_argument("--error", type=float, metavar="EPS",
+                   help="every sample within EPS (model units) of a splat's plane, inside its ellipse")
+    p.add_argument("--count", type=int, metavar="N", help="instead of --error: about N splats (within 3%%)")
+    p.add_argument("--sharp-angle", type=sharp_angle_argument, metavar="DEG",
+                   help="keep splats from growing across edges sharper than DEG degrees and clip them there")
+    p.add_argument("--relax", type=int, default=2, metavar="N", help="relaxation iterations (default 2)")
+    p.add_argument("--force", action="store_true", help="overwrite an existing output file")
+    p.set_defaults(func=cmd_phong)
 
     p = sub.add_parser("sample", help="sample points uniformly by area on a triangle mesh")
     p.add_argument("mesh", help="PLY or OBJ triangle mesh")

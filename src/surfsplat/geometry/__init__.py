@@ -23,3 +23,8 @@ __all__ = [
 from .sampling import sample_mesh  # noqa: E402
 
 __all__ += ["sample_mesh"]
+
+# Phong splat generation (geometry/phong.py)
+from .phong import phong_splats  # noqa: E402
+
+__all__ += ["phong_splats"]
