@@ -35,7 +35,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import RESULTS, machine_description  # noqa: E402
+from common import RESULTS, machine_description, markdown_table  # noqa: E402
 
 from surfsplat import Camera, scenes  # noqa: E402
 from surfsplat.camera import frame_bounds  # noqa: E402
@@ -120,19 +120,6 @@ def bench_select(h, repeats: int):
     return rows
 
 
-def fmt(value):
-    if isinstance(value, float):
-        return f"{value:,.3g}" if abs(value) < 1000 else f"{value:,.0f}"
-    if isinstance(value, int):
-        return f"{value:,}"
-    return str(value)
-
-
-def markdown(columns, rows) -> list[str]:
-    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
-    return lines + ["| " + " | ".join(fmt(v) for v in row) + " |" for row in rows]
-
-
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3, help="builds per model (default 3)")
@@ -149,10 +136,10 @@ def main(argv=None) -> None:
 
     lines = [f"Machine: {machine}", f"Date: {time.strftime('%Y-%m-%d')}", "",
              f"Build (leaf capacity 8, best of {args.repeats}; first run = cold memory):", ""]
-    lines += markdown(build_cols, build_rows)
+    lines += markdown_table(build_cols, build_rows)
     lines += ["", f"Selection (frustum culling on; best and median of {args.select_repeats}; "
               "gather = Hierarchy.splats, best of 3):", ""]
-    lines += markdown(select_cols, select_rows)
+    lines += markdown_table(select_cols, select_rows)
     text = "\n".join(lines)
     print(text)
     RESULTS.mkdir(exist_ok=True)

@@ -31,21 +31,27 @@ def machine_description(gl_renderer: str | None = None) -> str:
     return text
 
 
+def fmt(value) -> str:
+    """A table cell: floats to 3 significant digits (thousands separated), ints with separators."""
+    if isinstance(value, float):
+        return f"{value:,.3g}" if abs(value) < 1000 else f"{value:,.0f}"
+    if isinstance(value, int):
+        return f"{value:,}"
+    return str(value)
+
+
+def markdown_table(columns: list[str], rows: list[list]) -> list[str]:
+    """The lines of a Markdown table."""
+    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    return lines + ["| " + " | ".join(fmt(v) for v in row) + " |" for row in rows]
+
+
 def write_table(name: str, columns: list[str], rows: list[list], machine: str) -> str:
     """Print a Markdown table and save it (and a JSON copy) under benchmarks/results/.
 
     Returns the Markdown text. Files: ``results/{name}.md`` and ``results/{name}.json``.
     """
-    def fmt(value):
-        if isinstance(value, float):
-            return f"{value:,.3g}" if abs(value) < 1000 else f"{value:,.0f}"
-        if isinstance(value, int):
-            return f"{value:,}"
-        return str(value)
-
-    lines = [f"Machine: {machine}", f"Date: {time.strftime('%Y-%m-%d')}", "",
-             "| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
-    lines += ["| " + " | ".join(fmt(v) for v in row) + " |" for row in rows]
+    lines = [f"Machine: {machine}", f"Date: {time.strftime('%Y-%m-%d')}", ""] + markdown_table(columns, rows)
     text = "\n".join(lines)
     print(text)
     RESULTS.mkdir(exist_ok=True)

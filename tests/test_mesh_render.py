@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_render import exact_sphere
+from test_render import exact_sphere, sphere_rays
 
 from surfsplat import metrics, reference
 from surfsplat.camera import Camera, frame_bounds
@@ -31,17 +31,6 @@ def icosphere() -> Mesh:
     trimesh = pytest.importorskip("trimesh")
     ico = trimesh.creation.icosphere(subdivisions=5, radius=1.0)
     return Mesh(ico.vertices, ico.faces)
-
-
-def sphere_rays(cam: Camera, supersample: int = 1):
-    """Unit rays through the (sub)pixel centers, the sphere's camera-space center, and the hits."""
-    big = cam.resized(cam.width * supersample, cam.height * supersample)
-    rays = reference.pixel_rays(big, reference.pixel_centers(big))
-    d = rays / np.linalg.norm(rays, axis=-1, keepdims=True)
-    center = reference.to_camera(big, np.zeros((1, 3)))[0]
-    b = d @ center
-    disc = b * b - (center @ center - 1.0)
-    return d, center, b, disc
 
 
 def sphere_coverage(cam: Camera, supersample: int) -> np.ndarray:

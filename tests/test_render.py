@@ -142,14 +142,22 @@ def test_visibility_hides_the_back_surface(renderer):
         assert (frame.color[2:10, 2:10, 2] > 0.999).all(), "the back plane shows around the front one"
 
 
-def exact_sphere(cam: Camera, lights: Lights, albedo=0.8, supersample: int = 1):
-    """Color and coverage of the unit sphere at the origin, ray-cast per pixel in NumPy."""
+def sphere_rays(cam: Camera, supersample: int = 1):
+    """Unit rays through the (sub)pixel centers, the unit sphere's camera-space center, and the
+    ray/sphere terms ``b = d . c`` and discriminant ``b^2 - (|c|^2 - 1)`` (a hit where > 0)."""
     big = cam.resized(cam.width * supersample, cam.height * supersample)
     rays = reference.pixel_rays(big, reference.pixel_centers(big))
     d = rays / np.linalg.norm(rays, axis=-1, keepdims=True)
     center = reference.to_camera(big, np.zeros((1, 3)))[0]
     b = d @ center
     disc = b * b - (center @ center - 1.0)
+    return d, center, b, disc
+
+
+def exact_sphere(cam: Camera, lights: Lights, albedo=0.8, supersample: int = 1):
+    """Color and coverage of the unit sphere at the origin, ray-cast per pixel in NumPy."""
+    big = cam.resized(cam.width * supersample, cam.height * supersample)
+    d, center, b, disc = sphere_rays(cam, supersample)
     hit = disc > 0
     t = b - np.sqrt(np.maximum(disc, 0))
     n = t[..., None] * d - center

@@ -258,7 +258,7 @@ def cmd_phong(args) -> None:
     progress.message(f"{len(cloud):,} samples")
     start = time.perf_counter()
     splats = phong_splats(cloud, args.error, count=args.count, sharp_angle=args.sharp_angle, relax=args.relax,
-                          source=args.input)
+                          margin=args.margin, source=args.input)
     seconds = time.perf_counter() - start
     save_ply(splats, out, overwrite=args.force)
     progress.message(f"{len(splats):,} Phong splats from {len(cloud):,} samples in {seconds:.1f} s "
@@ -355,6 +355,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sharp-angle", type=sharp_angle_argument, metavar="DEG",
                    help="keep splats from growing across edges sharper than DEG degrees and clip them there")
     p.add_argument("--relax", type=int, default=2, metavar="N", help="relaxation iterations (default 2)")
+    p.add_argument("--margin", type=float, default=0.75, metavar="F",
+                   help="grow each ellipse by F times its samples' spacing so the surface between samples is "
+                        "covered too (default 0.75; 0: the paper's bare smallest enclosing ellipses)")
     p.add_argument("--force", action="store_true", help="overwrite an existing output file")
     p.set_defaults(func=cmd_phong)
 
