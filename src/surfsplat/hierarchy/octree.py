@@ -572,8 +572,9 @@ def _node_sums(points: SplatCloud, topo: dict, origin: np.ndarray) -> dict[str, 
 
     def leaf_sum(job):
         row, x, y = job
-        if isinstance(x, tuple):  # disk moments: u_i u_j + v_i v_j
-            value = x[0].astype(np.float64) * x[1] + y[0].astype(np.float64) * y[1]
+        if isinstance(x, tuple):  # disk moments u_i u_j + v_i v_j: float32 is ample for a shape
+            value = x[0] * x[1]
+            value += y[0] * y[1]
         else:
             value = x if y is None else x * y
         sums[row, leaves] = np.add.reduceat(value, bounds, dtype=np.float64)
