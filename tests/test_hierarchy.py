@@ -592,3 +592,18 @@ def test_merged_point_ranges(torus_h):
     assert len(start) < len(sel.point_start)
     assert np.all(start[1:] > start[:-1] + count[:-1])
     np.testing.assert_array_equal(np.sort(sel.point_indices()), ranges_to_indices(start, count))
+
+
+@pytest.mark.parametrize("budget", [1, 50, 2000, 10**9])
+def test_uniform_cut_covers_each_point_once_within_the_budget(torus_h, budget):
+    from surfsplat.hierarchy import uniform_cut
+
+    h = torus_h
+    cut = uniform_cut(h, budget)
+    assert 1 <= len(cut) <= max(budget, 1)
+    owners = np.bincount(ranges_to_indices(h.node_point_start[cut], h.node_point_count[cut]), minlength=len(h.points))
+    assert np.all(owners == 1)
+    if budget >= len(h):
+        assert np.all(h.is_leaf[cut])   # the finest cut: every leaf
+    with pytest.raises(InputError, match="budget"):
+        uniform_cut(h, 0)

@@ -115,25 +115,19 @@ def test_controller_reset_equals_auto_camera_and_input_signs():
     assert control.camera.eye[2] == pytest.approx(height)
 
 
-def test_preview_cloud_covers_with_fewer_splats_and_keeps_clip_planes():
-    cube = surfsplat.scenes.cube(40)
-    small = preview_cloud(cube, 2000)
-    assert 0.85 * 2000 <= len(small) <= 2000
-    assert preview_cloud(cube, len(cube)) is None and preview_cloud(cube, 0) is None
-    # a clip line cuts the same world plane after the axes were stretched
-    rng = np.random.default_rng(1)
-    index = np.flatnonzero(np.abs(small.clip_lines[:, 0, :2]).sum(1) > 0)[:50]
-    st = rng.uniform(-1, 1, size=(len(index), 2))
-    world = small.positions[index] + st[:, :1] * small.u[index] + st[:, 1:] * small.v[index]
-    # the same splat in the full cloud: same center
-    lookup = {tuple(p): i for i, p in enumerate(cube.positions)}
-    full = np.array([lookup[tuple(p)] for p in small.positions[index]])
-    rel = world - cube.positions[full]
-    s0 = (rel * cube.u[full]).sum(1) / (cube.u[full] ** 2).sum(1)
-    t0 = (rel * cube.v[full]).sum(1) / (cube.v[full] ** 2).sum(1)
-    a, b, c = (cube.clip_lines[full, 0, i] for i in range(3))
-    a2, b2, c2 = (small.clip_lines[index, 0, i] for i in range(3))
-    assert np.allclose(a * s0 + b * t0 + c, a2 * st[:, 0] + b2 * st[:, 1] + c2, atol=1e-4)
+def test_preview_is_a_coarse_hole_free_cut_of_the_hierarchy(gl_renderer):
+    from surfsplat.hierarchy import build_hierarchy
+
+    torus = surfsplat.demo_scene("torus")
+    h = build_hierarchy(torus)
+    small = preview_cloud(h, 5000)
+    assert 5000 / 8 <= len(small) <= 5000 and small.normal_field is None
+    assert preview_cloud(h, len(torus)) is None and preview_cloud(h, 0) is None
+    # drawn flat, the preview covers what the whole model covers
+    camera = surfsplat.auto_camera(torus, 200, 160)
+    full = gl_renderer.render(torus, camera, "flat").mask
+    coarse = gl_renderer.render(small, camera, "flat").mask
+    assert (full & ~coarse).sum() <= 0.002 * full.sum()
 
 
 def test_screenshots_never_overwrite(tmp_path):

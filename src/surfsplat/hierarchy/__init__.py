@@ -12,7 +12,7 @@ Paulin 2003 (sec. 8). Typical use::
     splats = h.splats(cut)          # a SplatCloud to render
 """
 
-from .lod import Selection, select
+from .lod import Selection, select, uniform_cut
 from .octree import (CONE_SHADING_MAX_ANGLE, LEAF_CAPACITY, MAX_DEPTH, SHADINGS, Hierarchy, build_hierarchy,
                      octree_topology, ranges_to_indices)
 from .storage import FORMAT, FORMAT_VERSION, load_hierarchy, save_hierarchy
@@ -22,6 +22,7 @@ __all__ = [
     "Selection",
     "build_hierarchy",
     "select",
+    "uniform_cut",
     "load_hierarchy",
     "save_hierarchy",
     "octree_topology",

@@ -271,6 +271,25 @@ def select(hierarchy: Hierarchy, camera: Camera, tolerance_px: float, *, cull_fr
                      culled_backface=culled_backface)
 
 
+def uniform_cut(hierarchy: Hierarchy, budget: int) -> np.ndarray:
+    """The finest view-independent cut of at most ``budget`` nodes: every node of one level plus
+    the leaves above it (int64 node indices).
+
+    Like every cut it covers the surface (each point has exactly one ancestor in it, whose ellipse
+    covers the point's disk). Its size grows with the level (a node is replaced by its children
+    or stays as a leaf), so the deepest level that fits is found from the per-level counts; the
+    root alone when even level 1 does not fit.
+    """
+    if int(budget) < 1:
+        raise InputError(f"a cut needs a budget of at least 1 node, got {budget}")
+    leaf, depth = hierarchy.is_leaf, hierarchy.node_depth
+    leaves_above = np.concatenate([[0], np.cumsum(np.bincount(depth[leaf], minlength=hierarchy.levels))[:-1]])
+    fits = np.flatnonzero(hierarchy.level_sizes + leaves_above <= int(budget))
+    level = int(fits.max()) if len(fits) else 0
+    sl = hierarchy.level(level)
+    return np.concatenate([np.flatnonzero(leaf & (depth < level)), np.arange(sl.start, sl.stop)])
+
+
 def _test(lod: _LodArrays, rows, view: _View, tau: float, frustum: bool, cull_backfaces: bool):
     """Frustum, back-face and refinement tests of some nodes (``rows``: slice or global indices).
 

@@ -7,8 +7,8 @@ Frame loop (one thread; glfw callbacks only record input, the loop acts on it):
 2. rendering, off-screen, into RGBA8 textures of the window's framebuffer size:
    - while the camera moves (and for ``SETTLE_S`` after its last change), where full quality
      is too slow to follow (over ``PREVIEW_ABOVE_S`` a frame), a cheap *preview*:
-     technique ``flat`` (one pass) on at most ``motion_budget`` splats (one per cell of a grid,
-     enlarged to cover the cell: :func:`preview_cloud`), optionally at a lower internal
+     technique ``flat`` (one pass) on at most ``motion_budget`` splats (a fixed coarse cut of the
+     LOD hierarchy: :func:`preview_cloud`), optionally at a lower internal
      resolution (``motion_scale``);
    - once the camera has been still for ``SETTLE_S``, one *full-quality* frame with the chosen
      technique; it is kept and shown again, not re-rendered, until something changes;
@@ -133,65 +133,20 @@ def technique_names() -> list[str]:
     return sorted(TECHNIQUES)
 
 
-def _grid_sample(positions: np.ndarray, budget: int) -> tuple[np.ndarray, float]:
-    """One splat per occupied cell of a cubic grid, the cell size tuned so that between 85% and
-    100% of ``budget`` cells are occupied (fewer only if that does not converge).
+def preview_cloud(hierarchy, budget: int) -> SplatCloud | None:
+    """At most ``budget`` splats standing in for the whole model while the camera moves.
 
-    Args:
-        positions: (N, 3) float32, model space.
-    Returns:
-        (sorted indices of the kept splats, cell size in model units).
+    The finest level-uniform cut of the LOD hierarchy that fits the budget
+    (:func:`~surfsplat.hierarchy.uniform_cut`): the nodes' representative splats,
+    whose ellipses cover their subtrees' disks (Pajarola 2003, sec. 3.4), so the
+    preview has no holes; fixed, so it does not flicker. None when the model has
+    no more than ``budget`` splats (or ``budget`` is 0): it is drawn whole.
     """
-    p = positions.astype(np.float64)
-    lo = p.min(axis=0)
-    diag = float(np.linalg.norm(p.max(axis=0) - lo)) or 1.0
+    from ..hierarchy import uniform_cut
 
-    def first_per_cell(cell: float) -> np.ndarray:
-        key = np.floor((p - lo) / cell).astype(np.int64)
-        dims = key.max(axis=0) + 1
-        flat = (key[:, 0] * dims[1] + key[:, 1]) * dims[2] + key[:, 2]
-        return np.sort(np.unique(flat, return_index=True)[1])
-
-    cell, best = diag / math.sqrt(budget), None
-    for _ in range(12):
-        kept = first_per_cell(cell)
-        if len(kept) <= budget:
-            best = (kept, cell)
-            if len(kept) >= 0.85 * budget:
-                break
-        # occupied cells of a surface ~ 1 / cell^2: aim at 93% of the budget
-        cell *= max(math.sqrt(len(kept) / (0.93 * budget)), 0.5)
-    while best is None or len(best[0]) > budget:
-        cell *= 1.5
-        best = (first_per_cell(cell), cell)
-    return best
-
-
-def preview_cloud(cloud: SplatCloud, budget: int) -> SplatCloud | None:
-    """About ``budget`` (at most) splats standing in for the whole cloud while the camera moves.
-
-    One splat per cell of a cubic grid (even coverage, unlike a random subset, and
-    fixed, so the preview does not flicker), each tangent axis stretched to at least
-    the cell size so the kept splats close the gaps of the dropped ones; clip lines are
-    rescaled to cut the same planes. A crude stand-in for the LOD hierarchy's
-    representative splats (Pajarola 2003). None when the cloud has no more than
-    ``budget`` splats (or ``budget`` is 0).
-    """
-    if budget <= 0 or len(cloud) <= budget:
+    if budget <= 0 or len(hierarchy.points) <= budget:
         return None
-    index, cell = _grid_sample(cloud.positions, budget)
-    sub = cloud.subset(index)
-    # Neighbouring kept splats are up to about two cells apart; axes of one cell close the gaps
-    # (checked on the demo scenes: 0.6 cells leaves holes, 0.8 a few, 1.0 none).
-    gu = np.maximum(1.0, cell / np.linalg.norm(sub.u, axis=1)).astype(np.float32)[:, None]
-    gv = np.maximum(1.0, cell / np.linalg.norm(sub.v, axis=1)).astype(np.float32)[:, None]
-    clip = None
-    if sub.clip_lines is not None:
-        # (a, b, c) act on (s, t) in units of u, v: with u' = g u, s = g s', so a, b scale by g
-        clip = sub.clip_lines.copy()
-        clip[:, :, 0] *= gu
-        clip[:, :, 1] *= gv
-    return sub.replace(u=sub.u * gu, v=sub.v * gv, clip_lines=clip, normal_field=None)
+    return hierarchy.node_splats(uniform_cut(hierarchy, budget), shading="flat")
 
 
 class LevelOfDetail:
@@ -374,7 +329,7 @@ class Viewer:
                 hierarchy = build_hierarchy(cloud)
         self.lod = LevelOfDetail(self.renderer, hierarchy)
         self.model_splats = len(cloud)
-        small = preview_cloud(cloud, motion_budget) if motion != "off" else None
+        small = preview_cloud(hierarchy, motion_budget) if motion != "off" else None
         with progress.stage(f"uploading {len(small or cloud):,} preview splats"):
             self.preview_splats = self.renderer.upload(small if small is not None else cloud)
 
