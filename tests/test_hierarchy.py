@@ -607,3 +607,21 @@ def test_uniform_cut_covers_each_point_once_within_the_budget(torus_h, budget):
         assert np.all(h.is_leaf[cut])   # the finest cut: every leaf
     with pytest.raises(InputError, match="budget"):
         uniform_cut(h, 0)
+
+
+def test_clipped_splats_are_never_merged_into_coarse_nodes():
+    """Sharp edges survive any tolerance: nodes over clipped splats are refined down to the points."""
+    cube = scenes.cube(30)
+    h = build_hierarchy(cube)
+    camera = Camera(eye=(2.0, 1.5, 2.5), target=(0, 0, 0), width=256, height=256)
+    clipped = np.any(h.points.clip_lines[:, :, :2] != 0, axis=(1, 2))
+    sel = select(h, camera, 50.0)
+    assert sel.node_count > 0 and len(sel) < 0.5 * len(cube)          # the flat faces do get coarse
+    nodes = sel.node_indices()
+    inside = ranges_to_indices(h.node_point_start[nodes], h.node_point_count[nodes])
+    assert not clipped[inside].any()
+    # every clipped point of the visible faces is drawn itself, with its clip lines
+    drawn = sel.point_indices()
+    assert clipped[drawn].sum() > 0.4 * clipped.sum()
+    splats = h.splats(sel)
+    assert np.any(splats.clip_lines[:, :, :2] != 0, axis=(1, 2)).sum() == clipped[drawn].sum()

@@ -13,7 +13,8 @@ Projected size (pixels) of a node, conservative: ``focal_px * 2 a / (|c - eye|
 for; the splat drawn is the larger ellipse covering the points' disks, fig. 6 b),
 ``c`` its center and ``R`` its bounding-sphere radius; the distance is taken as at least ``near``,
 and a node whose sphere reaches closer than ``near`` to the eye (or contains
-it) is always refined. An unrefined node contributes its representative
+it) is always refined, and so is a node over splats with clip lines (sharp
+edges stay sharp). An unrefined node contributes its representative
 splat; a refined leaf contributes its original points. At tau = 0 every node
 is refined: the selection is the original cloud, less culled leaves.
 """
@@ -128,6 +129,13 @@ class _LodArrays:
         self.sin_cone = np.sin(cone).astype(np.float32)
         self.cos_cone = np.cos(cone).astype(np.float32)
         self.leaf = h.node_child_count == 0
+        # Nodes over clipped splats are always refined: a representative splat has no clip
+        # lines and would blur the sharp edge they cut (Zwicker 2004, sec. 5).
+        self.sharp = np.zeros(len(self.leaf), dtype=bool)
+        if h.points.clip_lines is not None:
+            clipped = np.any(h.points.clip_lines[:, :, :2] != 0.0, axis=(1, 2))
+            total = np.concatenate([[0], np.cumsum(clipped)])
+            self.sharp = total[h.node_point_start + h.node_point_count] > total[h.node_point_start]
         off = h.level_offsets
         counts = h.node_child_count.astype(np.int64)
         self.child_count = counts
@@ -323,6 +331,7 @@ def _test(lod: _LodArrays, rows, view: _View, tau: float, frustum: bool, cull_ba
         refine = d2 < reach
     else:
         refine = np.ones(n, dtype=bool)
+    refine |= lod.sharp[rows]
     return out, inside, back, refine
 
 
