@@ -1,6 +1,6 @@
 """Level of detail (Pajarola et al. 2003): splats drawn, selection and render time, and quality against tau.
 
-Usage: python benchmarks/lod_experiments.py [--size 1024] [--technique ewa] [--points 1200000]
+Usage: python benchmarks/lod_experiments.py [--size 1024] [--technique blend] [--points 1200000]
 
 For each model, a point-octree is built once (``build_hierarchy``), then for tau in
 {0, 0.5, 1, 2, 4, 8} pixels the LOD cut is selected for a fixed view (frustum culling on,
@@ -43,7 +43,7 @@ def model(name: str, points: int):
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--size", type=int, default=1024)
-    parser.add_argument("--technique", default="ewa")
+    parser.add_argument("--technique", default="blend")
     parser.add_argument("--points", type=int, default=1_200_000)
     parser.add_argument("--images", default=str(HERE.parent / "docs" / "images"))
     args = parser.parse_args(argv)
