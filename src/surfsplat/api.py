@@ -97,6 +97,11 @@ DEFAULT_LOD_TOLERANCE = 1.0
 HIERARCHY_SUFFIX = ".npz"
 
 
+def is_hierarchy_file(source) -> bool:
+    """True for a path naming a hierarchy file (``.npz``, written by ``surfsplat build``)."""
+    return isinstance(source, (str, Path)) and Path(source).suffix.lower() == HIERARCHY_SUFFIX
+
+
 def load_model(source, *, k: int = 8):
     """A Hierarchy for a hierarchy file (``.npz``, ``surfsplat build``) or a Hierarchy;
     else a render-ready SplatCloud (see :func:`as_splats`)."""
@@ -104,9 +109,23 @@ def load_model(source, *, k: int = 8):
 
     if isinstance(source, Hierarchy):
         return source
-    if isinstance(source, (str, Path)) and Path(source).suffix.lower() == HIERARCHY_SUFFIX:
+    if is_hierarchy_file(source):
         return load_hierarchy(source)
     return as_splats(source, k=k)
+
+
+def as_hierarchy(model):
+    """A Hierarchy as it is, or the point-octree built over a render-ready SplatCloud."""
+    from .hierarchy import Hierarchy, build_hierarchy
+
+    return model if isinstance(model, Hierarchy) else build_hierarchy(model)
+
+
+def model_points(model) -> SplatCloud:
+    """The original splats of a model: a SplatCloud itself, a Hierarchy's points (for framing)."""
+    from .hierarchy import Hierarchy
+
+    return model.points if isinstance(model, Hierarchy) else model
 
 
 def lod_splats(hierarchy, camera: Camera, tolerance_px: float = DEFAULT_LOD_TOLERANCE, *,
@@ -126,6 +145,18 @@ def lod_splats(hierarchy, camera: Camera, tolerance_px: float = DEFAULT_LOD_TOLE
 
     selection = select(hierarchy, camera, tolerance_px, cull_backfaces=cull_backfaces, shading=shading)
     return hierarchy.splats(selection), selection
+
+
+def view_splats(model, camera: Camera, lod_tolerance: float | None = None, *, cull_backfaces: bool = False,
+                shading: str = "fit"):
+    """The splats to draw for a view: a SplatCloud as it is, or a Hierarchy's LOD cut (:func:`lod_splats`,
+    tolerance :data:`DEFAULT_LOD_TOLERANCE` when None). Returns (SplatCloud, Selection or None)."""
+    from .hierarchy import Hierarchy
+
+    if not isinstance(model, Hierarchy):
+        return model, None
+    tau = DEFAULT_LOD_TOLERANCE if lod_tolerance is None else lod_tolerance
+    return lod_splats(model, camera, tau, cull_backfaces=cull_backfaces, shading=shading)
 
 
 def render(source, camera: Camera | None = None, *, technique: str = "ewa",
@@ -152,27 +183,19 @@ def render(source, camera: Camera | None = None, *, technique: str = "ewa",
             prefilter, cutoff, depth_epsilon, cull_backfaces, deferred, kernel,
             kernel_a, kernel_b, kernel_n, kernel_sigma.
     """
-    from .hierarchy import Hierarchy, build_hierarchy
-
     render_settings = render_options(**options)
     background = tuple(float(x) for x in np.asarray(background, dtype=float).reshape(-1))
     if len(background) != 3 or not all(0.0 <= x <= 1.0 for x in background):
         raise InputError(f"background must be 3 numbers in [0, 1], got {background}")
     model = load_model(source, k=k)
-    if lod_tolerance is not None and not isinstance(model, Hierarchy):
-        model = build_hierarchy(model)
-    if isinstance(model, Hierarchy):
-        if camera is None:
-            camera = auto_camera(model.points, width, height)
-        tau = DEFAULT_LOD_TOLERANCE if lod_tolerance is None else lod_tolerance
-        cloud, _ = lod_splats(model, camera, tau, cull_backfaces=render_settings.cull_backfaces,
-                              shading=lod_shading)
-        if len(cloud) == 0:
-            return Frame.empty(camera, background)
-    else:
-        cloud = model
-        if camera is None:
-            camera = auto_camera(cloud, width, height)
+    if lod_tolerance is not None:
+        model = as_hierarchy(model)
+    if camera is None:
+        camera = auto_camera(model_points(model), width, height)
+    cloud, _ = view_splats(model, camera, lod_tolerance, cull_backfaces=render_settings.cull_backfaces,
+                           shading=lod_shading)
+    if len(cloud) == 0:
+        return Frame.empty(camera, background)
     return default_renderer().render(cloud, camera, technique, lights or Lights(), render_settings, background)
 
 

@@ -86,29 +86,30 @@ def _camera(args, cloud):
     return camera.with_clip_from_bounds(lo, hi, margin=float(cloud.radii.max()) if cloud.u is not None else 0.0)
 
 
-def _render_and_save(model, args, out: Path, inputs: tuple[Path, ...] = ()) -> None:
-    from .api import DEFAULT_LOD_TOLERANCE, lod_splats, render
-    from .hierarchy import Hierarchy, build_hierarchy
+def _lights(args):
+    """Lights from the shared view options (``--light``, ``--no-lighting``)."""
     from .lighting import Lights
+
+    return Lights(directions=tuple(map(tuple, args.light)) if args.light else None, enabled=not args.no_lighting)
+
+
+def _render_and_save(model, args, out: Path, inputs: tuple[Path, ...] = ()) -> None:
+    from .api import as_hierarchy, model_points, render, view_splats
     from .render.frame import Frame
 
     _refuse_overwriting_inputs(out, inputs)
     tau = getattr(args, "lod_tolerance", None)
-    if tau is not None and not isinstance(model, Hierarchy):
-        with progress.stage(f"building the LOD hierarchy of {len(model):,} splats"):
-            model = build_hierarchy(model)
-    camera = _camera(args, model.points if isinstance(model, Hierarchy) else model)
-    lights = Lights(directions=tuple(map(tuple, args.light)) if args.light else None, enabled=not args.no_lighting)
+    if tau is not None:
+        model = as_hierarchy(model)
+    camera = _camera(args, model_points(model))
     start = time.perf_counter()
-    what = f"{len(model):,} splats"
-    if isinstance(model, Hierarchy):
-        tau = DEFAULT_LOD_TOLERANCE if tau is None else tau
-        model, selection = lod_splats(model, camera, tau, cull_backfaces=args.cull_backfaces,
-                                      shading=args.lod_shading)
-        what = (f"{len(model):,} LOD splats (tolerance {tau:g} px, {selection.node_count:,} nodes, "
-                f"{selection.point_total:,} points)")
-    if len(model):
-        frame = render(model, camera, technique=args.technique, lights=lights, background=args.background,
+    cloud, selection = view_splats(model, camera, tau, cull_backfaces=args.cull_backfaces, shading=args.lod_shading)
+    what = f"{len(cloud):,} splats"
+    if selection is not None:
+        what = (f"{len(cloud):,} LOD splats (tolerance {selection.tolerance_px:g} px, {selection.node_count:,} "
+                f"nodes, {selection.point_total:,} points)")
+    if len(cloud):
+        frame = render(cloud, camera, technique=args.technique, lights=_lights(args), background=args.background,
                        **_render_options(args))
     else:
         frame = Frame.empty(camera, args.background)
@@ -130,14 +131,14 @@ def _refuse_overwriting_inputs(out: Path, inputs: tuple[Path, ...]) -> None:
 
 
 def cmd_render(args) -> None:
-    from .api import HIERARCHY_SUFFIX, as_splats
+    from .api import as_splats, is_hierarchy_file
     from .hierarchy import load_hierarchy
     from .io import load
 
     if args.mesh:
         _render_mesh(args)
         return
-    if Path(args.input).suffix.lower() == HIERARCHY_SUFFIX:
+    if is_hierarchy_file(args.input):
         with progress.stage(f"loading the hierarchy {args.input}"):
             model = load_hierarchy(args.input)
         progress.message(f"{len(model.points):,} points, {len(model):,} nodes in {model.levels} levels")
@@ -154,7 +155,6 @@ def _render_mesh(args) -> None:
     from .api import render_mesh
     from .cloud import SplatCloud
     from .io import load_mesh
-    from .lighting import Lights
 
     out = Path(args.output)
     _refuse_overwriting_inputs(out, (Path(args.input),))
@@ -162,9 +162,8 @@ def _render_mesh(args) -> None:
         mesh = load_mesh(args.input)
     vertices = SplatCloud(mesh.vertices)
     camera = _camera(args, vertices)
-    lights = Lights(directions=tuple(map(tuple, args.light)) if args.light else None, enabled=not args.no_lighting)
     start = time.perf_counter()
-    frame = render_mesh(mesh, camera, lights=lights, background=args.background)
+    frame = render_mesh(mesh, camera, lights=_lights(args), background=args.background)
     frame.save(out)
     progress.message(f"rendered {len(mesh.faces):,} triangles at {camera.width}x{camera.height} "
                      f"in {time.perf_counter() - start:.2f} s -> {out}")
@@ -179,11 +178,11 @@ def cmd_demo(args) -> None:
 
 
 def cmd_info(args) -> None:
-    from .api import HIERARCHY_SUFFIX
+    from .api import is_hierarchy_file
     from .geometry.preprocess import neighbour_spacing
     from .io import load
 
-    if Path(args.input).suffix.lower() == HIERARCHY_SUFFIX:
+    if is_hierarchy_file(args.input):
         _hierarchy_info(args.input)
         return
     cloud = load(args.input)
@@ -220,13 +219,13 @@ def _hierarchy_info(path) -> None:
 
 
 def cmd_build(args) -> None:
-    from .api import as_splats
+    from .api import as_splats, is_hierarchy_file
     from .hierarchy import build_hierarchy
     from .io import load
 
     out = Path(args.output)
     _refuse_overwriting_inputs(out, (Path(args.input),))
-    if out.suffix.lower() != ".npz":
+    if not is_hierarchy_file(out):
         raise InputError(f"{out}: a hierarchy is saved as .npz; name the output MODEL.npz")
     if out.exists() and not args.force:
         raise InputError(f"{out}: exists; use --force to overwrite it")

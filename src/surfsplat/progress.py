@@ -20,6 +20,19 @@ def enable(on: bool = True) -> None:
     _enabled = on
 
 
+@contextmanager
+def enabled(on: bool | None):
+    """Within the block, progress is on or off as ``on`` says (None: left as it is)."""
+    global _enabled
+    previous = _enabled
+    if on is not None:
+        _enabled = bool(on)
+    try:
+        yield
+    finally:
+        _enabled = previous
+
+
 def message(text: str) -> None:
     """Print one progress line on stderr if progress is enabled."""
     if _enabled:

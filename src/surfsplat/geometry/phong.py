@@ -71,7 +71,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .. import progress
+from .. import progress as report
 from ..cloud import NO_CLIP, SplatCloud
 from ..errors import InputError
 from .neighbors import _LEAFSIZE, knn, spatial_order
@@ -288,7 +288,7 @@ def phong_fit(cloud: SplatCloud, error: float | None = None, *, count: int | Non
     if not isinstance(cloud, SplatCloud):
         cloud = SplatCloud(positions=cloud)
     error, count, k, relax, sharp_angle, margin = _check_arguments(error, count, k, relax, sharp_angle, margin)
-    with _reporting(progress):
+    with report.enabled(progress):
         samples = _prepare(cloud, sharp_angle, source)
         samples.margin = margin
         n = len(samples.pts)
@@ -302,7 +302,7 @@ def phong_fit(cloud: SplatCloud, error: float | None = None, *, count: int | Non
                 k = int(np.clip(8 * n // count, MAX_NEIGHBOURS, MAX_COUNT_NEIGHBOURS))
             error, splats = _search_count(samples, count, k, relax, source)
         out = _to_cloud(samples, splats)
-        _message(f"  {len(out):,} Phong splats for {n:,} samples (error {error:.4g}, "
+        report.message(f"  {len(out):,} Phong splats for {n:,} samples (error {error:.4g}, "
                  f"{n / len(out):.1f} samples per splat)")
     # members in the order of the validated input
     member_idx = samples.perm[splats.idx]
@@ -393,30 +393,6 @@ def _check_arguments(error, count, k, relax, sharp_angle, margin):
     return error, count, None if k is None else int(k), int(relax), sharp_angle, float(margin)
 
 
-@contextmanager
-def _reporting(on: bool | None):
-    """Progress on stderr as ``on`` says for the duration (None: as the global switch)."""
-    if on is None:
-        yield
-        return
-    previous = progress._enabled
-    progress.enable(bool(on))
-    try:
-        yield
-    finally:
-        progress.enable(previous)
-
-
-def _stage(name: str, count: int | None = None, unit: str = "points"):
-    """:func:`surfsplat.progress.stage` (looked up at call time, so that it can be replaced)."""
-    return progress.stage(name, count, unit)
-
-
-def _message(text: str) -> None:
-    """:func:`surfsplat.progress.message`."""
-    progress.message(text)
-
-
 @dataclass
 class _Samples:
     """The input samples, spatially sorted (internal)."""
@@ -452,7 +428,7 @@ def _prepare(cloud: SplatCloud, sharp_angle: float | None, source: str) -> _Samp
     """Validate, sort, estimate/orient normals, find sharp features (stage 1)."""
     cloud = cloud.validated(source)
     n = len(cloud)
-    with _stage("spatial sort and k-d tree", n):
+    with report.stage("spatial sort and k-d tree", n):
         perm = spatial_order(cloud.positions)
         pts32 = np.take(cloud.positions, perm, axis=0)
         pts = pts32.astype(np.float64)
@@ -463,14 +439,14 @@ def _prepare(cloud: SplatCloud, sharp_angle: float | None, source: str) -> _Samp
         if n < 3:
             raise InputError(f"{source}: estimating normals needs at least 3 samples, got {n}")
         kk = min(NORMAL_NEIGHBOURS, n - 1)
-        with _stage(f"{kk}-nearest neighbours", n):
+        with report.stage(f"{kk}-nearest neighbours", n):
             dist, idx = knn(pts32, kk, presorted=True)
     if normals_given:
         nrm = np.take(cloud.normals, perm, axis=0)
     else:
-        with _stage("normals (PCA)", n):
+        with report.stage("normals (PCA)", n):
             nrm = estimate_normals(pts32, idx)
-        with _stage("orientation (MST)", n):
+        with report.stage("orientation (MST)", n):
             nrm = orient_normals(pts32, nrm, idx, dist)
     colors = None if cloud.colors is None else np.take(cloud.colors, perm, axis=0)
     halfspaces = reach = None
@@ -483,14 +459,14 @@ def _prepare(cloud: SplatCloud, sharp_angle: float | None, source: str) -> _Samp
             v = np.take(cloud.v, perm, axis=0)
             halfspaces, reach = _halfspaces_from_lines(lines, u, v)
         else:
-            with _stage("sharp features", n):
+            with report.stage("sharp features", n):
                 features = detect_sharp_features(pts32, nrm, idx, sharp_angle, oriented=True,
                                                  refine_normals=not normals_given)
             nrm = features.normals
             halfspaces = np.asarray(features.planes, dtype=np.float64)
             halfspaces[~features.feature] = 0.0
             reach = np.asarray(features.reach, dtype=np.float64)
-            _message(f"  {int(features.feature.sum()):,} samples at sharp features")
+            report.message(f"  {int(features.feature.sum()):,} samples at sharp features")
     nrm = np.asarray(nrm, dtype=np.float64)
     nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
     # typical sample spacing: median nearest-neighbour distance of up to 4096 samples
@@ -505,7 +481,7 @@ def _prepare(cloud: SplatCloud, sharp_angle: float | None, source: str) -> _Samp
     if dist is not None and dist.shape[1] == min(GAP_NEIGHBOURS, n - 1):
         gap = dist[:, -1].astype(np.float32)
     else:
-        with _stage("sample spacing", n):
+        with report.stage("sample spacing", n):
             gap = _kth_distance(tree, pts, min(GAP_NEIGHBOURS, n - 1))
     return _Samples(pts, nrm, colors, perm, tree, cos_sharp, halfspaces, reach, spacing, slack, gap)
 
@@ -1153,7 +1129,7 @@ def _generate(samples: _Samples, eps: float, k_cap: int, relax: int, rng, quiet:
             splats.lines = np.broadcast_to(NO_CLIP, (1, 2, 3)).astype(np.float32)
             splats.missing = np.zeros(1, dtype=bool)
         return splats
-    stage = _stage if not quiet else _silent
+    stage = report.stage if not quiet else _silent
     covered = np.zeros(n, dtype=bool)
     ptr, idx, centroid, normal = _cover(samples, np.arange(n), covered, k_cap, work, rng, OTHER_FACES, stage)
     with stage("fit splats", len(centroid), "splats"):
@@ -1398,9 +1374,9 @@ def _search_count(samples: _Samples, target: int, k_cap: int, relax: int, source
         # geometry (area, curvature), hardly on the sampling density
         rng = np.random.default_rng(1)
         rows = np.sort(rng.choice(n, size=COUNT_SUBSAMPLE, replace=False))
-        _message(f"  count search on a random subsample of {COUNT_SUBSAMPLE:,} samples:")
+        report.message(f"  count search on a random subsample of {COUNT_SUBSAMPLE:,} samples:")
         eps, _ = _secant(samples.subset(rows), target, eps, lo, hi, k_cap, relax, 0.05, 8)
-        _message(f"  count search on all {n:,} samples:")
+        report.message(f"  count search on all {n:,} samples:")
     eps, splats = _secant(samples, target, eps, lo, hi, k_cap, relax, COUNT_TOLERANCE, COUNT_ITERATIONS)
     got = len(splats.center)
     if abs(got - target) > max(0.05 * target, 1):
@@ -1451,7 +1427,7 @@ def _secant(samples: _Samples, target: int, eps: float, lo: float, hi: float, k_
     for _ in range(iterations):
         splats = _generate(samples, eps, k_cap, relax, np.random.default_rng(0), quiet=True)
         got = len(splats.center)
-        _message(f"  error {eps:.5g}: {got:,} splats (target {target:,})")
+        report.message(f"  error {eps:.5g}: {got:,} splats (target {target:,})")
         if best is None or abs(got - target) < abs(len(best[1].center) - target):
             best = (eps, splats)
         if abs(got - target) <= max(tolerance * target, 0.5):

@@ -14,7 +14,7 @@ from .technique import Technique, register
 
 
 def _uniforms(options) -> dict:
-    return {"u_kernel": options.blend_kernel(), "u_deferred": bool(options.deferred)}
+    return {"u_kernel": options.blend_kernel()}
 
 
 BLEND = register(Technique(

@@ -14,7 +14,7 @@ from .technique import Technique, register
 
 
 def _uniforms(options) -> dict:
-    return {"u_kernel": (float(options.cutoff), 2.0), "u_deferred": bool(options.deferred)}
+    return {"u_kernel": (float(options.cutoff), 2.0)}
 
 
 PHONG = register(Technique(

@@ -308,8 +308,7 @@ class Viewer:
     def __init__(self, glfw, window, ctx, model, camera: Camera | None, *, technique: str,
                  lights: Lights, options: RenderOptions, background, up, fov: float, tolerance: float,
                  motion: Motion, motion_budget: int, motion_scale: float, hud: bool):
-        from ..api import auto_camera
-        from ..hierarchy import Hierarchy, build_hierarchy
+        from ..api import as_hierarchy, auto_camera
         from ..render.renderer import Renderer
         from .hud import Hud, viewer_program
 
@@ -321,12 +320,8 @@ class Viewer:
         self.tolerance = float(tolerance)
         self.motion, self.motion_scale = motion, float(motion_scale)
 
-        if isinstance(model, Hierarchy):
-            hierarchy, cloud = model, model.points
-        else:
-            cloud = model
-            with progress.stage(f"building the LOD hierarchy of {len(cloud):,} splats"):
-                hierarchy = build_hierarchy(cloud)
+        hierarchy = as_hierarchy(model)  # built on loading when the model is a cloud
+        cloud = hierarchy.points
         self.lod = LevelOfDetail(self.renderer, hierarchy)
         self.model_splats = len(cloud)
         small = preview_cloud(hierarchy, motion_budget) if motion != "off" else None

@@ -62,15 +62,13 @@ def add_view_command(subparsers, add_view_options) -> argparse.ArgumentParser:
 
 def cmd_view(args) -> None:
     """Run ``surfsplat view`` with parsed arguments."""
-    from ..cli import _render_options
-    from ..lighting import Lights
+    from ..cli import _lights, _render_options
     from .app import view
 
     width, height = args.size
     size = (args.width or width, args.height or height)
-    lights = Lights(directions=tuple(map(tuple, args.light)) if args.light else None, enabled=not args.no_lighting)
     view(args.input, technique=args.technique, size=size, eye=args.eye, target=args.target, up=tuple(args.up),
-         fov=args.fov, lights=lights, background=tuple(args.background), tolerance=args.tolerance,
+         fov=args.fov, lights=_lights(args), background=tuple(args.background), tolerance=args.tolerance,
          motion=args.motion, motion_budget=args.motion_budget,
          motion_scale=args.motion_scale, hud=not args.no_hud, frames=args.frames, orbit=args.orbit,
          screenshot=args.screenshot, k=args.k, **_render_options(args))
