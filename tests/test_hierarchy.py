@@ -359,7 +359,7 @@ def test_load_errors_name_the_file(torus_h, tmp_path):
         load_hierarchy(tmp_path / "cut.npz")
     # random bytes, empty file
     (tmp_path / "noise.npz").write_bytes(np.random.default_rng(0).bytes(1000))
-    with pytest.raises(InputError, match="noise.npz"):
+    with pytest.raises(InputError, match="noise.npz.*not an .npz archive"):
         load_hierarchy(tmp_path / "noise.npz")
     (tmp_path / "empty.npz").write_bytes(b"")
     with pytest.raises(InputError, match="empty.npz"):

@@ -94,6 +94,12 @@ def test_bad_kernel_options_are_rejected():
         RenderOptions(kernel_a=-1.0)
     with pytest.raises(InputError, match="kernel sigma"):
         RenderOptions(kernel_sigma=0.0)
+    # so narrow that the rim weight underflows: holes, so refused (Pajarola's widest example is a = 50)
+    with pytest.raises(InputError, match="too narrow"):
+        RenderOptions(kernel_a=1000.0)
+    with pytest.raises(InputError, match="too narrow"):
+        RenderOptions(kernel="gaussian", kernel_sigma=0.1)
+    RenderOptions(kernel_a=50.0)
 
 
 @pytest.mark.parametrize("technique", ["phong", "blend", "flat"])

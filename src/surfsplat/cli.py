@@ -43,7 +43,7 @@ def _add_view_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--kernel", choices=KERNELS, default="pajarola",
                    help="blend technique's kernel: pajarola exp(-a (r/b)^n) or gaussian exp(-r^2 / 2 sigma^2) "
                         "(default pajarola)")
-    p.add_argument("--kernel-a", type=float, default=6.0, metavar="A", help="a of the pajarola kernel (default 6)")
+    p.add_argument("--kernel-a", type=float, default=6.0, metavar="A", help="a of the pajarola kernel (default 6, at most 80)")
     p.add_argument("--kernel-b", type=float, default=1.5, metavar="B",
                    help="b: the kernel's support radius r at the splat's rim (default 1.5)")
     p.add_argument("--kernel-n", type=float, default=3.0, metavar="N", help="n of the pajarola kernel (default 3)")

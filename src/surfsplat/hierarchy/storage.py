@@ -125,6 +125,10 @@ def load_hierarchy(path) -> Hierarchy:
         raise InputError(f"{path}: no such file")
     if path.is_dir():
         raise InputError(f"{path}: is a directory, not a file")
+    # np.load guesses the format from the first bytes and reads anything else as a pickle, whose
+    # error ("load it unsafely ...") misleads: a hierarchy is a zip (.npz) archive, check that first.
+    if not zipfile.is_zipfile(path):
+        raise InputError(f"{path}: not a surfsplat hierarchy file (not an .npz archive, or truncated)")
     try:
         archive = np.load(path, allow_pickle=False)
         if not isinstance(archive, np.lib.npyio.NpzFile):

@@ -85,6 +85,11 @@ class RenderOptions:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and 0 < value < float("inf")):
                 raise InputError(f"{name.replace('_', ' ')} must be a positive number, got {value!r}")
+        a, _ = self.blend_kernel()
+        if a > MAX_KERNEL_EXPONENT:
+            # exp(-a) at the rim would underflow float32: pixels only that splat covers get no weight (holes)
+            raise InputError(f"blend kernel too narrow: exp(-{a:.4g}) at the splat's rim underflows; keep "
+                             f"a <= {MAX_KERNEL_EXPONENT:g} (gaussian: sigma >= b / {(2 * MAX_KERNEL_EXPONENT) ** 0.5:.3g})")
 
     def blend_kernel(self) -> tuple[float, float]:
         """``(a', n')`` with the kernel weight ``exp(-a' rho^n')`` at normalized radius rho = r / b."""
@@ -93,6 +98,10 @@ class RenderOptions:
             return self.kernel_b ** 2 / (2.0 * self.kernel_sigma ** 2), 2.0
         return float(self.kernel_a), float(self.kernel_n)   # EQ 12
 
+
+#: Largest exponent a' of a blend kernel exp(-a' rho^n): its weight at the rim, exp(-80) = 1.8e-35,
+#: is still a normal float32 (the accumulation targets' precision).
+MAX_KERNEL_EXPONENT = 80.0
 
 #: Kernels of the ``blend`` technique (RenderOptions.kernel).
 KERNELS = ("pajarola", "gaussian")
