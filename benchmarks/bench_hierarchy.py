@@ -39,7 +39,7 @@ from common import RESULTS, machine_description, markdown_table  # noqa: E402
 
 from surfsplat import Camera, scenes  # noqa: E402
 from surfsplat.camera import frame_bounds  # noqa: E402
-from surfsplat.hierarchy import build_hierarchy, load_hierarchy, select  # noqa: E402
+from surfsplat.hierarchy import build_hierarchy, load_hierarchy, save_hierarchy, select  # noqa: E402
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
 
@@ -83,7 +83,7 @@ def bench_build(repeats: int):
         times, h = timed(lambda: build_hierarchy(cloud), repeats)
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / "model.npz"
-            save_s, _ = timed(lambda: h.save(path, overwrite=True), 1)
+            save_s, _ = timed(lambda: save_hierarchy(h, path, overwrite=True), 1)
             size = path.stat().st_size
             load_s, _ = timed(lambda: load_hierarchy(path), 2)
         best = min(times)
@@ -110,13 +110,13 @@ def cameras(h):
 def bench_select(h, repeats: int):
     rows = []
     for view, camera, backfaces in cameras(h):
-        for tau in (0.0, 0.5, 1.0, 2.0, 4.0, 8.0):
-            select(h, camera, tau, cull_backfaces=backfaces)  # warm-up
-            times, sel = timed(lambda: select(h, camera, tau, cull_backfaces=backfaces), repeats)
+        for lod_tolerance in (0.0, 0.5, 1.0, 2.0, 4.0, 8.0):
+            select(h, camera, lod_tolerance, cull_backfaces=backfaces)  # warm-up
+            times, sel = timed(lambda: select(h, camera, lod_tolerance, cull_backfaces=backfaces), repeats)
             gather, splats = timed(lambda: h.splats(sel), 3)
             assert len(splats) == len(sel)
-            rows.append([view, tau, round(min(times) * 1e3, 2), round(float(np.median(times)) * 1e3, 2), len(sel),
-                         sel.node_count, sel.point_total, sel.visited, round(min(gather) * 1e3, 1)])
+            rows.append([view, lod_tolerance, round(min(times) * 1e3, 2), round(float(np.median(times)) * 1e3, 2),
+                         len(sel), sel.node_count, sel.point_total, sel.visited, round(min(gather) * 1e3, 1)])
     return rows
 
 

@@ -26,7 +26,7 @@ from surfsplat.api import auto_camera  # noqa: E402
 from surfsplat.lighting import Lights  # noqa: E402
 from surfsplat.render.context import renderer_name  # noqa: E402
 from surfsplat.render.renderer import Renderer  # noqa: E402
-from surfsplat.render.technique import RenderOptions  # noqa: E402
+from surfsplat.render.options import RenderOptions  # noqa: E402
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
 

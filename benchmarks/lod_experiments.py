@@ -49,12 +49,12 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
 
     from surfsplat import auto_camera, metrics
-    from surfsplat.api import default_renderer
     from surfsplat.hierarchy import build_hierarchy, select
     from surfsplat.lighting import Lights
     from surfsplat.render.context import renderer_name
     from surfsplat.render.mesh import render_mesh
-    from surfsplat.render.technique import RenderOptions
+    from surfsplat.render.options import RenderOptions
+    from surfsplat.render.renderer import default_renderer
 
     renderer = default_renderer()
     lights = Lights(directions=((0.5, 0.6, 1.0),), specular=0.3, shininess=32)
@@ -73,11 +73,11 @@ def main(argv=None) -> int:
         inner = metrics.erode(truth.weight >= 1.0, 2)
         base = None
         for tau in TAUS:
-            select(hierarchy, camera, tau)  # warm-up (the first call builds the traversal's arrays)
+            select(hierarchy, camera, lod_tolerance=tau)  # warm-up (the first call builds the traversal's arrays)
             select_s, gather_s = [], []
             for _ in range(3):
                 start = time.perf_counter()
-                selection = select(hierarchy, camera, tau)
+                selection = select(hierarchy, camera, lod_tolerance=tau)
                 middle = time.perf_counter()
                 splats = hierarchy.splats(selection)
                 select_s.append(middle - start)

@@ -26,22 +26,22 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw
 
+from surfsplat.render.options import KernelOptions, RenderOptions
+
 HERE = Path(__file__).resolve().parent
 DATA = HERE.parent.parent / "shared" / "data"
 
 KERNELS = {
-    "round": dict(kernel="pajarola", kernel_a=1.0, kernel_b=1.5, kernel_n=2.0),
-    "default": dict(kernel="pajarola", kernel_a=6.0, kernel_b=1.5, kernel_n=3.0),
-    "plateau": dict(kernel="pajarola", kernel_a=4.0, kernel_b=1.5, kernel_n=5.0),
-    "gaussian": dict(kernel="gaussian", kernel_b=1.5, kernel_sigma=0.5),
+    "round": KernelOptions(name="pajarola", a=1.0, b=1.5, n=2.0),
+    "default": KernelOptions(name="pajarola", a=6.0, b=1.5, n=3.0),
+    "plateau": KernelOptions(name="pajarola", a=4.0, b=1.5, n=5.0),
+    "gaussian": KernelOptions(name="gaussian", b=1.5, sigma=0.5),
 }
 COLORS = {"round": (200, 60, 40), "default": (30, 90, 200), "plateau": (20, 150, 60), "gaussian": (120, 120, 120)}
 
 
 def profiles(path: Path, size=(480, 240)) -> None:
     """Plot the kernels' profiles psi(r), r in [0, b], with Pillow."""
-    from surfsplat.render.technique import RenderOptions
-
     image = Image.new("RGB", size, "white")
     draw = ImageDraw.Draw(image)
     w, h, pad = size[0], size[1], 24
@@ -50,8 +50,8 @@ def profiles(path: Path, size=(480, 240)) -> None:
     draw.text((w - 40, h - pad + 4), "r = b", fill="black")
     draw.text((2, 8), "1", fill="black")
     rho = np.linspace(0.0, 1.0, 400)
-    for i, (name, params) in enumerate(KERNELS.items()):
-        a, n = RenderOptions(**params).blend_kernel()
+    for i, (name, kernel) in enumerate(KERNELS.items()):
+        a, n = kernel.exponent()
         psi = np.exp(-a * rho ** n)
         xs = pad + rho * (w - 8 - pad)
         ys = (h - pad) - psi * (h - pad - 8)
@@ -91,13 +91,13 @@ def main(argv=None) -> int:
                           fov=40, width=args.size, height=args.size)
     else:
         print(f"{DATA} has no frag_115.ply: scan pictures skipped", file=sys.stderr)
-    for name, params in KERNELS.items():
+    for name, kernel in KERNELS.items():
         frame = surfsplat.render(checker, checker_cam, technique="blend", lights=surfsplat.Lights(enabled=False),
-                                 **params)
+                                 options=RenderOptions(kernel=kernel))
         frame.save(out / f"blend_checker_{name}.png")
         if scan is not None:
             frame = surfsplat.render(scan, scan_cam, technique="blend", lights=surfsplat.Lights(enabled=False),
-                                     **params)
+                                     options=RenderOptions(kernel=kernel))
             frame.save(out / f"blend_scan_{name}.png")
         print(f"{name}: done")
     return 0

@@ -58,7 +58,7 @@ from surfsplat.geometry.phong import phong_splats  # noqa: E402
 from surfsplat.metrics import erode  # noqa: E402
 from surfsplat.render.context import renderer_name  # noqa: E402
 from surfsplat.render.renderer import Renderer  # noqa: E402
-from surfsplat.render.technique import RenderOptions  # noqa: E402
+from surfsplat.render.options import RenderOptions  # noqa: E402
 
 ROOT = HERE.parent
 SHARED = ROOT.parent / "shared" / "data"

@@ -44,7 +44,7 @@ import surfsplat  # noqa: E402
 from surfsplat.camera import Camera  # noqa: E402
 from surfsplat.render.context import renderer_name  # noqa: E402
 from surfsplat.render.renderer import Renderer  # noqa: E402
-from surfsplat.render.technique import RenderOptions  # noqa: E402
+from surfsplat.render.options import FilterOptions, RenderOptions  # noqa: E402
 
 ROOT = HERE.parent
 #: Color of the hole pixels in the grazing pictures.
@@ -91,7 +91,8 @@ def checker_errors(renderer: Renderer, gpu, camera: Camera, techniques=("perspec
     for technique in techniques:
         results[technique] = {}
         for prefilter in (True, False):
-            frame = renderer.render(gpu, camera, technique, UNLIT, RenderOptions(prefilter=prefilter))
+            options = RenderOptions(filter=FilterOptions(prefilter=prefilter))
+            frame = renderer.render(gpu, camera, technique, UNLIT, options)
             results[technique][prefilter] = (image_errors(frame.color, truth, full), frame)
     return {"truth": truth, "full": full, "results": results}
 

@@ -97,8 +97,8 @@ def test_bad_files_give_a_clear_error(tmp_path, capsys, content, problem):
 def test_missing_file_and_unknown_scene(tmp_path, capsys):
     status, _, err = run(capsys, "render", tmp_path / "nope.ply", "-o", tmp_path / "x.png")
     assert status == 2 and "nope.ply" in err
-    with pytest.raises(SystemExit):
-        main(["demo", "--scene", "nope"])
+    assert main(["demo", "--scene", "nope"]) == 2
+    assert "invalid choice: 'nope'" in capsys.readouterr().err
 
 
 def test_render_refuses_to_overwrite_its_input(tmp_path, capsys):
@@ -133,7 +133,7 @@ def test_demo_with_object_space_techniques_and_deferred_shading(tmp_path, capsys
 
 def test_bad_kernel_option_is_a_clear_error(tmp_path, capsys):
     status, _, err = run(capsys, "demo", "-o", tmp_path / "x.png", "--technique", "blend", "--kernel-n", -1)
-    assert status == 2 and "kernel n must be a positive number" in err
+    assert status == 2 and "--kernel-n: must be a number > 0, got '-1'" in err
     assert not (tmp_path / "x.png").exists()
 
 
@@ -141,8 +141,10 @@ def test_api_rejects_unknown_render_options():
     import surfsplat
     from surfsplat.errors import InputError
 
-    with pytest.raises(InputError, match="unknown render option kernal"):
+    with pytest.raises(TypeError, match="kernal"):
         surfsplat.render(noisy_sphere(200), kernal="gaussian")
+    with pytest.raises(InputError, match="kernel n must be a positive number"):
+        surfsplat.KernelOptions(n=-1.0)
 
 
 def test_render_mesh_ground_truth_matches_its_splats(tmp_path, capsys):
@@ -212,3 +214,46 @@ def test_phong_command_writes_splats_with_normal_fields(tmp_path, capsys):
     assert run(capsys, "phong", ply, "-o", out, "--count", 300)[0] == 2            # exists
     status, _, err = run(capsys, "phong", ply, "-o", tmp_path / "x.ply")
     assert status == 2 and "exactly one of --error" in err
+
+
+def test_quiet_anywhere_version_and_defaults_written_once(tmp_path, capsys):
+    import surfsplat
+    from surfsplat.cli import build_parser
+
+    out = tmp_path / "d.png"
+    assert main(["demo", "-o", str(out), "--width", "32", "--height", "32", "-q"]) == 0
+    assert capsys.readouterr().err == ""  # -q after the subcommand silences progress too
+    assert main(["--version"]) == 0
+    assert surfsplat.__version__ in capsys.readouterr().out
+    # the flags' defaults are the dataclasses' defaults, shown in --help
+    args = build_parser().parse_args(["demo"])
+    kernel, visibility = surfsplat.KernelOptions(), surfsplat.VisibilityOptions()
+    assert (args.kernel, args.kernel_a, args.kernel_sigma) == (kernel.name, kernel.a, kernel.sigma)
+    assert args.depth_epsilon == visibility.depth_epsilon and args.cutoff == surfsplat.FilterOptions().cutoff
+    assert main(["demo", "--help"]) == 0
+    assert f"(default {kernel.a})" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("flags, message", [
+    (["--width", "0"], "--width: must be an integer >= 1"),
+    (["--fov", "200"], "--fov: must be a number > 0 and < 180"),
+    (["--lod-tolerance", "-1"], "--lod-tolerance: must be a number >= 0"),
+    (["--k", "1"], "--k: must be an integer >= 3"),
+    (["--background", "0", "0", "nan"], "--background: must be a number >= 0 and <= 1"),
+])
+def test_bad_values_are_refused_before_loading(tmp_path, capsys, flags, message):
+    out = tmp_path / "x.png"
+    status, _, err = run(capsys, "render", tmp_path / "not-read.ply", "-o", out, *flags)
+    assert status == 2 and message in err and "Traceback" not in err
+    assert "not-read.ply" not in err  # refused while parsing, before the (missing) input is looked at
+    assert not out.exists()
+
+
+def test_the_main_function_leaves_the_process_settings_alone(tmp_path, capsys):
+    import warnings
+
+    from surfsplat import progress
+
+    before = warnings.showwarning
+    main(["demo", "-o", str(tmp_path / "d.png"), "--width", "16", "--height", "16"])
+    assert warnings.showwarning is before and not progress.is_enabled()

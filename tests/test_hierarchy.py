@@ -4,14 +4,17 @@ from __future__ import annotations
 
 import warnings
 import zipfile
+from dataclasses import fields
+from typing import get_args
 
 import numpy as np
 import pytest
 
 from surfsplat import Camera, InputError, SplatCloud, scenes
 from surfsplat.geometry import preprocess
-from surfsplat.hierarchy import (CONE_SHADING_MAX_ANGLE, FORMAT_VERSION, Hierarchy, build_hierarchy,
-                                 load_hierarchy, ranges_to_indices, select)
+from surfsplat.hierarchy import (CONE_SHADING_MAX_ANGLE, FORMAT_VERSION, SHADINGS, Hierarchy, LodShading,
+                                 Selection, build_hierarchy, load_hierarchy, ranges_to_indices, save_hierarchy,
+                                 select)
 from surfsplat.hierarchy.nodes import (COVARIANCE_ENTRIES, covariance_about, homogeneous_covariance,
                                        unpack_covariance)
 
@@ -326,7 +329,7 @@ def test_build_input_errors():
 
 
 def test_save_load_round_trip(torus_h, tmp_path):
-    path = torus_h.save(tmp_path / "torus.npz")
+    path = save_hierarchy(torus_h, tmp_path / "torus.npz")
     assert path.exists()
     h = load_hierarchy(path)
     for name, value in torus_h.arrays().items():
@@ -338,9 +341,9 @@ def test_save_load_round_trip(torus_h, tmp_path):
     assert h.describe() == torus_h.describe()
     # no overwrite without the flag; with it, replaced
     with pytest.raises(InputError, match="exists"):
-        torus_h.save(path)
+        save_hierarchy(torus_h, path)
     small = build_hierarchy(scenes.sphere(300))
-    small.save(path, overwrite=True)
+    save_hierarchy(small, path, overwrite=True)
     assert len(load_hierarchy(path).points) == 300
     assert [p.name for p in tmp_path.iterdir()] == ["torus.npz"]
 
@@ -351,7 +354,7 @@ def test_load_errors_name_the_file(torus_h, tmp_path):
         load_hierarchy(missing)
     with pytest.raises(InputError, match="directory"):
         load_hierarchy(tmp_path)
-    good = torus_h.save(tmp_path / "good.npz")
+    good = save_hierarchy(torus_h, tmp_path / "good.npz")
     raw = good.read_bytes()
     # truncated
     (tmp_path / "cut.npz").write_bytes(raw[: len(raw) // 2])
@@ -418,7 +421,7 @@ def far_camera(h, distance=3.0, size=256):
     return c
 
 
-def test_tau_zero_selects_every_point(torus_h):
+def test_lod_tolerance_zero_selects_every_point(torus_h):
     h = torus_h
     cam = far_camera(h, distance=5.0)
     sel = select(h, cam, 0.0, cull_frustum=False)
@@ -436,28 +439,28 @@ def test_selection_monotonic_and_within_tolerance(sphere_h):
     h = sphere_h
     cam = far_camera(h, distance=4.0, size=256)
     counts = []
-    for tau in (0.0, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 64.0):
-        sel = select(h, cam, tau)
+    for lod_tolerance in (0.0, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 64.0):
+        sel = select(h, cam, lod_tolerance)
         counts.append(len(sel))
         nodes = sel.node_indices()
         if len(nodes):
-            assert projected_size(h, cam, nodes).max() <= tau * (1 + 1e-4)
-        # parents of selected nodes and of refined leaves were refined: larger than tau
+            assert projected_size(h, cam, nodes).max() <= lod_tolerance * (1 + 1e-4)
+        # parents of selected nodes and of refined leaves were refined: larger than lod_tolerance
         refined = np.concatenate([nodes, np.concatenate(sel.leaves)])
         parent = np.searchsorted(h.node_child_start, refined, side="right") - 1
         parent = parent[refined > 0]
         assert np.all(h.node_child_start[parent] + h.node_child_count[parent] > refined[refined > 0])
-        assert np.all(projected_size(h, cam, parent) > tau * (1 - 1e-4))
+        assert np.all(projected_size(h, cam, parent) > lod_tolerance * (1 - 1e-4))
     assert counts == sorted(counts, reverse=True)
     assert counts[0] == len(h.points) and counts[-1] < counts[0] / 5
 
 
-@pytest.mark.parametrize("tau", [1.0, 3.0, 10.0])
-def test_selection_covers_every_point_exactly_once(sphere_h, tau):
+@pytest.mark.parametrize("lod_tolerance", [1.0, 3.0, 10.0])
+def test_selection_covers_every_point_exactly_once(sphere_h, lod_tolerance):
     """Each point is selected itself or through exactly one selected ancestor whose ellipse covers it."""
     h = sphere_h
     cam = far_camera(h, distance=4.0, size=256)
-    sel = select(h, cam, tau, cull_frustum=False)
+    sel = select(h, cam, lod_tolerance, cull_frustum=False)
     n = len(h.points)
     hits = np.bincount(selected_points(h, sel), minlength=n)
     assert np.all(hits == 1)
@@ -478,8 +481,8 @@ def test_bunny_selection_covers(bunny_h):
     lo, hi = h.bounds()
     center = 0.5 * (lo + hi)
     cam = Camera(eye=tuple(center + [0.0, 0.0, 0.5]), target=tuple(center), width=512, height=512)
-    for tau in (0.0, 2.0, 8.0):
-        sel = select(h, cam, tau, cull_frustum=False)
+    for lod_tolerance in (0.0, 2.0, 8.0):
+        sel = select(h, cam, lod_tolerance, cull_frustum=False)
         assert np.all(np.bincount(selected_points(h, sel), minlength=len(h.points)) == 1)
 
 
@@ -531,8 +534,8 @@ def test_backface_culling_sphere(sphere_h):
     assert chosen.sum() < 1.25 * front.sum()
     assert sel.culled_backface > 0
     # coarser cuts: culled nodes never hide a front-facing point
-    for tau in (2.0, 8.0):
-        sel = select(h, cam, tau, cull_backfaces=True)
+    for lod_tolerance in (2.0, 8.0):
+        sel = select(h, cam, lod_tolerance, cull_backfaces=True)
         covered = np.zeros(len(pts), dtype=bool)
         covered[selected_points(h, sel)] = True
         assert np.all(covered[front])
@@ -544,8 +547,8 @@ def test_shading_modes_and_gather(sphere_h):
     sel_fit = select(h, cam, 6.0)
     assert sel_fit.node_count > 0
     fit = h.splats(sel_fit)
-    cone = h.splats(select(h, cam, 6.0, shading="cone"))
-    flat = h.splats(select(h, cam, 6.0, shading="flat"))
+    cone = h.splats(select(h, cam, 6.0, lod_shading="cone"))
+    flat = h.splats(select(h, cam, 6.0, lod_shading="flat"))
     m = sel_fit.node_count
     spread = h.node_point_count[sel_fit.node_indices()] >= 3
     assert spread.mean() > 0.5
@@ -555,7 +558,7 @@ def test_shading_modes_and_gather(sphere_h):
     assert not fit.normal_field[m:].any()
     np.testing.assert_array_equal(fit.positions, flat.positions)
     with pytest.raises(InputError, match="shading"):
-        select(h, cam, 1.0, shading="gouraud")
+        select(h, cam, 1.0, lod_shading="gouraud")
     with pytest.raises(InputError, match="tolerance"):
         select(h, cam, -1.0)
     with pytest.raises(InputError, match="tolerance"):
@@ -575,15 +578,21 @@ def test_gather_keeps_clip_lines_and_normal_fields():
     np.testing.assert_array_equal(out.clip_lines[:m], np.tile([[0, 0, 1], [0, 0, 1]], (m, 1, 1)))
     np.testing.assert_array_equal(out.clip_lines[m:], h.points.clip_lines[sel.point_indices()])
     np.testing.assert_array_equal(out.normal_field[m:], 0.25)
-    flat = h.splats(select(h, cam, 3.0, shading="flat"))
+    flat = h.splats(select(h, cam, 3.0, lod_shading="flat"))
     assert not flat.normal_field[:m].any() and np.all(flat.normal_field[m:] == 0.25)
 
 
-def test_camera_without_clip_planes_and_method(torus_h):
+def test_camera_without_clip_planes(torus_h):
     cam = Camera(eye=(0, -3, 1), width=128, height=128)  # near/far None: from the bounds
-    sel = torus_h.select(cam, 2.0)
+    sel = select(torus_h, cam, lod_tolerance=2.0, lod_shading="cone")
     assert 0 < len(sel) <= len(torus_h.points)
     assert sel.summary()["splats"] == len(sel)
+    assert (sel.lod_tolerance, sel.lod_shading, sel.summary()["lod_tolerance"]) == (2.0, "cone", 2.0)
+
+
+def test_lod_shading_names():
+    assert SHADINGS == get_args(LodShading) == ("fit", "cone", "flat")
+    assert "lod_shading" in {f.name for f in fields(Selection)}
 
 
 def test_merged_point_ranges(torus_h):

@@ -11,7 +11,8 @@ from surfsplat import reference, scenes
 from surfsplat.camera import Camera, frame_bounds
 from surfsplat.cloud import SplatCloud
 from surfsplat.lighting import Lights
-from surfsplat.render.technique import RenderOptions, get_technique
+from surfsplat.render.options import FilterOptions, RenderOptions
+from surfsplat.render.techniques import get_technique
 
 UNLIT = Lights(enabled=False)
 CONIC, RAYCAST = reference.PERSPECTIVE_CONIC, reference.PERSPECTIVE_RAYCAST
@@ -69,12 +70,12 @@ def expected_weight(cam: Camera, cloud: SplatCloud, options: RenderOptions):
     every decision boundary (kernel cutoff, disk edge, near plane), and the footprint."""
     p, n, u, v = camera_space(cam, cloud)
     px = reference.pixel_centers(cam)
-    weight = reference.perspective_weight(cam, p, n, u, v, px, options.cutoff, options.prefilter)[0]
-    fp = reference.perspective_footprint(cam, p, n, u, v, options.cutoff, options.prefilter)
+    weight = reference.perspective_weight(cam, p, n, u, v, px, options.filter.cutoff, options.filter.prefilter)[0]
+    fp = reference.perspective_footprint(cam, p, n, u, v, options.filter.cutoff, options.filter.prefilter)
     if fp["mode"][0] == CONIC:
         e = px - fp["center"][0]
         beta = 0.5 * np.einsum("...i,ij,...j->...", e, np.linalg.inv(fp["variance"][0]), e)
-        decided = np.abs(beta - options.cutoff) > 1e-3
+        decided = np.abs(beta - options.filter.cutoff) > 1e-3
     else:
         rays = reference.pixel_rays(cam, px)[None]
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -208,7 +209,7 @@ def test_frontal_and_far_splats_match_ewa():
 # -- (3) GPU against the reference ---------------------------------------------------------------
 
 def test_technique_is_registered():
-    """get_technique finds the module (technique.py imports it)."""
+    """get_technique finds it in the technique table (techniques.py)."""
     technique = get_technique("perspective")
     assert technique.blended and technique.vertex == "perspective.vert"
 
@@ -221,7 +222,7 @@ def test_single_splat_weights_match_reference(renderer, tilt, prefilter):
     cloud = splats((0.1, -0.05, 0.0), (0.0, np.sin(a), np.cos(a)), (0.3, 0.0, 0.0),
                    (0.0, 0.15 * np.cos(a), -0.15 * np.sin(a)))
     cam = Camera(eye=(0.2, 0.1, 3.0), target=(0, 0, 0), width=96, height=80, fov=30, near=0.5, far=10.0)
-    options = RenderOptions(prefilter=prefilter)
+    options = RenderOptions(filter=FilterOptions(prefilter=prefilter))
     frame, fp = check_against_reference(renderer, cloud, cam, options)
     assert fp["mode"][0] == CONIC
     expected, decided, _ = expected_weight(cam, cloud, options)
@@ -242,7 +243,7 @@ def test_close_slanted_splat_differs_from_ewa_as_the_projection_does(renderer):
     a = np.radians(70.0)
     cloud = splats((0.05, 0.0, -0.5), (0.0, np.sin(a), np.cos(a)), (0.15, 0.0, 0.0),
                    (0.0, 0.15 * np.cos(a), -0.15 * np.sin(a)))
-    options = RenderOptions(prefilter=False)
+    options = RenderOptions(filter=FilterOptions(prefilter=False))
     frame, _ = check_against_reference(renderer, cloud, cam, options)
     disk = renderer.render(cloud, cam, "flat", UNLIT).mask
     ewa = renderer.render(cloud, cam, "ewa", UNLIT, options).mask

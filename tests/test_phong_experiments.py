@@ -44,7 +44,7 @@ from surfsplat.lighting import Lights
 from surfsplat.metrics import compare, dilate, erode, psnr
 from surfsplat.render.frame import Frame
 from surfsplat.render.mesh import render_mesh
-from surfsplat.render.technique import RenderOptions
+from surfsplat.render.options import RenderOptions, VisibilityOptions
 
 #: One light with a visible highlight, the same for splats, mesh and exact sphere.
 LIGHTS = Lights(directions=((0.5, 0.6, 1.0),), specular=0.5, shininess=40.0)
@@ -137,8 +137,8 @@ def render_mode(renderer, splats, camera: Camera, mode: str, lights: Lights = LI
                 cull_backfaces: bool = False) -> Frame:
     """Render ``splats`` (a SplatCloud or uploaded GpuSplats) in one of :data:`MODES`."""
     technique, deferred = MODES[mode]
-    return renderer.render(splats, camera, technique, lights,
-                           RenderOptions(deferred=deferred, cull_backfaces=cull_backfaces))
+    options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=cull_backfaces), deferred=deferred)
+    return renderer.render(splats, camera, technique, lights, options)
 
 
 def see_through(frame: Frame, truth: Frame, erode_px: int = ERODE_PX, tolerance: float = 0.02) -> int:

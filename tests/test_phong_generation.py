@@ -83,7 +83,7 @@ def claims(points: np.ndarray, splats: SplatCloud, eps: float, line_margin: floa
     (ellipse, +-eps) on the kept side of its clip lines (``a s + b t + c >= line_margin``).
     Returns (splat ids, sample ids, s, t, plane distance), brute force over a k-d tree."""
     c, u, v, n, r = splat_frames(splats)
-    hits = cKDTree(points).query_ball_point(c, r + eps)
+    hits = cKDTree(points).query_ball_point(c, r + eps, workers=-1)
     j = np.repeat(np.arange(len(c)), [len(h) for h in hits])
     i = np.concatenate([np.asarray(h, dtype=np.int64) for h in hits])
     d = points[i] - c[j]
@@ -405,8 +405,16 @@ def clipped_outside_cube(splats: SplatCloud, rotation=np.eye(3), grid=41):
     return leak, overcut, beyond.any(axis=1)
 
 
+@pytest.fixture(scope="module")
+def rotated_cube_samples() -> SplatCloud:
+    """20 k samples of the unit cube rotated by ROTATION, with sample_mesh's exact clip lines
+    (sharp_angle 30); shared by the mesh and raw cases below."""
+    box = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+    return sample_mesh(Mesh(box.vertices @ ROTATION.T, box.faces), 20_000, seed=1, sharp_angle=SHARP)
+
+
 @pytest.mark.parametrize("source", ["scene", "mesh", "raw"])
-def test_cube_edges_clip_the_splats(source):
+def test_cube_edges_clip_the_splats(source, request):
     """The cube with sharp_angle 30: from the procedural cube (exact clip lines on its samples),
     from mesh samples of a rotated cube (sample_mesh's exact lines), and from those positions
     alone (normals estimated, edges detected). Every splat that reaches over an edge is cut there:
@@ -415,9 +423,7 @@ def test_cube_edges_clip_the_splats(source):
     if source == "scene":
         cloud, rotation = scenes.cube(n_side=40, texture=False), np.eye(3)
     else:
-        box = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
-        cloud = sample_mesh(Mesh(box.vertices @ ROTATION.T, box.faces), 20_000, seed=1, sharp_angle=SHARP)
-        rotation = ROTATION
+        cloud, rotation = request.getfixturevalue("rotated_cube_samples"), ROTATION
         if source == "raw":
             cloud = SplatCloud(cloud.positions)
     eps = 1e-3
@@ -439,18 +445,26 @@ def test_cube_edges_clip_the_splats(source):
     assert_covers(cloud, result, eps)
 
 
-@pytest.mark.parametrize("with_lines", [True, False])
-def test_cad_part_edges(shared_data, with_lines):
-    """The CAD part (featuretype.ply: steps, holes, chamfers), 30 k samples with sharp_angle 30:
-    with the samples' exact lines from the mesh, or edges detected from the samples. Every sample
-    covered; no splat cuts away its own samples; splats do not grow across edges (their samples
-    share a face normal); samples of other faces claimed by a splat are far fewer than without
-    the lines."""
+@pytest.fixture(scope="module")
+def cad_part(shared_data) -> tuple[Mesh, SplatCloud]:
+    """The CAD part (featuretype.ply) and 15 k samples with clip lines at its sharp edges
+    (sharp_angle 30), shared by both cases of test_cad_part_edges."""
     path = shared_data / "featuretype.ply"
     if not path.exists():
         pytest.skip(f"{path} is absent")
     mesh = load_mesh(path)
-    cloud = sample_mesh(mesh, 30_000, seed=0, sharp_angle=SHARP)
+    return mesh, sample_mesh(mesh, 15_000, seed=0, sharp_angle=SHARP)
+
+
+@pytest.mark.parametrize("with_lines", [True, False])
+def test_cad_part_edges(cad_part, with_lines):
+    """The CAD part (featuretype.ply: steps, holes, chamfers), 15 k samples with sharp_angle 30:
+    with the samples' exact lines from the mesh, or edges detected from the samples. Every sample
+    covered; no splat cuts away its own samples; splats do not grow across edges (their samples
+    share a face normal); samples of other faces claimed by a splat are far fewer than without
+    the lines (measured, mesh lines / detected edges: 13 / 17 claimed with the lines, 489 / 335
+    without)."""
+    mesh, cloud = cad_part
     if not with_lines:
         cloud = SplatCloud(cloud.positions, cloud.normals)
     lo, hi = mesh.bounds()

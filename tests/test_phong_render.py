@@ -10,7 +10,7 @@ from surfsplat.camera import Camera
 from surfsplat.cloud import SplatCloud
 from surfsplat.errors import InputError
 from surfsplat.lighting import Lights
-from surfsplat.render.technique import RenderOptions
+from surfsplat.render.options import KernelOptions, RenderOptions, VisibilityOptions
 
 LIGHTS = Lights(directions=((0.4, 0.6, 1.0), (-0.5, 0.2, 0.6)), shininess=16.0, specular=0.4)
 CAMERA = Camera(eye=(0.3, 0.25, 2.4), target=(0, 0, 0), width=96, height=88, fov=35, near=0.5, far=10.0)
@@ -71,7 +71,7 @@ def test_phong_splat_matches_reference(renderer, deferred):
                                                     ("pajarola", 1.0, 1.5, 2.0, 0.5), ("gaussian", 6.0, 1.5, 3.0, 0.4)])
 def test_blend_kernel_weights_match_reference(renderer, kernel, a, b, n, sigma):
     cloud = tilted_phong_splat(field=(0.0, 0.0))
-    options = RenderOptions(kernel=kernel, kernel_a=a, kernel_b=b, kernel_n=n, kernel_sigma=sigma)
+    options = RenderOptions(kernel=KernelOptions(name=kernel, a=a, b=b, n=n, sigma=sigma))
     frame = renderer.render(cloud, CAMERA, "blend", Lights(enabled=False), options)
     _, _, st, *_ = reference_hits(cloud, CAMERA)
     r = b * np.sqrt(np.sum(st[0] ** 2, axis=-1))
@@ -89,17 +89,17 @@ def test_blend_kernel_weights_match_reference(renderer, kernel, a, b, n, sigma):
 
 def test_bad_kernel_options_are_rejected():
     with pytest.raises(InputError, match="kernel"):
-        RenderOptions(kernel="box")
+        KernelOptions(name="box")
     with pytest.raises(InputError, match="kernel a"):
-        RenderOptions(kernel_a=-1.0)
+        KernelOptions(a=-1.0)
     with pytest.raises(InputError, match="kernel sigma"):
-        RenderOptions(kernel_sigma=0.0)
+        KernelOptions(sigma=0.0)
     # so narrow that the rim weight underflows: holes, so refused (Pajarola's widest example is a = 50)
     with pytest.raises(InputError, match="too narrow"):
-        RenderOptions(kernel_a=1000.0)
+        KernelOptions(a=1000.0)
     with pytest.raises(InputError, match="too narrow"):
-        RenderOptions(kernel="gaussian", kernel_sigma=0.1)
-    RenderOptions(kernel_a=50.0)
+        KernelOptions(name="gaussian", sigma=0.1)
+    KernelOptions(a=50.0)
 
 
 @pytest.mark.parametrize("technique", ["phong", "blend", "flat"])
@@ -134,7 +134,7 @@ def test_backface_culling_is_conservative_for_normal_fields(renderer):
     base = dict(positions=[(0.0, 0.0, 0.0)], normals=[(0.0, 0.0, -1.0)], colors=[(1.0, 1.0, 1.0)],
                 u=[(0.4, 0.0, 0.0)], v=[(0.0, 0.4, 0.0)])
     cam = Camera(eye=(1.6, 0.0, 2.0), target=(0, 0, 0), width=64, height=64, near=0.5, far=10.0)
-    options = RenderOptions(cull_backfaces=True)
+    options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=True))
     for technique in ("phong", "ewa", "flat"):
         assert renderer.render(SplatCloud(**base), cam, technique, options=options).mask.sum() == 0
         assert renderer.render(SplatCloud(**base), cam, technique).mask.sum() > 100

@@ -425,16 +425,21 @@ def test_preprocess_drops_invalid_points_with_warning():
 # -- coverage ----------------------------------------------------------------------
 
 
-def covered(cloud, queries, candidates=48):
-    """Bool per query point: inside at least one splat ellipse (projected to its plane)."""
+def covered(cloud, queries, candidates=48, chunk=8192):
+    """Bool per query point: inside at least one of its ``candidates`` nearest splat ellipses
+    (projected to the splat's plane). In chunks of queries: the (chunk, candidates, 3) gathers
+    stay small (~2.5x faster than all at once, same result)."""
     tree = cKDTree(cloud.positions)
-    _, near = tree.query(queries, k=candidates)
-    c = cloud.positions[near]
-    u, v, n = cloud.u[near], cloud.v[near], cloud.normals[near]
-    q = queries[:, None, :]
-    q = q - np.einsum("qkj,qkj->qk", q - c, n)[..., None] * n  # onto each splat's plane
-    s, t = splat_coords(q, c, u, v)
-    return (s * s + t * t <= 1.0).any(axis=1)
+    out = np.empty(len(queries), dtype=bool)
+    for start in range(0, len(queries), chunk):
+        _, near = tree.query(queries[start:start + chunk], k=candidates, workers=-1)
+        c = cloud.positions[near]
+        u, v, n = cloud.u[near], cloud.v[near], cloud.normals[near]
+        q = queries[start:start + chunk, None, :]
+        q = q - np.einsum("qkj,qkj->qk", q - c, n)[..., None] * n  # onto each splat's plane
+        s, t = splat_coords(q, c, u, v)
+        out[start:start + chunk] = (s * s + t * t <= 1.0).any(axis=1)
+    return out
 
 
 def plane_grid(lo, hi, m=400):

@@ -11,9 +11,10 @@ from surfsplat.camera import Camera, frame_bounds
 from surfsplat.cloud import SplatCloud
 from surfsplat.errors import InputError
 from surfsplat.lighting import Lights
-from surfsplat.render.technique import RenderOptions
+from surfsplat.render.options import FilterOptions, RenderOptions, VisibilityOptions
 
 UNLIT = Lights(enabled=False)
+CULL_BACKFACES = RenderOptions(visibility=VisibilityOptions(cull_backfaces=True))
 
 
 def single_splat(normal, u, v, color=(1.0, 1.0, 1.0), position=(0.0, 0.0, 0.0)) -> SplatCloud:
@@ -68,20 +69,20 @@ def test_single_ewa_splat_weights_match_reference(renderer, tilt, prefilter):
     v = (0.0, 0.15 * np.cos(a), -0.15 * np.sin(a))
     cloud = single_splat(normal, u, v, position=(0.1, -0.05, 0.0))
     cam = Camera(eye=(0.2, 0.1, 3.0), target=(0, 0, 0), width=96, height=80, fov=30, near=0.5, far=10.0)
-    options = RenderOptions(prefilter=prefilter)
+    options = RenderOptions(filter=FilterOptions(prefilter=prefilter))
     frame = renderer.render(cloud, cam, "ewa", UNLIT, options)
 
     p = reference.to_camera(cam, cloud.positions)
     uc, vc = reference.to_camera_dir(cam, cloud.u), reference.to_camera_dir(cam, cloud.v)
     jac = reference.ewa_jacobian(cam, p, uc, vc)
-    var = reference.ewa_variance(jac, options.cutoff, prefilter)
+    var = reference.ewa_variance(jac, options.filter.cutoff, prefilter)
     offsets = reference.pixel_centers(cam)[None] - reference.project(cam, p)[:, None, None, :]
-    expected = reference.ewa_weight(var, jac, offsets, options.cutoff)[0]
+    expected = reference.ewa_weight(var, jac, offsets, options.filter.cutoff)[0]
     assert expected.max() > 0.1
     # Pixels exactly on the cutoff contour may fall either way in float32.
     inv = np.linalg.inv(var)[0]
     beta = 0.5 * np.einsum("...i,ij,...j->...", offsets[0], inv, offsets[0])
-    decided = np.abs(beta - options.cutoff) > 1e-3
+    decided = np.abs(beta - options.filter.cutoff) > 1e-3
     np.testing.assert_allclose(frame.weight[decided], expected[decided], rtol=2e-4, atol=1e-6)
     # the bounding quad is tight enough to keep every pixel the kernel reaches
     assert ((expected > 0) & decided & (frame.weight == 0)).sum() == 0
@@ -234,7 +235,7 @@ def test_render_errors_are_clear(renderer):
     with pytest.raises(InputError, match="up vector"):
         Camera(eye=(0, 0, 1), target=(0, 0, 0), up=(0, 0, 2))
     with pytest.raises(InputError, match="cutoff"):
-        RenderOptions(cutoff=0)
+        FilterOptions(cutoff=0)
     with pytest.raises(InputError, match="light"):
         Lights(directions=((0, 0, 0),))
 
@@ -318,7 +319,7 @@ def test_clipped_cube_has_sharp_edges_and_corners(renderer, technique):
     cloud = scenes.cube(60, texture=False)
     cam = Camera(eye=(1.3, 1.1, 1.7), target=(0, 0, 0), width=512, height=512, fov=45)
     # a closed cube: back faces culled, else they blend into the silhouette edges within epsilon
-    options = RenderOptions(cull_backfaces=True)
+    options = CULL_BACKFACES
     face = exact_cube(cam)
     inside = face >= 0
     uniform = (ndimage.maximum_filter(face, 3) == ndimage.minimum_filter(face, 3)) & inside
@@ -340,14 +341,14 @@ def test_backface_culling_drops_exactly_the_far_side(renderer):
     cloud = scenes.sphere(50_000)
     outside = Camera(eye=(0, 0, 3.0), target=(0, 0, 0), width=128, height=128)
     both = renderer.render(cloud, outside, "ewa", UNLIT)
-    culled = renderer.render(cloud, outside, "ewa", UNLIT, RenderOptions(cull_backfaces=True))
+    culled = renderer.render(cloud, outside, "ewa", UNLIT, CULL_BACKFACES)
     # back splats only reach past the front ones at a few silhouette pixels
     assert (both.mask != culled.mask).sum() <= 8
     interior = ndimage.binary_erosion(culled.mask, iterations=3)
     np.testing.assert_allclose(culled.depth[interior], both.depth[interior], rtol=1e-5)
     inside = Camera(eye=(0, 0, 0.2), target=(0, 0, -1), width=64, height=64, fov=60)
     assert renderer.render(cloud, inside, "flat", UNLIT).mask.all()
-    assert not renderer.render(cloud, inside, "flat", UNLIT, RenderOptions(cull_backfaces=True)).mask.any()
+    assert not renderer.render(cloud, inside, "flat", UNLIT, CULL_BACKFACES).mask.any()
 
 
 def exact_sphere_cube(cam: Camera, half: float = 0.5, radius: float = 0.65):
@@ -385,7 +386,7 @@ def test_csg_solid_curved_and_flat_faces_meet_at_sharp_edges(renderer, technique
     uniform = (ndimage.maximum_filter(part, 3) == ndimage.minimum_filter(part, 3)) & inside
     colors = np.array([[0.9, 0.55, 0.2], [0.35, 0.55, 0.85]], dtype=np.float32)
     for model, clipped in ((cloud, True), (cloud.replace(clip_lines=None), False)):
-        frame = renderer.render(model, cam, technique, UNLIT, RenderOptions(cull_backfaces=True))
+        frame = renderer.render(model, cam, technique, UNLIT, CULL_BACKFACES)
         wrong = (np.abs(frame.color[uniform] - colors[part[uniform]]) > 2e-3).any(axis=1).sum()
         if not clipped:
             assert wrong > 1000, "the unclipped control should bleed across the edges"

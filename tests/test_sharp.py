@@ -23,9 +23,10 @@ from surfsplat.cloud import NO_CLIP, SplatCloud
 from surfsplat.errors import InputError
 from surfsplat.geometry.preprocess import preprocess
 from surfsplat.geometry.sampling import sample_mesh
+from surfsplat.geometry.sharp import mesh_features
 from surfsplat.io import Mesh, load, load_mesh
 from surfsplat.lighting import Lights
-from surfsplat.render.technique import RenderOptions
+from surfsplat.render.options import RenderOptions, VisibilityOptions
 
 #: A generic orientation for the cube, so that nothing is exact by axis alignment.
 ROTATION = Rotation.from_euler("xyz", [23.0, -41.0, 67.0], degrees=True).as_matrix()
@@ -102,11 +103,17 @@ def check_cube_lines(cloud: SplatCloud) -> dict:
     return {"lines": int(used.any(axis=1).sum()), "two": int(used.all(axis=1).sum()), "worst": worst}
 
 
-def test_mesh_cube_lines_are_the_exact_edges():
+@pytest.fixture(scope="module")
+def mesh_cube() -> SplatCloud:
+    """20 k samples of the rotated cube with sharp_angle 30 (splats and clip lines), shared by the
+    line and the rendering tests."""
+    return sample_mesh(rotated_box(), 20_000, seed=1, sharp_angle=30)
+
+
+def test_mesh_cube_lines_are_the_exact_edges(mesh_cube):
     """Issue: samples of a cube with --sharp-angle 30: a line exactly where a splat crosses an edge,
     two at corners, none elsewhere; the lines pass through the true edges (to float precision)."""
-    mesh = rotated_box()
-    cloud = sample_mesh(mesh, 20_000, seed=1, sharp_angle=30)
+    cloud = mesh_cube
     assert cloud.has_splats and cloud.clip_lines is not None and len(cloud) == 20_000
     # circles (default) in the face planes: radius 1.25 h_8, orthogonal to the face normal
     r = cloud.radii
@@ -178,7 +185,7 @@ def check_cube_rendering(renderer, cloud: SplatCloud, name: str) -> None:
     truth = exact_cube(plain)                       # the rotated cube seen from the rotated eye
     inside = truth >= 0
     uniform = (ndimage.maximum_filter(truth, 3) == ndimage.minimum_filter(truth, 3)) & inside
-    options = RenderOptions(cull_backfaces=True)
+    options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=True))
     for technique in ("flat", "ewa", "perspective"):
         for clipped in (True, False):
             frame = renderer.render(model if clipped else model.replace(clip_lines=None), turned, technique,
@@ -196,10 +203,9 @@ def check_cube_rendering(renderer, cloud: SplatCloud, name: str) -> None:
                 assert leaks > 300 and wrong > 1000, ("control", technique, leaks, wrong)
 
 
-def test_mesh_cube_renders_sharp(renderer):
+def test_mesh_cube_renders_sharp(renderer, mesh_cube):
     """Issue: the sampled cube (random samples, 20 k) rendered with its clip lines is the exact cube."""
-    cloud = sample_mesh(rotated_box(), 20_000, seed=1, sharp_angle=30)
-    check_cube_rendering(renderer, cloud, "mesh")
+    check_cube_rendering(renderer, mesh_cube, "mesh")
 
 
 def test_raw_cube_points_get_lines_and_exact_normals(renderer):
@@ -270,8 +276,6 @@ def test_cad_part_with_sharp_edges(renderer, shared_data):
     mesh = load_mesh(path)
     cloud = sample_mesh(mesh, 200_000, seed=0, sharp_angle=30)
     used = used_lines(cloud)
-    from surfsplat.geometry.sharp import mesh_features
-
     features = mesh_features(mesh, 30)
     assert len(features.edges) > 1500                  # the file's crease edges, found across the split vertices
     length = np.linalg.norm(np.diff(features.vertices[features.edges], axis=1)[:, 0], axis=1).sum()
@@ -286,7 +290,8 @@ def test_cad_part_with_sharp_edges(renderer, shared_data):
             leaks = {}
             for clipped in (True, False):
                 model = cloud if clipped else cloud.replace(clip_lines=None)
-                frame = renderer.render(model, cam, technique, Lights(), RenderOptions(cull_backfaces=True))
+                options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=True))
+                frame = renderer.render(model, cam, technique, Lights(), options)
                 assert np.isfinite(frame.color).all() and np.isfinite(frame.depth[frame.mask]).all()
                 if clipped:
                     frame.save(f"/tmp/surfsplat_sharp_featuretype_{view}_{technique}.png")
@@ -369,5 +374,5 @@ def test_cli_sharp_angle(tmp_path, capsys):
         for command in (("sample", mesh_path, "-n", 10), ("preprocess", raw)):
             out = tmp_path / "never.ply"
             status, _, err = run(capsys, *command, "-o", out, "--sharp-angle", bad)
-            assert status == 2 and "--sharp-angle" in err and "between 0 and 180" in err, (bad, err)
+            assert status == 2 and "--sharp-angle" in err and "--sharp-angle: must be a number > 0 and < 180" in err, (bad, err)
             assert "Traceback" not in err and not out.exists()

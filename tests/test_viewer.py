@@ -25,7 +25,8 @@ import surfsplat
 from surfsplat import Camera, auto_camera
 from surfsplat.errors import InputError, RenderError
 from surfsplat.viewer import camera_control as cc
-from surfsplat.viewer.app import preview_cloud, save_image, unique_screenshot_path
+from surfsplat.viewer.app import preview_cloud
+from surfsplat.viewer.screenshots import save_image, unique_screenshot_path
 
 # -- camera control (no window) -----------------------------------------------------------------
 
@@ -149,14 +150,14 @@ def test_hud_text_panel_is_premultiplied_rgba():
 
 
 def test_view_command_options():
-    from surfsplat.cli import _add_view_options
-    from surfsplat.viewer.cli import add_view_command
+    from surfsplat.cli.view import add_view_command
 
     parser = argparse.ArgumentParser()
-    add_view_command(parser.add_subparsers(dest="command"), _add_view_options)
+    add_view_command(parser.add_subparsers(dest="command"))
     args = parser.parse_args(["view", "demo:torus", "--frames", "3", "--orbit", "5", "--screenshot", "x.png"])
     assert args.size == [1280, 720] or tuple(args.size) == (1280, 720)
     assert args.width is None and args.frames == 3 and args.orbit == 5.0 and args.technique == "ewa"
+    assert args.motion_budget == surfsplat.MotionOptions().budget  # the default written once
     with pytest.raises(InputError, match="orbit"):
         surfsplat.viewer.view("demo:torus", orbit=5.0)  # --orbit without --frames: refused before any window
     with pytest.raises(InputError, match="demo scene"):
@@ -217,7 +218,7 @@ def run_python(code: str, display: str | None, timeout: float = 120, cwd=None) -
 
 
 def run_view(args: list, display: str | None, timeout: float = 120) -> subprocess.CompletedProcess:
-    code = f"import sys; from surfsplat.viewer.cli import main; sys.exit(main({[str(a) for a in args]!r}))"
+    code = f"import sys; from surfsplat.cli import main; sys.exit(main({[str(a) for a in args]!r}))"
     return run_python(code, display, timeout)
 
 
@@ -240,13 +241,12 @@ def test_scripted_screenshot_matches_render(xvfb_display, tmp_path):
 def test_every_technique_runs_in_the_window(xvfb_display, tmp_path):
     result = run_python(f"""
         import json
-        from surfsplat.render.technique import TECHNIQUES, get_technique
-        from surfsplat.viewer import view
-        get_technique("ewa")
+        from surfsplat.render.techniques import TECHNIQUES
+        from surfsplat.viewer import MotionOptions, view
         stats = {{}}
         for name in sorted(TECHNIQUES):
             s = view("demo:torus", technique=name, size=(256, 192), frames=3, orbit=10.0,
-                     motion="flat", motion_budget=20_000, screenshot=r"{tmp_path}/" + name + ".png")
+                     motion=MotionOptions("flat", budget=20_000), screenshot=r"{tmp_path}/" + name + ".png")
             stats[name] = [s.frames, s.preview_frames, s.full_frames, s.preview_splats]
         print(json.dumps(stats))
         """, xvfb_display)
@@ -267,12 +267,13 @@ def test_window_shows_the_image_and_the_hud(xvfb_display):
     result = run_python("""
         import numpy as np
         from surfsplat.lighting import Lights
-        from surfsplat.render.technique import RenderOptions
+        from surfsplat.api import load_model
+        from surfsplat.render.options import RenderOptions
         from surfsplat.viewer import app
         glfw, window, ctx = app.open_window(320, 240, "test")
-        viewer = app.Viewer(glfw, window, ctx, app.load_source("demo:torus"), None, technique="flat",
-                            lights=Lights(), options=RenderOptions(), background=(1, 1, 1), up=(0, 1, 0),
-                            fov=40.0, tolerance=1.0, motion="flat", motion_budget=0, motion_scale=1.0, hud=True)
+        viewer = app.Viewer(glfw, window, ctx, load_model("demo:torus"), None, technique="flat",
+                            lights=Lights(), options=RenderOptions(), background=(1, 1, 1), lod_tolerance=1.0,
+                            motion=app.MotionOptions("flat", budget=0, scale=1.0), hud=True)
         image = viewer.full_image()
         viewer.present(1.0)
         screen = viewer.screen_image()
@@ -297,12 +298,13 @@ def test_input_drives_the_view(xvfb_display, tmp_path):
     result = run_python("""
         import time
         from surfsplat.lighting import Lights
-        from surfsplat.render.technique import RenderOptions
+        from surfsplat.api import load_model
+        from surfsplat.render.options import RenderOptions
         from surfsplat.viewer import app
         glfw, window, ctx = app.open_window(320, 240, "test")
-        v = app.Viewer(glfw, window, ctx, app.load_source("demo:torus"), None, technique="ewa",
-                       lights=Lights(), options=RenderOptions(), background=(1, 1, 1), up=(0, 1, 0),
-                       fov=40.0, tolerance=1.0, motion="flat", motion_budget=20000, motion_scale=0.5, hud=True)
+        v = app.Viewer(glfw, window, ctx, load_model("demo:torus"), None, technique="ewa",
+                       lights=Lights(), options=RenderOptions(), background=(1, 1, 1), lod_tolerance=1.0,
+                       motion=app.MotionOptions("flat", budget=20000, scale=0.5), hud=True)
         G = glfw
         v.step(wait=False)
         assert (v.full_frames, v.preview_frames) == (1, 0)
@@ -333,8 +335,8 @@ def test_input_drives_the_view(xvfb_display, tmp_path):
         v._on_key(window, G.KEY_R, 0, G.PRESS, 0)
         v.step(wait=False)
         assert v.technique == v.techniques[(v.techniques.index("ewa") + 1) % len(v.techniques)]
-        assert not v.options.prefilter and not v.lights.enabled and v.options.cull_backfaces
-        assert v.hud.show_help and abs(v.tolerance - 2 ** 0.5) < 1e-9
+        assert not v.options.filter.prefilter and not v.lights.enabled and v.options.visibility.cull_backfaces
+        assert v.hud.show_help and abs(v.lod_tolerance - 2 ** 0.5) < 1e-9
         assert v.controller.camera == v.controller.home(*v.size)
         v._on_key(window, G.KEY_2, 0, G.PRESS, 0)
         v.step(wait=False)

@@ -33,7 +33,7 @@ from surfsplat import reference, scenes
 from surfsplat.camera import Camera
 from surfsplat.cloud import SplatCloud
 from surfsplat.lighting import Lights
-from surfsplat.render.technique import RenderOptions
+from surfsplat.render.options import FilterOptions, RenderOptions
 
 UNLIT = Lights(enabled=False)
 
@@ -172,7 +172,8 @@ def grazing_measure(renderer, splats, technique: str, prefilter: bool, truth: di
                     camera: Camera = GRAZING_CAMERA, background=(0.12, 0.12, 0.14)) -> dict:
     """Render the grazing plane and count ``holes`` (uncovered pixels of ``inner``) and
     ``leaks`` (covered pixels outside ``allowed``); ``frame`` is the rendering."""
-    frame = renderer.render(splats, camera, technique, UNLIT, RenderOptions(prefilter=prefilter), background)
+    options = RenderOptions(filter=FilterOptions(prefilter=prefilter))
+    frame = renderer.render(splats, camera, technique, UNLIT, options, background)
     holes = truth["inner"] & ~frame.mask
     return {"frame": frame, "hole_mask": holes, "holes": int(holes.sum()),
             "leaks": int((frame.mask & ~truth["allowed"]).sum())}
@@ -362,7 +363,8 @@ def test_prefilter_removes_the_checkerboard_moire(renderer, checker_gpu, checker
     truth, full = checker_reference
     errors = {}
     for prefilter in (True, False):
-        frame = renderer.render(checker_gpu, CHECKER_CAMERA, technique, UNLIT, RenderOptions(prefilter=prefilter))
+        options = RenderOptions(filter=FilterOptions(prefilter=prefilter))
+        frame = renderer.render(checker_gpu, CHECKER_CAMERA, technique, UNLIT, options)
         assert frame.mask[full].all()
         errors[prefilter] = image_errors(frame.color, truth, full)
     factor = errors[False]["rmse"] / errors[True]["rmse"]

@@ -1,35 +1,133 @@
-"""The high-level Python API: load, preprocess, frame and render in one call each."""
+"""The one orchestrator: load -> (preprocess) -> LOD cut -> camera -> draw -> Frame.
+
+Every way of turning a request into a picture goes through this module: the Python API
+(:func:`render`), the command line (``surfsplat.cli`` parses flags into the typed options
+below and calls these functions) and the viewer (``surfsplat.viewer`` uses the same loading,
+framing and LOD selection per frame). Nothing below this module (io, geometry, hierarchy,
+render) knows about the command line or the window; see ``docs/architecture.md``.
+"""
 
 from __future__ import annotations
 
-import dataclasses
+import time
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Union
 
 import numpy as np
 
+from . import progress
 from .camera import Camera, frame_bounds
 from .cloud import SplatCloud
 from .errors import InputError
+from .geometry.preprocess import preprocess
+from .hierarchy import Hierarchy, LodShading, Selection, build_hierarchy, load_hierarchy, select
+from .io import Mesh, load, load_mesh
 from .lighting import Lights
 from .render.frame import Frame
-from .render.technique import RenderOptions
+from .render.mesh import render_mesh as rasterize_mesh
+from .render.options import RenderOptions, TechniqueName
+from .render.renderer import default_renderer
+from .scenes import SCENES, demo_scene
 
-_renderer = None
+#: What can be rendered: splats as they are, or a point-octree cut per view.
+Model = Union[SplatCloud, Hierarchy]
 
-
-def default_renderer():
-    """The process-wide headless :class:`~surfsplat.render.renderer.Renderer` (created on first use)."""
-    global _renderer
-    if _renderer is None:
-        from .render.renderer import Renderer
-
-        _renderer = Renderer()
-    return _renderer
-
-
+#: Image size (pixels) of :func:`render` when no camera is given.
+DEFAULT_WIDTH = DEFAULT_HEIGHT = 512
+#: Background color (RGB in [0, 1]).
+DEFAULT_BACKGROUND = (1.0, 1.0, 1.0)
+#: Neighbours used to preprocess raw points.
+DEFAULT_K = 8
+#: LOD screen tolerance (pixels) used when a hierarchy is rendered without one.
+DEFAULT_LOD_TOLERANCE = 1.0
+#: Normal field of coarse LOD splats (see :func:`surfsplat.hierarchy.select`).
+DEFAULT_LOD_SHADING: LodShading = "fit"
 #: Default viewing direction (toward the eye) for a y-up world: front, a little right and above.
 DEFAULT_DIRECTION = (0.4, 0.35, 1.0)
+#: Suffix of hierarchy files (``surfsplat build``).
+HIERARCHY_SUFFIX = ".npz"
+#: Prefix naming a built-in scene as a source: ``"demo:torus"``.
+DEMO_PREFIX = "demo:"
 
+
+# -- loading -------------------------------------------------------------------
+
+def is_hierarchy_file(source) -> bool:
+    """True for a path naming a hierarchy file (``.npz``, written by ``surfsplat build``)."""
+    return isinstance(source, (str, Path)) and Path(source).suffix.lower() == HIERARCHY_SUFFIX
+
+
+def is_demo_source(source) -> bool:
+    """True for ``"demo:NAME"``, a built-in procedural scene."""
+    return isinstance(source, str) and source.startswith(DEMO_PREFIX)
+
+
+def check_source(source) -> None:
+    """Cheap checks before any heavy work: a known demo scene, an existing file (InputError else)."""
+    if is_demo_source(source):
+        name = source[len(DEMO_PREFIX):]
+        if name not in SCENES:
+            raise InputError(f"unknown demo scene {name!r}; choose one of "
+                             f"{', '.join(DEMO_PREFIX + n for n in sorted(SCENES))}")
+    elif isinstance(source, (str, Path)) and not Path(source).is_file():
+        raise InputError(f"{source}: no such file (or {DEMO_PREFIX}NAME for a built-in scene)")
+
+
+def load_cloud(path: str | Path, noun: str = "points") -> SplatCloud:
+    """:func:`surfsplat.io.load` with progress: the stage, then the count of ``noun``."""
+    with progress.stage(f"loading {path}"):
+        cloud = load(path)
+    progress.message(f"{len(cloud):,} {noun}")
+    return cloud
+
+
+def as_splats(source: SplatCloud | str | Path, *, k: int = DEFAULT_K) -> SplatCloud:
+    """A render-ready SplatCloud from a cloud or a file, preprocessed (k neighbours) if needed."""
+    if isinstance(source, (str, Path)):
+        source = load_cloud(source)
+    if not isinstance(source, SplatCloud):
+        raise InputError(f"expected a SplatCloud or a file path, got {type(source).__name__}")
+    if not source.has_splats:
+        source = preprocess(source, k=k)
+    return source
+
+
+def load_model(source, *, k: int = DEFAULT_K) -> Model:
+    """The model a source names, ready to draw.
+
+    A :class:`~surfsplat.hierarchy.Hierarchy` for a hierarchy (object or ``.npz`` file from
+    ``surfsplat build``); for ``"demo:NAME"`` the built-in scene; else a render-ready
+    SplatCloud from a SplatCloud or a point/splat/mesh file (see :func:`as_splats`).
+    """
+    if isinstance(source, Hierarchy):
+        return source
+    if is_demo_source(source):
+        check_source(source)
+        with progress.stage(f"building scene {source[len(DEMO_PREFIX):]}"):
+            return demo_scene(source[len(DEMO_PREFIX):])
+    if is_hierarchy_file(source):
+        with progress.stage(f"loading the hierarchy {source}"):
+            hierarchy = load_hierarchy(source)
+        progress.message(f"{len(hierarchy.points):,} points, {len(hierarchy):,} nodes in {hierarchy.levels} levels")
+        return hierarchy
+    return as_splats(source, k=k)
+
+
+def as_hierarchy(model: Model) -> Hierarchy:
+    """A Hierarchy as it is, or the point-octree built over a render-ready SplatCloud."""
+    if isinstance(model, Hierarchy):
+        return model
+    with progress.stage(f"building the point-octree of {len(model):,} splats"):
+        return build_hierarchy(model)
+
+
+def model_points(model: Model) -> SplatCloud:
+    """The original splats of a model: a SplatCloud itself, a Hierarchy's points (for framing)."""
+    return model.points if isinstance(model, Hierarchy) else model
+
+
+# -- the camera ------------------------------------------------------------------
 
 def _rotate_y_to(up) -> np.ndarray:
     """3x3 rotation taking +y to the unit vector ``up`` (Rodrigues; 180 degrees about x for -y)."""
@@ -45,7 +143,7 @@ def _rotate_y_to(up) -> np.ndarray:
     return np.eye(3) + s * kx + (1 - c) * kx @ kx
 
 
-def auto_camera(cloud: SplatCloud, width: int = 512, height: int = 512, fov: float = 40.0,
+def auto_camera(cloud: SplatCloud, width: int = DEFAULT_WIDTH, height: int = DEFAULT_HEIGHT, fov: float = 40.0,
                 direction=None, up=(0.0, 1.0, 0.0)) -> Camera:
     """A camera framing the whole cloud from ``direction`` (world, toward the eye).
 
@@ -66,154 +164,183 @@ def auto_camera(cloud: SplatCloud, width: int = 512, height: int = 512, fov: flo
                         radius=radius + margin, margin=margin)
 
 
-def as_splats(source: SplatCloud | str | Path, *, k: int = 8) -> SplatCloud:
-    """A render-ready SplatCloud from a cloud or a file, preprocessed (k neighbours) if needed."""
-    if isinstance(source, (str, Path)):
-        from .io import load
+@dataclass(frozen=True)
+class CameraSpec:
+    """A camera described before the model is known; :meth:`camera_for` resolves it.
 
-        source = load(source)
-    if not isinstance(source, SplatCloud):
-        raise InputError(f"expected a SplatCloud or a file path, got {type(source).__name__}")
-    if not source.has_splats:
-        from .geometry.preprocess import preprocess
+    Attributes:
+        eye: camera position (world units), or None to frame the model automatically
+            (:func:`auto_camera`).
+        target: point looked at (world units); None: the model's bounding-box center.
+            Needs ``eye``.
+        up: world up vector (also the axis the viewer orbits about).
+        fov: vertical field of view, degrees, in (0, 180).
+    """
 
-        source = preprocess(source, k=k)
-    return source
+    eye: tuple[float, float, float] | None = None
+    target: tuple[float, float, float] | None = None
+    up: tuple[float, float, float] = (0.0, 1.0, 0.0)
+    fov: float = 40.0
 
+    def __post_init__(self) -> None:
+        if self.target is not None and self.eye is None:
+            raise InputError("--target needs --eye (without camera flags the model is framed automatically)")
+        if not (0.0 < float(self.fov) < 180.0):
+            raise InputError(f"--fov must be in (0, 180) degrees, got {self.fov:g}")
 
-def render_options(**options) -> RenderOptions:
-    """RenderOptions from keyword arguments, with a clear error for an unknown name."""
-    known = {f.name for f in dataclasses.fields(RenderOptions)}
-    unknown = sorted(set(options) - known)
-    if unknown:
-        raise InputError(f"unknown render option {', '.join(unknown)}; known: {', '.join(sorted(known))}")
-    return RenderOptions(**options)
-
-
-#: LOD screen tolerance tau (pixels) used when a hierarchy is rendered without one.
-DEFAULT_LOD_TOLERANCE = 1.0
-
-#: Suffix of hierarchy files (``surfsplat build``).
-HIERARCHY_SUFFIX = ".npz"
-
-
-def is_hierarchy_file(source) -> bool:
-    """True for a path naming a hierarchy file (``.npz``, written by ``surfsplat build``)."""
-    return isinstance(source, (str, Path)) and Path(source).suffix.lower() == HIERARCHY_SUFFIX
-
-
-def load_model(source, *, k: int = 8):
-    """A Hierarchy for a hierarchy file (``.npz``, ``surfsplat build``) or a Hierarchy;
-    else a render-ready SplatCloud (see :func:`as_splats`)."""
-    from .hierarchy import Hierarchy, load_hierarchy
-
-    if isinstance(source, Hierarchy):
-        return source
-    if is_hierarchy_file(source):
-        return load_hierarchy(source)
-    return as_splats(source, k=k)
+    def camera_for(self, cloud: SplatCloud, width: int, height: int) -> Camera:
+        """The camera for a model whose splats (or points) are ``cloud``, at ``width`` x ``height`` pixels;
+        near/far enclose the model."""
+        if self.eye is None:
+            return auto_camera(cloud, width, height, self.fov, up=tuple(self.up))
+        lo, hi = cloud.bounds()
+        target = self.target if self.target is not None else 0.5 * (lo + hi)
+        camera = Camera(eye=tuple(self.eye), target=tuple(target), up=tuple(self.up), fov=self.fov,
+                        width=width, height=height)
+        return camera.with_clip_from_bounds(lo, hi, margin=float(cloud.radii.max()) if cloud.u is not None else 0.0)
 
 
-def as_hierarchy(model):
-    """A Hierarchy as it is, or the point-octree built over a render-ready SplatCloud."""
-    from .hierarchy import Hierarchy, build_hierarchy
-
-    return model if isinstance(model, Hierarchy) else build_hierarchy(model)
-
-
-def model_points(model) -> SplatCloud:
-    """The original splats of a model: a SplatCloud itself, a Hierarchy's points (for framing)."""
-    from .hierarchy import Hierarchy
-
-    return model.points if isinstance(model, Hierarchy) else model
+def resolve_camera(model: Model, camera: Camera | CameraSpec | None, width: int, height: int) -> Camera:
+    """A Camera as it is; a CameraSpec (None: automatic framing) resolved against the model at
+    ``width`` x ``height`` pixels."""
+    if isinstance(camera, Camera):
+        return camera
+    return (camera or CameraSpec()).camera_for(model_points(model), width, height)
 
 
-def lod_splats(hierarchy, camera: Camera, tolerance_px: float = DEFAULT_LOD_TOLERANCE, *,
-               cull_backfaces: bool = False, shading: str = "fit"):
+# -- level of detail -------------------------------------------------------------
+
+def lod_splats(hierarchy: Hierarchy, camera: Camera, lod_tolerance: float = DEFAULT_LOD_TOLERANCE, *,
+               cull_backfaces: bool = False, lod_shading: LodShading = DEFAULT_LOD_SHADING):
     """The splats of a hierarchy to draw for a view, and the selection (Pajarola 2003, sec. 5.1).
 
-    Nodes whose projected ellipse is at most ``tolerance_px`` pixels wide are
+    Nodes whose projected ellipse is at most ``lod_tolerance`` pixels wide are
     drawn as one splat, others are refined; nodes outside the view frustum (and
     with ``cull_backfaces`` those whose normal cone faces away) are dropped with
-    their subtrees. ``shading`` is the normal field of node splats: "fit"
+    their subtrees. ``lod_shading`` is the normal field of node splats: "fit"
     (least-squares linear field), "cone" (Pajarola 2003, fig. 14) or "flat".
 
     Returns:
         (SplatCloud, :class:`~surfsplat.hierarchy.Selection`).
     """
-    from .hierarchy import select
-
-    selection = select(hierarchy, camera, tolerance_px, cull_backfaces=cull_backfaces, shading=shading)
+    selection = select(hierarchy, camera, lod_tolerance, cull_backfaces=cull_backfaces, lod_shading=lod_shading)
     return hierarchy.splats(selection), selection
 
 
-def view_splats(model, camera: Camera, lod_tolerance: float | None = None, *, cull_backfaces: bool = False,
-                shading: str = "fit"):
+def view_splats(model: Model, camera: Camera, lod_tolerance: float | None = None, *, cull_backfaces: bool = False,
+                lod_shading: LodShading = DEFAULT_LOD_SHADING) -> tuple[SplatCloud, Selection | None]:
     """The splats to draw for a view: a SplatCloud as it is, or a Hierarchy's LOD cut (:func:`lod_splats`,
     tolerance :data:`DEFAULT_LOD_TOLERANCE` when None). Returns (SplatCloud, Selection or None)."""
-    from .hierarchy import Hierarchy
-
     if not isinstance(model, Hierarchy):
         return model, None
-    tau = DEFAULT_LOD_TOLERANCE if lod_tolerance is None else lod_tolerance
-    return lod_splats(model, camera, tau, cull_backfaces=cull_backfaces, shading=shading)
+    tolerance = DEFAULT_LOD_TOLERANCE if lod_tolerance is None else lod_tolerance
+    return lod_splats(model, camera, tolerance, cull_backfaces=cull_backfaces, lod_shading=lod_shading)
 
 
-def render(source, camera: Camera | None = None, *, technique: str = "ewa",
-           width: int = 512, height: int = 512, lights: Lights | None = None, background=(1.0, 1.0, 1.0),
-           lod_tolerance: float | None = None, lod_shading: str = "fit", k: int = 8, **options) -> Frame:
-    """Render a SplatCloud, a hierarchy or a file to a :class:`Frame`.
+# -- drawing -----------------------------------------------------------------------
+
+def check_background(background) -> tuple[float, float, float]:
+    """``background`` as 3 floats in [0, 1] (InputError else)."""
+    values = tuple(float(x) for x in np.asarray(background, dtype=float).reshape(-1))
+    if len(values) != 3 or not all(0.0 <= x <= 1.0 for x in values):
+        raise InputError(f"background must be 3 numbers in [0, 1], got {values}")
+    return values
+
+
+@dataclass(frozen=True)
+class RenderResult:
+    """A rendered view and what was drawn.
+
+    Attributes:
+        frame: the image, depth and weight.
+        splats: number of splats drawn.
+        selection: the LOD selection (a hierarchy's cut), or None for a plain cloud.
+        seconds: wall-clock time of selection, upload, drawing and read-back.
+    """
+
+    frame: Frame
+    splats: int
+    selection: Selection | None = None
+    seconds: float = 0.0
+
+    def describe(self) -> str:
+        """One line: what was drawn ('1,234 splats' or the LOD cut's counts)."""
+        s = self.selection
+        if s is None:
+            return f"{self.splats:,} splats"
+        return (f"{self.splats:,} LOD splats (tolerance {s.lod_tolerance:g} px, {s.node_count:,} nodes, "
+                f"{s.point_total:,} points)")
+
+
+def render_model(model: Model, camera: Camera, *, technique: TechniqueName = "ewa", lights: Lights | None = None,
+                 background=DEFAULT_BACKGROUND, options: RenderOptions | None = None,
+                 lod_tolerance: float | None = None, lod_shading: LodShading = DEFAULT_LOD_SHADING) -> RenderResult:
+    """Draw a loaded model (:func:`load_model`) with a resolved camera.
+
+    A SplatCloud given ``lod_tolerance`` gets its hierarchy built first; a Hierarchy is cut
+    per view (:func:`view_splats`). See :func:`render` for the arguments.
+    """
+    options = options or RenderOptions()
+    background = check_background(background)
+    if lod_tolerance is not None:
+        model = as_hierarchy(model)
+    start = time.perf_counter()
+    cloud, selection = view_splats(model, camera, lod_tolerance, cull_backfaces=options.visibility.cull_backfaces,
+                                   lod_shading=lod_shading)
+    if len(cloud) == 0:
+        frame = Frame.empty(camera, background)
+    else:
+        frame = default_renderer().render(cloud, camera, technique, lights or Lights(), options, background)
+    return RenderResult(frame, len(cloud), selection, time.perf_counter() - start)
+
+
+def render(source, camera: Camera | CameraSpec | None = None, *, technique: TechniqueName = "ewa",
+           width: int = DEFAULT_WIDTH, height: int = DEFAULT_HEIGHT, lights: Lights | None = None,
+           background=DEFAULT_BACKGROUND, options: RenderOptions | None = None, lod_tolerance: float | None = None,
+           lod_shading: LodShading = DEFAULT_LOD_SHADING, k: int = DEFAULT_K) -> Frame:
+    """Render a SplatCloud, a hierarchy, a file or a built-in scene to a :class:`Frame`.
 
     Args:
         source: a SplatCloud (preprocessed if it lacks normals or splat axes), a
-            :class:`~surfsplat.hierarchy.Hierarchy`, or a path: a point/splat/mesh
-            file or a hierarchy file (``.npz`` from ``surfsplat build``).
-        camera: the view; None frames the model automatically at ``width`` x ``height``.
+            :class:`~surfsplat.hierarchy.Hierarchy`, ``"demo:NAME"``, or a path: a
+            point/splat/mesh file or a hierarchy file (``.npz`` from ``surfsplat build``).
+        camera: a :class:`Camera`; or a :class:`CameraSpec` (eye, target, up, fov) or None
+            (automatic framing), resolved at ``width`` x ``height`` pixels.
         technique: "ewa" (Guennebaud 2003), "perspective" (Zwicker 2004), "phong"
             (Botsch 2004), "blend" (Pajarola 2003), all three passes, or "flat"
             (opaque disks, one pass).
         lights: lighting and material; None is a headlight with the default material.
         background: RGB in [0, 1].
-        lod_tolerance: LOD screen tolerance tau in pixels (see :func:`lod_splats`).
+        options: :class:`~surfsplat.render.options.RenderOptions`: EWA filter, visibility,
+            blend kernel, deferred shading (None: the defaults).
+        lod_tolerance: LOD screen tolerance in pixels (see :func:`lod_splats`).
             Hierarchies default to :data:`DEFAULT_LOD_TOLERANCE`; a cloud given a
             tolerance is turned into a hierarchy first (``surfsplat build`` saves one).
         lod_shading: normal field of coarse LOD splats: "fit", "cone" or "flat".
         k: neighbours for preprocessing when needed.
-        **options: fields of :class:`~surfsplat.render.technique.RenderOptions`:
-            prefilter, cutoff, depth_epsilon, cull_backfaces, deferred, kernel,
-            kernel_a, kernel_b, kernel_n, kernel_sigma.
     """
-    render_settings = render_options(**options)
-    background = tuple(float(x) for x in np.asarray(background, dtype=float).reshape(-1))
-    if len(background) != 3 or not all(0.0 <= x <= 1.0 for x in background):
-        raise InputError(f"background must be 3 numbers in [0, 1], got {background}")
+    background = check_background(background)
     model = load_model(source, k=k)
-    if lod_tolerance is not None:
-        model = as_hierarchy(model)
-    if camera is None:
-        camera = auto_camera(model_points(model), width, height)
-    cloud, _ = view_splats(model, camera, lod_tolerance, cull_backfaces=render_settings.cull_backfaces,
-                           shading=lod_shading)
-    if len(cloud) == 0:
-        return Frame.empty(camera, background)
-    return default_renderer().render(cloud, camera, technique, lights or Lights(), render_settings, background)
+    camera = resolve_camera(model, camera, width, height)
+    return render_model(model, camera, technique=technique, lights=lights, background=background, options=options,
+                        lod_tolerance=lod_tolerance, lod_shading=lod_shading).frame
 
 
-def render_mesh(source, camera: Camera | None = None, *, width: int = 512, height: int = 512,
-                lights: Lights | None = None, background=(1.0, 1.0, 1.0), supersample: int = 4,
-                smooth: bool = True) -> Frame:
+def render_mesh(source, camera: Camera | CameraSpec | None = None, *, width: int = DEFAULT_WIDTH,
+                height: int = DEFAULT_HEIGHT, lights: Lights | None = None, background=DEFAULT_BACKGROUND,
+                supersample: int = 4, smooth: bool = True) -> Frame:
     """Render a triangle mesh (a :class:`~surfsplat.io.Mesh` or a PLY/OBJ path): the ground truth.
 
     Same camera conventions, lighting and linear depth as :func:`render`, per-pixel
     shading of the interpolated vertex normals (``smooth``) or the face normals,
-    antialiased by ``supersample`` x ``supersample`` samples per pixel. With no
-    camera the mesh's vertices are framed like :func:`auto_camera` frames a cloud.
+    antialiased by ``supersample`` x ``supersample`` samples per pixel. A CameraSpec or
+    None is resolved against the mesh's vertices as :func:`render` resolves it against splats.
     """
-    from .io import Mesh, load_mesh
-    from .render.mesh import render_mesh as _render_mesh
-
-    mesh = source if isinstance(source, Mesh) else load_mesh(source)
-    if camera is None:
-        camera = auto_camera(SplatCloud(mesh.vertices), width, height)
-    return _render_mesh(mesh, camera, lights or Lights(), background=background, supersample=supersample,
-                        smooth=smooth, renderer=default_renderer())
+    if isinstance(source, Mesh):
+        mesh = source
+    else:
+        with progress.stage(f"loading {source}"):
+            mesh = load_mesh(source)
+    camera = resolve_camera(SplatCloud(mesh.vertices), camera, width, height)
+    return rasterize_mesh(mesh, camera, lights or Lights(), background=background, supersample=supersample,
+                          smooth=smooth, renderer=default_renderer())

@@ -14,6 +14,8 @@ import numpy as np
 
 from .errors import InputError
 
+#: Largest number of directional lights. The shaders get it as the macro MAX_LIGHTS
+#: (``render.shaders.SHARED_DEFINES``): ``uniform vec3 u_light_dirs[MAX_LIGHTS]``.
 MAX_LIGHTS = 4
 
 

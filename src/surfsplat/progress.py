@@ -20,6 +20,11 @@ def enable(on: bool = True) -> None:
     _enabled = on
 
 
+def is_enabled() -> bool:
+    """Whether progress messages are printed now."""
+    return _enabled
+
+
 @contextmanager
 def enabled(on: bool | None):
     """Within the block, progress is on or off as ``on`` says (None: left as it is)."""

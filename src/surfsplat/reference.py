@@ -228,7 +228,13 @@ PERSPECTIVE_MAX_CONDITION = 1e4
 #: A splat whose nearest point is closer than max(near, this fraction of its center depth) is
 #: ray-cast (Botsch 2004, eq. 6): its image is not an ellipse (it crosses the plane through the
 #: eye, eq. 5: Delta <= 0), is clipped by the near plane, or nearly so (conic blows up as 1/h^2).
+#: It, PERSPECTIVE_MAX_CONDITION and EDGE_ON_TOLERANCE reach the shaders as macros of the same
+#: names (``render.shaders.SHARED_DEFINES``).
 PERSPECTIVE_NEAR_FRACTION = 1e-3
+
+#: A splat with ``|n . p| <= EDGE_ON_TOLERANCE |p|`` (camera space) is seen exactly edge-on
+#: through the eye: it covers no area and is culled (``camera_splat`` in splat_vertex.glsl).
+EDGE_ON_TOLERANCE = 1e-7
 
 #: Footprint modes of ``perspective_footprint``.
 PERSPECTIVE_CULLED, PERSPECTIVE_CONIC, PERSPECTIVE_RAYCAST = 0, 1, 2
@@ -388,7 +394,7 @@ def perspective_footprint(camera: Camera, p_cam: np.ndarray, n_cam: np.ndarray, 
     plen = np.linalg.norm(p, axis=-1)
     n_dot_p = np.sum(n * p, axis=-1)
     # camera_splat() in splat_vertex.glsl: outside [near, far] or exactly edge-on
-    visible = (z + zext >= near) & (z - zext <= far) & (np.abs(n_dot_p) > 1e-7 * plen)
+    visible = (z + zext >= near) & (z - zext <= far) & (np.abs(n_dot_p) > EDGE_ON_TOLERANCE * plen)
     cos = np.abs(n_dot_p) / np.maximum(plen, 1e-300)
     sin = np.sqrt(np.maximum(0.0, 1.0 - cos * cos))
     condition = (1.0 + sin) / np.maximum(cos, 1e-300)

@@ -10,7 +10,7 @@ import numpy as np
 
 from .cloud import NO_CLIP, SplatCloud
 from .errors import InputError
-from .geometry.splats import tangent_frame
+from .frames import tangent_frame
 
 GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
 

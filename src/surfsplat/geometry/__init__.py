@@ -1,9 +1,19 @@
-"""Geometry processing: neighbours, normals, splat shapes, preprocessing, mesh sampling."""
+"""Geometry processing: neighbours, normals, splat shapes, preprocessing, mesh sampling, sharp features
+and Phong splat generation.
 
+Modules: :mod:`.neighbors` (k-d trees, kNN), :mod:`.normals` (PCA normals, MST orientation),
+:mod:`.splats` (circles and ellipses), :mod:`.preprocess` (points to splats), :mod:`.sampling`
+(mesh samples), :mod:`.sharp` (clip lines at sharp features), :mod:`.phong` (Phong splats,
+Botsch et al. 2004) and :mod:`.common` (the blocked, threaded loops and small helpers they share).
+"""
+
+from ..frames import tangent_frame
 from .neighbors import knn, spatial_order
 from .normals import estimate_normals, orient_normals, orient_towards
+from .phong import phong_splats
 from .preprocess import neighbour_spacing, preprocess
-from .splats import circular_splats, elliptical_splats, fallback_radius, tangent_frame
+from .sampling import sample_mesh
+from .splats import circular_splats, elliptical_splats, fallback_radius
 
 __all__ = [
     "knn",
@@ -17,14 +27,6 @@ __all__ = [
     "fallback_radius",
     "preprocess",
     "neighbour_spacing",
+    "sample_mesh",
+    "phong_splats",
 ]
-
-# mesh sampling (geometry/sampling.py)
-from .sampling import sample_mesh  # noqa: E402
-
-__all__ += ["sample_mesh"]
-
-# Phong splat generation (geometry/phong.py)
-from .phong import phong_splats  # noqa: E402
-
-__all__ += ["phong_splats"]

@@ -17,13 +17,13 @@ from scipy.spatial import cKDTree
 from ..errors import InputError
 
 #: Leaf size of the k-d trees. 16 measured fastest for k ~ 8 on 1 M points.
-_LEAFSIZE = 16
+LEAFSIZE = 16
 
-#: Points per cKDTree query call in :func:`knn`.
-_QUERY_CHUNK = 65536
+#: Points per cKDTree query call (bounded temporaries).
+QUERY_CHUNK = 65536
 
 
-def _as_points(positions, name: str = "positions") -> np.ndarray:
+def as_points(positions, name: str = "positions") -> np.ndarray:
     """(N, 3) float64 C-contiguous copy/view of ``positions``; InputError if malformed."""
     arr = np.asarray(positions)
     if arr.ndim != 2 or arr.shape[1] != 3:
@@ -35,9 +35,12 @@ def _as_points(positions, name: str = "positions") -> np.ndarray:
     return arr
 
 
-def _tree(points: np.ndarray) -> cKDTree:
-    # balanced_tree=False (sliding midpoint) builds ~2x faster and queries as fast
-    return cKDTree(points, leafsize=_LEAFSIZE, balanced_tree=False, compact_nodes=True)
+def kdtree(points: np.ndarray) -> cKDTree:
+    """The k-d tree of (N, 3) ``points`` used throughout geometry (leaf size ``LEAFSIZE``).
+
+    ``balanced_tree=False`` (sliding midpoint) builds ~2x faster and queries as fast.
+    """
+    return cKDTree(points, leafsize=LEAFSIZE, balanced_tree=False, compact_nodes=True)
 
 
 def spatial_order(positions) -> np.ndarray:
@@ -105,22 +108,22 @@ def knn(positions, k: int, *, presorted: bool = False) -> tuple[np.ndarray, np.n
             than ``k + 1`` points (this function does not clamp k;
             :func:`~surfsplat.geometry.preprocess` does, with a warning).
     """
-    points = _as_points(positions)
+    points = as_points(positions)
     n = len(points)
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
         raise InputError(f"knn: k must be a positive integer, got {k!r}")
     k = int(k)
     if n < k + 1:
         raise InputError(f"knn: need at least k + 1 = {k + 1} points for k = {k} neighbours, got {n}")
-    tree = _tree(points)
+    tree = kdtree(points)
     order = None if presorted else np.asarray(tree.indices, dtype=np.int64)
     out_d = np.empty((n, k), dtype=np.float32)
     out_i = np.empty((n, k), dtype=np.int64)
     # query in chunks: the (chunk, k + 1) float64/int64 results are reused
     # heap memory instead of one huge fresh allocation (page faults), and
     # are cut to (chunk, k) float32/int64 right away
-    for start in range(0, n, _QUERY_CHUNK):
-        stop = min(n, start + _QUERY_CHUNK)
+    for start in range(0, n, QUERY_CHUNK):
+        stop = min(n, start + QUERY_CHUNK)
         rows = np.arange(start, stop) if order is None else order[start:stop]
         queries = points[start:stop] if order is None else points[rows]
         dist, idx = tree.query(queries, k=k + 1, workers=-1)

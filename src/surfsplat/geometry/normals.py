@@ -18,14 +18,13 @@ which is exactly SciPy's stable-sort Kruskal order.
 
 from __future__ import annotations
 
-import os
-from concurrent.futures import ThreadPoolExecutor
-
 import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order, connected_components, minimum_spanning_tree
 
 from ..errors import InputError
+from .common import (block_covariance, block_offsets, check_indices, check_oriented_points, check_vectors, columns,
+                     for_blocks)
 
 #: Added to every edge cost ``1 - |n_i . n_j|`` so that parallel normals
 #: (cost 0) are not taken for "no edge" by scipy.sparse.
@@ -37,99 +36,7 @@ EDGE_EPSILON = 1e-6
 HORIZONTAL_NZ = 0.1
 
 
-def _check_indices(indices, n: int, name: str = "indices") -> np.ndarray:
-    idx = np.asarray(indices)
-    if idx.ndim != 2 or idx.shape[0] != n or idx.shape[1] < 1:
-        raise InputError(f"{name} must have shape ({n}, k) with k >= 1, got {idx.shape}")
-    if not np.issubdtype(idx.dtype, np.integer):
-        raise InputError(f"{name} must be integers, got {idx.dtype}")
-    idx = np.ascontiguousarray(idx, dtype=np.intp)
-    if idx.size and (idx.min() < 0 or idx.max() >= n):
-        raise InputError(f"{name} must lie in [0, {n}), got values in [{idx.min()}, {idx.max()}]")
-    return idx
-
-
-def _check_vectors(arr, name: str, n: int | None = None) -> np.ndarray:
-    a = np.asarray(arr)
-    if a.ndim != 2 or a.shape[1] != 3 or (n is not None and a.shape[0] != n):
-        want = f"({n}, 3)" if n is not None else "(N, 3)"
-        raise InputError(f"{name} must have shape {want}, got {a.shape}")
-    return np.ascontiguousarray(a, dtype=np.float32)
-
-
-def _columns(points: np.ndarray) -> list[np.ndarray]:
-    return [np.ascontiguousarray(points[:, c]) for c in range(3)]
-
-
 # -- normal estimation ------------------------------------------------------
-
-
-#: Points per block in the vectorized kernels: (k, BLOCK) float32
-#: temporaries stay in the L2 cache (measured ~2.5x faster than whole-array
-#: passes at 1 M points), and blocks run on a thread per core (NumPy releases
-#: the GIL inside its loops: ~1.6x on 2 cores).
-BLOCK = 16384
-
-
-def _blocks(n: int) -> list[slice]:
-    return [slice(s, min(s + BLOCK, n)) for s in range(0, n, BLOCK)]
-
-
-def _workers() -> int:
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except AttributeError:  # not Linux
-        cores = os.cpu_count() or 1
-    return max(1, min(cores, 8))
-
-
-def _parallel(fn, items) -> None:
-    """Call ``fn(item)`` for every item, on a thread per core (NumPy releases the GIL in its loops).
-
-    ``fn`` must write only its own rows. Exceptions propagate.
-    """
-    items = list(items)
-    workers = min(_workers(), len(items))
-    if workers <= 1:
-        for item in items:
-            fn(item)
-        return
-    with ThreadPoolExecutor(workers) as pool:
-        for _ in pool.map(fn, items):
-            pass
-
-
-def _for_blocks(fn, n: int) -> None:
-    """Call ``fn(slice)`` for every block of ``range(n)``, on a thread per core."""
-    _parallel(fn, _blocks(n))
-
-
-def _block_offsets(cols: list[np.ndarray], idx: np.ndarray, sl: slice) -> list[np.ndarray]:
-    """Offsets ``p_j - p_i`` of the neighbours of the points in ``sl``: three (k, B) float32 arrays.
-
-    Neighbour slot first (transposed): reductions over the k neighbours are then
-    k - 1 contiguous vector operations instead of N short rows (~10x faster).
-    """
-    it = np.ascontiguousarray(idx[sl].T)
-    out = []
-    for col in cols:
-        d = col[it]
-        d -= col[sl]
-        out.append(d)
-    return out
-
-
-def _block_covariance(d: list[np.ndarray]) -> tuple[np.ndarray, ...]:
-    """Six (B,) float64 covariance entries of k offsets + the point itself (offset 0)."""
-    m = np.float32(d[0].shape[0] + 1)
-    mean = [x.sum(axis=0) / m for x in d]
-    out = []
-    for a, b in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)):
-        # offsets are relative to the point, so the one-pass form loses nothing
-        # to large coordinates: E[d_a d_b] - E[d_a] E[d_b]
-        s = np.einsum("ij,ij->j", d[a], d[b]) / m - mean[a] * mean[b]
-        out.append(s.astype(np.float64))
-    return tuple(out)
 
 
 def neighbourhood_covariance(positions, indices) -> tuple[np.ndarray, ...]:
@@ -146,16 +53,16 @@ def neighbourhood_covariance(positions, indices) -> tuple[np.ndarray, ...]:
         float32 from coordinates relative to the point (no loss from large
         coordinate offsets).
     """
-    pts = _check_vectors(positions, "positions")
-    idx = _check_indices(indices, len(pts))
-    cols = _columns(pts)
+    pts = check_vectors(positions, "positions")
+    idx = check_indices(indices, len(pts))
+    cols = columns(pts)
     out = [np.empty(len(pts)) for _ in range(6)]
 
     def block(sl):
-        for o, c in zip(out, _block_covariance(_block_offsets(cols, idx, sl))):
+        for o, c in zip(out, block_covariance(block_offsets(cols, idx, sl))):
             o[sl] = c
 
-    _for_blocks(block, len(pts))
+    for_blocks(block, len(pts))
     return tuple(out)
 
 
@@ -237,15 +144,15 @@ def estimate_normals(positions, indices) -> np.ndarray:
         (N, 3) float32 unit normals. Degenerate neighbourhoods (collinear or
         coincident points) get some unit vector orthogonal to the line, or +z.
     """
-    pts = _check_vectors(positions, "positions")
-    idx = _check_indices(indices, len(pts))
-    cols = _columns(pts)
+    pts = check_vectors(positions, "positions")
+    idx = check_indices(indices, len(pts))
+    cols = columns(pts)
     out = np.empty((len(pts), 3), dtype=np.float32)
 
     def block(sl):
-        out[sl] = smallest_eigenvectors(*_block_covariance(_block_offsets(cols, idx, sl)))
+        out[sl] = smallest_eigenvectors(*block_covariance(block_offsets(cols, idx, sl)))
 
-    _for_blocks(block, len(pts))
+    for_blocks(block, len(pts))
     return out
 
 
@@ -255,7 +162,7 @@ def estimate_normals(positions, indices) -> np.ndarray:
 def _edge_costs(normals: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """float32 costs ``1 - |n_i . n_j| + eps`` and int8 signs of ``n_i . n_j`` per kNN edge."""
     dot = None
-    for col in _columns(normals):
+    for col in columns(normals):
         term = col[idx]
         term *= col[:, None]
         dot = term if dot is None else np.add(dot, term, out=dot)
@@ -322,8 +229,8 @@ def _edge_keys(pts: np.ndarray, nrm: np.ndarray, idx: np.ndarray, dist: np.ndarr
     n, k = idx.shape
     if n * k >= 2**32:
         raise InputError(f"orient_normals: too many edges ({n * k:,}) for 32-bit edge ids")
-    ncols = _columns(nrm)
-    pcols = _columns(pts)
+    ncols = columns(nrm)
+    pcols = columns(pts)
     sign = np.empty((n, k), dtype=np.int8)
 
     def squared_lengths(rows):
@@ -342,7 +249,7 @@ def _edge_keys(pts: np.ndarray, nrm: np.ndarray, idx: np.ndarray, dist: np.ndarr
         d = dist[sl] if dist is not None else squared_lengths(sl)
         far[sl] = d.max(axis=1)
 
-    _for_blocks(far_block, n)
+    for_blocks(far_block, n)
     margin = np.float32(1.0) if dist is not None else np.float32(1.0 - 1e-5)
 
     def entries(rows, first):
@@ -386,7 +293,7 @@ def _edge_keys(pts: np.ndarray, nrm: np.ndarray, idx: np.ndarray, dist: np.ndarr
         light = cost <= limit
         parts[sl.start] = (key[light], key[~light])
 
-    _for_blocks(key_block, n)
+    for_blocks(key_block, n)
     order = sorted(parts)
     light = np.concatenate([parts[s][0] for s in order])
     heavy = np.concatenate([parts[s][1] for s in order])
@@ -606,10 +513,7 @@ def orient_normals(positions, normals, indices, distances=None, *, method: str =
     Returns:
         (N, 3) float32: ``normals`` (renormalized to unit length) times +-1.
     """
-    pts = _check_vectors(positions, "positions")
-    n = len(pts)
-    nrm = _check_vectors(normals, "normals", n)
-    idx = _check_indices(indices, n)
+    pts, nrm, idx = check_oriented_points(positions, normals, indices)
     if method not in ("boruvka", "scipy"):
         raise InputError(f"orient_normals: method must be 'boruvka' or 'scipy', got {method!r}")
     if distances is not None:
@@ -618,13 +522,13 @@ def orient_normals(positions, normals, indices, distances=None, *, method: str =
             raise InputError(f"distances {distances.shape} and indices {idx.shape} must have the same shape")
     length = np.linalg.norm(nrm, axis=1, keepdims=True)
     nrm = np.divide(nrm, length, out=np.zeros_like(nrm), where=length > 0)
-    sigma = _orientation_signs(pts, nrm, idx, distances, method)
+    sigma = orientation_signs(pts, nrm, idx, distances, method)
     nrm *= sigma[:, None]
     return nrm
 
 
-def _orientation_signs(pts: np.ndarray, nrm: np.ndarray, idx: np.ndarray, dist: np.ndarray | None = None,
-                       method: str = "boruvka") -> np.ndarray:
+def orientation_signs(pts: np.ndarray, nrm: np.ndarray, idx: np.ndarray, dist: np.ndarray | None = None,
+                      method: str = "boruvka") -> np.ndarray:
     """(N,) int8 signs that orient unit normals ``nrm`` consistently (see :func:`orient_normals`).
 
     Arguments already validated: float32 (N, 3) ``pts`` and unit ``nrm``,
@@ -687,8 +591,8 @@ def orient_towards(normals, positions, viewpoint) -> np.ndarray:
     Returns:
         (N, 3) float32 normals with ``n . (viewpoint - p) >= 0``.
     """
-    nrm = _check_vectors(normals, "normals")
-    pts = _check_vectors(positions, "positions", len(nrm))
+    nrm = check_vectors(normals, "normals")
+    pts = check_vectors(positions, "positions", len(nrm))
     view = np.asarray(viewpoint, dtype=np.float32)
     facing = np.einsum("ij,ij->i", nrm, np.broadcast_to(view, pts.shape) - pts)
     return np.where((facing < 0)[:, None], -nrm, nrm).astype(np.float32)

@@ -27,10 +27,10 @@ from scipy.spatial import cKDTree
 from .. import progress
 from ..cloud import SplatCloud
 from ..errors import InputError
-from .neighbors import _LEAFSIZE, _as_points, knn, spatial_order
-from .normals import _orientation_signs, estimate_normals, orient_normals
+from .neighbors import LEAFSIZE, as_points, knn, spatial_order
+from .normals import estimate_normals, orient_normals, orientation_signs
 from .sharp import check_sharp_angle, detect_sharp_features, feature_clip_lines
-from .splats import (CIRCLE_COVERAGE, ELLIPSE_COVERAGE, MAX_ANISOTROPY, _check_ellipse_options, circular_splats,
+from .splats import (CIRCLE_COVERAGE, ELLIPSE_COVERAGE, MAX_ANISOTROPY, check_ellipse_options, circular_splats,
                      elliptical_splats, normals_and_ellipses)
 
 SHAPES = ("ellipse", "circle")
@@ -86,7 +86,7 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
         raise InputError(f"k must be a positive integer, got {k!r}")
     if coverage is None:
         coverage = ELLIPSE_COVERAGE if shape == "ellipse" else CIRCLE_COVERAGE
-    _check_ellipse_options(coverage, max_anisotropy)
+    check_ellipse_options(coverage, max_anisotropy)
     if sharp_angle is not None:
         sharp_angle = check_sharp_angle(sharp_angle)
     cloud = cloud.validated(source)
@@ -121,18 +121,11 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
             normals, u, v = normals_and_ellipses(pts, idx, dist, coverage=coverage, max_anisotropy=max_anisotropy)
         if orient:
             with progress.stage("orientation (MST)", n):
-                sigma = _orientation_signs(pts, normals, idx, dist)[:, None]
+                sigma = orientation_signs(pts, normals, idx, dist)[:, None]
                 normals *= sigma
                 v *= sigma  # keep u x v along the normal
     else:
-        if need_normals:
-            with progress.stage("normals (PCA)", n):
-                normals = estimate_normals(pts, idx)
-            if orient:
-                with progress.stage("orientation (MST)", n):
-                    normals = orient_normals(pts, normals, idx, dist)
-        else:
-            normals = np.take(cloud.normals, perm, axis=0)
+        normals = estimated_normals(pts, idx, dist, orient) if need_normals else np.take(cloud.normals, perm, axis=0)
         if sharp:
             with progress.stage("sharp features", n):
                 features = detect_sharp_features(pts, normals, idx, sharp_angle,
@@ -146,15 +139,9 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
             else:
                 u, v = circular_splats(normals, dist, coverage=coverage)
 
-    def unsort(arr):
-        out = np.empty_like(arr)
-        for c in range(arr.shape[1]):  # column scatters: ~2x faster than scattering 12-byte rows
-            out[perm, c] = arr[:, c]
-        return out
-
-    changes = {"u": unsort(u), "v": unsort(v)}
+    changes = {"u": _unsort(u, perm), "v": _unsort(v, perm)}
     if need_normals:
-        changes["normals"] = unsort(normals)
+        changes["normals"] = _unsort(normals, perm)
     if sharp:
         with progress.stage("clip lines", n):
             lines = feature_clip_lines(features, pts, u, v)
@@ -162,6 +149,30 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
         out[perm] = lines
         changes["clip_lines"] = out
     return cloud.replace(**changes).validated(source)
+
+
+def estimated_normals(pts: np.ndarray, idx: np.ndarray, dist: np.ndarray, orient: bool = True) -> np.ndarray:
+    """(N, 3) float32 unit PCA normals of points ``pts`` (model units) over their kNN ``idx``, as stages.
+
+    Oriented consistently (Hoppe et al. 1992, MST) when ``orient``;
+    ``dist``: the kNN distances (model units), which speed up the orientation.
+    Each step is reported through :func:`surfsplat.progress.stage`.
+    """
+    n = len(pts)
+    with progress.stage("normals (PCA)", n):
+        normals = estimate_normals(pts, idx)
+    if orient:
+        with progress.stage("orientation (MST)", n):
+            normals = orient_normals(pts, normals, idx, dist)
+    return normals
+
+
+def _unsort(arr: np.ndarray, perm: np.ndarray) -> np.ndarray:
+    """(N, c) rows of ``arr`` (in the order ``perm``) back in the input order."""
+    out = np.empty_like(arr)
+    for c in range(arr.shape[1]):  # column scatters: ~2x faster than scattering 12-byte rows
+        out[perm, c] = arr[:, c]
+    return out
 
 
 def _add_clip_lines(cloud: SplatCloud, sharp_angle: float) -> SplatCloud:
@@ -201,7 +212,7 @@ def neighbour_spacing(positions, k: int = 1, sample: int | None = None, seed: in
     """
     if isinstance(positions, SplatCloud):
         positions = positions.positions
-    points = _as_points(positions)
+    points = as_points(positions)
     n = len(points)
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
         raise InputError(f"neighbour_spacing: k must be a positive integer, got {k!r}")
@@ -211,7 +222,7 @@ def neighbour_spacing(positions, k: int = 1, sample: int | None = None, seed: in
         query = np.sort(np.random.default_rng(seed).choice(n, size=int(sample), replace=False))
     else:
         query = np.arange(n)
-    tree = cKDTree(points, leafsize=_LEAFSIZE, balanced_tree=False, compact_nodes=False)
+    tree = cKDTree(points, leafsize=LEAFSIZE, balanced_tree=False, compact_nodes=False)
     dist, _ = tree.query(points[query], k=k + 1, workers=-1)
     # result 0 is the point itself (or a duplicate at distance 0): result k is
     # the k-th other point either way

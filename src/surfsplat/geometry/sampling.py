@@ -54,8 +54,10 @@ def sample_mesh(mesh: Mesh, n: int, *, seed: int = 0, sharp_angle: float | None 
         float32 unit: the face's geometric normal (right-hand rule on its
         vertex order), flipped where it disagrees (negative dot product) with
         the barycentric interpolation of the mesh's vertex normals, when the
-        mesh has them (or that interpolation itself with ``smooth_normals``); colors (n, 3) float32 interpolated from the vertex
-        colors, when the mesh has them. No splat axes (u, v are None).
+        mesh has them (or that interpolation itself with ``smooth_normals``);
+        colors (n, 3) float32 interpolated from the vertex colors, when the
+        mesh has them. No splat axes (u, v are None); with ``sharp_angle``,
+        the splats (u, v in model units) and ``clip_lines`` (n, 2, 3).
 
     Raises:
         InputError: ``n`` < 1 or not an integer, an invalid mesh, or a mesh

@@ -36,8 +36,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from .normals import (_block_covariance, _block_offsets, _check_indices, _check_vectors, _columns, _for_blocks,
-                      smallest_eigenvectors)
+from ..frames import tangent_frame
+from .common import (block_covariance, block_offsets, check_indices, check_oriented_points, check_vectors, columns,
+                     for_blocks)
+from .normals import smallest_eigenvectors
 
 #: Default cap of the ellipse axis ratio (major / minor).
 MAX_ANISOTROPY = 4.0
@@ -55,35 +57,6 @@ ELLIPSE_COVERAGE = 1.5
 _ROUNDING_MARGIN = 1e-5
 
 
-def tangent_frame(normals) -> tuple[np.ndarray, np.ndarray]:
-    """Orthonormal tangent vectors for each normal.
-
-    Branch-free construction of Duff et al. 2017 ("Building an orthonormal
-    basis, revisited", JCGT 6(1)), continuous except where n_z changes sign,
-    exact at n = +-z, computed in float64.
-
-    Args:
-        normals: (N, 3) float array of nonzero normals (renormalized here).
-
-    Returns:
-        ``(t1, t2)``: two (N, 3) float32 unit vectors with t1, t2, n mutually
-        orthogonal and ``t1 x t2 = n`` (right-handed).
-    """
-    nrm = np.asarray(normals, dtype=np.float64)
-    if nrm.ndim != 2 or nrm.shape[1] != 3:
-        raise InputError(f"normals must have shape (N, 3), got {nrm.shape}")
-    length = np.linalg.norm(nrm, axis=1, keepdims=True)
-    if not (length > 0).all() or not np.isfinite(length).all():
-        raise InputError("tangent_frame: normals must be finite and nonzero")
-    nx, ny, nz = (nrm / length).T
-    s = np.where(nz >= 0, 1.0, -1.0)
-    a = -1.0 / (s + nz)
-    b = nx * ny * a
-    t1 = np.stack([1.0 + s * nx * nx * a, s * b, -s * nx], axis=1)
-    t2 = np.stack([b, s + ny * ny * a, -ny], axis=1)
-    return t1.astype(np.float32), t2.astype(np.float32)
-
-
 def fallback_radius(distances) -> float:
     """Radius for splats whose neighbours all coincide with them, model units.
 
@@ -99,6 +72,7 @@ def fallback_radius(distances) -> float:
 
 
 def _check_distances(distances, n: int) -> np.ndarray:
+    """(n, k) finite non-negative neighbour distances as float32; InputError otherwise."""
     d = np.asarray(distances, dtype=np.float32)
     if d.ndim != 2 or d.shape[0] != n or d.shape[1] < 1:
         raise InputError(f"distances must have shape ({n}, k) with k >= 1, got {d.shape}")
@@ -127,7 +101,7 @@ def circular_splats(normals, distances, *, coverage: float = CIRCLE_COVERAGE) ->
     """
     if not coverage > 0:
         raise InputError(f"coverage must be > 0, got {coverage}")
-    nrm = _check_vectors(normals, "normals")
+    nrm = check_vectors(normals, "normals")
     dist = _check_distances(distances, len(nrm))
     radius = _row_max(dist)  # Guennebaud 2003, eq. 7: h_k
     radius = np.where(radius > 0, radius, np.float32(fallback_radius(dist))) * np.float32(coverage)
@@ -208,7 +182,8 @@ def _row_max(dist: np.ndarray) -> np.ndarray:
     return out
 
 
-def _check_ellipse_options(coverage: float, max_anisotropy: float) -> None:
+def check_ellipse_options(coverage: float, max_anisotropy: float) -> None:
+    """InputError unless ``coverage`` (factor on the semi-axes) > 0 and ``max_anisotropy`` (axis ratio) >= 1."""
     if not coverage > 0:
         raise InputError(f"coverage must be > 0, got {coverage}")
     if not max_anisotropy >= 1:
@@ -246,23 +221,21 @@ def elliptical_splats(positions, normals, indices, distances, *, coverage: float
         semi-axis, ``v`` the minor one; ``u . n = v . n = u . v = 0`` and
         ``u x v`` along ``n``.
     """
-    _check_ellipse_options(coverage, max_anisotropy)
-    pts = _check_vectors(positions, "positions")
+    check_ellipse_options(coverage, max_anisotropy)
+    pts, nrm, idx = check_oriented_points(positions, normals, indices)
     n = len(pts)
-    nrm = _check_vectors(normals, "normals", n)
-    idx = _check_indices(indices, n)
     dist = _check_distances(distances, n)
     if dist.shape != idx.shape:
         raise InputError(f"distances {dist.shape} and indices {idx.shape} must have the same shape")
-    cols = _columns(pts)
+    cols = columns(pts)
     u = np.empty((n, 3), dtype=np.float32)
     v = np.empty((n, 3), dtype=np.float32)
 
     def block(sl):
-        u[sl], v[sl] = _block_ellipses(_block_offsets(cols, idx, sl), nrm[sl], dist[sl],
+        u[sl], v[sl] = _block_ellipses(block_offsets(cols, idx, sl), nrm[sl], dist[sl],
                                        coverage, max_anisotropy, lambda: fallback_radius(dist))
 
-    _for_blocks(block, n)
+    for_blocks(block, n)
     return u, v
 
 
@@ -285,20 +258,20 @@ def normals_and_ellipses(positions, indices, distances, *, coverage: float = ELL
     Returns:
         ``(normals, u, v)``: three (N, 3) float32 arrays.
     """
-    _check_ellipse_options(coverage, max_anisotropy)
-    pts = _check_vectors(positions, "positions")
+    check_ellipse_options(coverage, max_anisotropy)
+    pts = check_vectors(positions, "positions")
     n = len(pts)
-    idx = _check_indices(indices, n)
+    idx = check_indices(indices, n)
     dist = _check_distances(distances, n)
-    cols = _columns(pts)
+    cols = columns(pts)
     nrm = np.empty((n, 3), dtype=np.float32)
     u = np.empty((n, 3), dtype=np.float32)
     v = np.empty((n, 3), dtype=np.float32)
 
     def block(sl):
-        d = _block_offsets(cols, idx, sl)
-        nrm[sl] = smallest_eigenvectors(*_block_covariance(d))
+        d = block_offsets(cols, idx, sl)
+        nrm[sl] = smallest_eigenvectors(*block_covariance(d))
         u[sl], v[sl] = _block_ellipses(d, nrm[sl], dist[sl], coverage, max_anisotropy, lambda: fallback_radius(dist))
 
-    _for_blocks(block, n)
+    for_blocks(block, n)
     return nrm, u, v

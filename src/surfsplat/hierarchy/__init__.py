@@ -1,30 +1,36 @@
 """Multiresolution point hierarchy: point-octree LOD with conservative splats, culling and selection.
 
 Pajarola, Sainz & Guidotti 2003 (sec. 3.2-3.4, 5.1-5.2) and Guennebaud &
-Paulin 2003 (sec. 8). Typical use::
+Paulin 2003 (sec. 8). Modules, none importing a later one: ``model`` (the
+:class:`Hierarchy` and :class:`Selection` data), ``nodes`` (per-node
+formulas), ``octree`` (building), ``lod`` (view-dependent selection),
+``storage`` (files). Typical use::
 
-    from surfsplat.hierarchy import build_hierarchy, load_hierarchy, select
+    from surfsplat.hierarchy import build_hierarchy, load_hierarchy, save_hierarchy, select
 
     h = build_hierarchy(surfsplat.preprocess(cloud))
-    h.save("model.npz")
+    save_hierarchy(h, "model.npz")
     h = load_hierarchy("model.npz")
-    cut = select(h, camera, tolerance_px=1.0)
+    cut = select(h, camera, lod_tolerance=1.0)
     splats = h.splats(cut)          # a SplatCloud to render
 """
 
-from .lod import Selection, select, uniform_cut
-from .octree import (CONE_SHADING_MAX_ANGLE, LEAF_CAPACITY, MAX_DEPTH, SHADINGS, Hierarchy, build_hierarchy,
-                     octree_topology, ranges_to_indices)
-from .storage import FORMAT, FORMAT_VERSION, load_hierarchy, save_hierarchy
+from .lod import select, uniform_cut
+from .model import (CONE_SHADING_MAX_ANGLE, FORMAT_VERSION, LEAF_CAPACITY, MAX_DEPTH, SHADINGS, Hierarchy,
+                    LodShading, Selection, check_lod_shading, ranges_to_indices)
+from .octree import build_hierarchy, octree_topology
+from .storage import FORMAT, load_hierarchy, save_hierarchy
 
 __all__ = [
     "Hierarchy",
     "Selection",
+    "LodShading",
     "build_hierarchy",
     "select",
     "uniform_cut",
     "load_hierarchy",
     "save_hierarchy",
+    "check_lod_shading",
     "octree_topology",
     "ranges_to_indices",
     "FORMAT",

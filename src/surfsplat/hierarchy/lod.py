@@ -1,10 +1,11 @@
-"""View-dependent level-of-detail selection over a :class:`~surfsplat.hierarchy.octree.Hierarchy`.
+"""View-dependent level-of-detail selection over a :class:`~surfsplat.hierarchy.model.Hierarchy`.
 
 Pajarola, Sainz & Guidotti 2003, sec. 5.1, step 1: a top-down traversal
 refines a node (visits its children) while its projected size exceeds the
-screen tolerance tau; nodes outside the view frustum or entirely back-facing
-are dropped with their subtrees (Guennebaud & Paulin 2003, sec. 8: view-frustum
-culling and back-face culling with visibility cones). The traversal runs level
+screen tolerance ``lod_tolerance`` (the paper's tau, pixels); nodes outside the
+view frustum or entirely back-facing are dropped with their subtrees (Guennebaud
+& Paulin 2003, sec. 8: view-frustum culling and back-face culling with
+visibility cones). The traversal runs level
 by level, vectorized over all nodes of a level: no Python call per node.
 
 Projected size (pixels) of a node, conservative: ``focal_px * 2 a / (|c - eye|
@@ -15,8 +16,8 @@ for; the splat drawn is the larger ellipse covering the points' disks, fig. 6 b)
 and a node whose sphere reaches closer than ``near`` to the eye (or contains
 it) is always refined, and so is a node over splats with clip lines (sharp
 edges stay sharp). An unrefined node contributes its representative
-splat; a refined leaf contributes its original points. At tau = 0 every node
-is refined: the selection is the original cloud, less culled leaves.
+splat; a refined leaf contributes its original points. At ``lod_tolerance`` 0
+every node is refined: the selection is the original cloud, less culled leaves.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ import numpy as np
 
 from ..camera import Camera
 from ..errors import InputError
-from .octree import Hierarchy, _check_shading, ranges_to_indices
+from .model import Hierarchy, LodShading, Selection, check_lod_shading, ranges_to_indices
 
 #: Candidates of a level are tested by gathering their rows when they are
 #: fewer than this fraction of the level, else on the whole level with a mask.
@@ -35,84 +36,6 @@ SPARSE = 0.25
 
 #: Relative slack on bounding spheres in the frustum test (float32 rounding).
 CULL_SLACK = 1e-5
-
-
-@dataclass(frozen=True, eq=False)
-class Selection:
-    """The result of :func:`select`: index arrays into a hierarchy, no splat data.
-
-    Attributes:
-        nodes: per level, int64 global indices of the selected nodes (their
-            representative splats are drawn).
-        leaves: per level, int64 global indices of refined leaves (their
-            original points are drawn).
-        point_start, point_count: (K,) int64 ranges of the selected original
-            points in ``hierarchy.points`` (one per refined leaf, in the order
-            of ``leaves``).
-        shading: normal-field mode of the node splats (``"fit"``, ``"cone"``, ``"flat"``).
-        tolerance_px: the screen tolerance tau, pixels.
-        visited: nodes tested.
-        culled_frustum, culled_backface: nodes dropped (each with its subtree).
-    """
-
-    nodes: tuple
-    leaves: tuple
-    point_start: np.ndarray
-    point_count: np.ndarray
-    shading: str
-    tolerance_px: float
-    visited: int
-    culled_frustum: int
-    culled_backface: int
-
-    @property
-    def node_count(self) -> int:
-        """Number of selected representative (node) splats."""
-        return int(sum(len(x) for x in self.nodes))
-
-    @property
-    def point_total(self) -> int:
-        """Number of selected original points."""
-        return int(self.point_count.sum())
-
-    def __len__(self) -> int:
-        """Number of splats the selection draws (nodes + points)."""
-        return self.node_count + self.point_total
-
-    @property
-    def level_counts(self) -> list[int]:
-        """Selected node splats per level."""
-        return [len(x) for x in self.nodes]
-
-    def node_indices(self) -> np.ndarray:
-        """All selected node indices, level by level (int64)."""
-        return np.concatenate(self.nodes) if self.nodes else np.zeros(0, dtype=np.int64)
-
-    def point_indices(self) -> np.ndarray:
-        """Indices of the selected original points in ``hierarchy.points`` (int64)."""
-        return ranges_to_indices(self.point_start, self.point_count)
-
-    def merged_point_ranges(self) -> tuple[np.ndarray, np.ndarray]:
-        """The selected point ranges sorted and with adjacent ranges merged: ``(start, count)`` int64.
-
-        Fewer, longer ranges, e.g. for drawing straight from a buffer holding
-        ``hierarchy.points`` (Guennebaud 2003, sec. 8) instead of gathering.
-        """
-        if len(self.point_start) == 0:
-            return self.point_start.copy(), self.point_count.copy()
-        order = np.argsort(self.point_start, kind="stable")
-        start, count = self.point_start[order], self.point_count[order]
-        end = start + count
-        new = np.concatenate([[True], start[1:] != end[:-1]])
-        first = np.flatnonzero(new)
-        last = np.concatenate([first[1:], [len(start)]]) - 1
-        return start[first], end[last] - start[first]
-
-    def summary(self) -> dict:
-        """Counts for reports: splats, nodes, points, visited and culled nodes."""
-        return {"splats": len(self), "nodes": self.node_count, "points": self.point_total,
-                "tolerance_px": self.tolerance_px, "visited": self.visited,
-                "culled_frustum": self.culled_frustum, "culled_backface": self.culled_backface}
 
 
 class _LodArrays:
@@ -182,9 +105,9 @@ class _View:
                    focal=float(camera.focal_px))
 
 
-def select(hierarchy: Hierarchy, camera: Camera, tolerance_px: float, *, cull_frustum: bool = True,
-           cull_backfaces: bool = False, shading: str = "fit") -> Selection:
-    """Select the splats to draw for a view: the LOD cut at screen tolerance tau, culled.
+def select(hierarchy: Hierarchy, camera: Camera, lod_tolerance: float, *, cull_frustum: bool = True,
+           cull_backfaces: bool = False, lod_shading: LodShading = "fit") -> Selection:
+    """Select the splats to draw for a view: the LOD cut at screen tolerance ``lod_tolerance``, culled.
 
     Pajarola 2003, sec. 5.1 (top-down traversal with tolerance tau),
     Guennebaud 2003, sec. 8 (frustum and visibility-cone culling); see the
@@ -194,16 +117,16 @@ def select(hierarchy: Hierarchy, camera: Camera, tolerance_px: float, *, cull_fr
         hierarchy: the hierarchy.
         camera: the view; where its near/far are None they are set from the
             hierarchy's bounding sphere (``Camera.with_clip_from_bounds``).
-        tolerance_px: tau >= 0, pixels: a node whose projected ellipse
-            diameter is at most tau is drawn as one splat. 0 selects all
-            original points.
+        lod_tolerance: the LOD screen tolerance (Pajarola's tau) >= 0, pixels:
+            a node whose projected ellipse diameter is at most it is drawn as
+            one splat. 0 selects all original points.
         cull_frustum: drop nodes whose bounding sphere lies entirely outside
             one of the six frustum planes.
         cull_backfaces: drop nodes whose normal cone faces away from the eye
             from every point of their bounding sphere (conservative
             cone-vs-sphere test). Off by default: two-sided rendering and open
             surfaces need back faces.
-        shading: normal field of the node splats in :meth:`Hierarchy.splats`:
+        lod_shading: normal field of the node splats in :meth:`Hierarchy.splats`:
             ``"fit"`` (least-squares linear field), ``"cone"`` (normal-cone
             spread, Pajarola 2003 fig. 14) or ``"flat"``.
 
@@ -214,10 +137,10 @@ def select(hierarchy: Hierarchy, camera: Camera, tolerance_px: float, *, cull_fr
         raise InputError(f"select needs a Hierarchy, got {type(hierarchy).__name__}")
     if not isinstance(camera, Camera):
         raise InputError(f"select needs a Camera, got {type(camera).__name__}")
-    tau = float(tolerance_px)
-    if not (np.isfinite(tau) and tau >= 0):
-        raise InputError(f"LOD tolerance must be a finite number of pixels >= 0, got {tolerance_px!r}")
-    _check_shading(shading)
+    if not (np.isfinite(float(lod_tolerance)) and float(lod_tolerance) >= 0):
+        raise InputError(f"LOD tolerance must be a finite number of pixels >= 0, got {lod_tolerance!r}")
+    lod_tolerance = float(lod_tolerance)
+    check_lod_shading(lod_shading)
     lod = _lod_arrays(hierarchy)
     view = _View.of(camera, hierarchy)
     off = hierarchy.level_offsets
@@ -231,7 +154,7 @@ def select(hierarchy: Hierarchy, camera: Camera, tolerance_px: float, *, cull_fr
             rows = reach + lo
         else:
             rows = slice(lo, hi)
-        out, inside, back, refine = _test(lod, rows, view, tau, frustum, cull_backfaces)
+        out, inside, back, refine = _test(lod, rows, view, lod_tolerance, frustum, cull_backfaces)
         live = ~(out | back)
         if isinstance(reach, np.ndarray) and reach.dtype == bool:
             live &= reach
@@ -275,8 +198,8 @@ def select(hierarchy: Hierarchy, camera: Camera, tolerance_px: float, *, cull_fr
     return Selection(nodes=tuple(nodes), leaves=tuple(leaves),
                      point_start=hierarchy.node_point_start[leaf_index],
                      point_count=hierarchy.node_point_count[leaf_index],
-                     shading=shading, tolerance_px=tau, visited=visited, culled_frustum=culled_frustum,
-                     culled_backface=culled_backface)
+                     lod_shading=lod_shading, lod_tolerance=lod_tolerance, visited=visited,
+                     culled_frustum=culled_frustum, culled_backface=culled_backface)
 
 
 def uniform_cut(hierarchy: Hierarchy, budget: int) -> np.ndarray:
@@ -298,7 +221,7 @@ def uniform_cut(hierarchy: Hierarchy, budget: int) -> np.ndarray:
     return np.concatenate([np.flatnonzero(leaf & (depth < level)), np.arange(sl.start, sl.stop)])
 
 
-def _test(lod: _LodArrays, rows, view: _View, tau: float, frustum: bool, cull_backfaces: bool):
+def _test(lod: _LodArrays, rows, view: _View, lod_tolerance: float, frustum: bool, cull_backfaces: bool):
     """Frustum, back-face and refinement tests of some nodes (``rows``: slice or global indices).
 
     Returns four bool arrays: outside the frustum, entirely inside it (None
@@ -321,10 +244,10 @@ def _test(lod: _LodArrays, rows, view: _View, tau: float, frustum: bool, cull_ba
         back = _backfacing(dx, dy, dz, d2, radius, lod, rows)
     else:
         back = np.zeros(n, dtype=bool)
-    # Pajarola 2003, sec. 5.1: refine while the projected size exceeds tau. The size
-    # focal * 2a / max(|c - eye| - R, near) exceeds tau iff |c - eye| < R + max(near, focal * 2a / tau).
-    if tau > 0:
-        reach = lod.diameter[rows] * np.float32(view.focal / tau)
+    # Pajarola 2003, sec. 5.1: refine while the projected size exceeds the tolerance l. The size
+    # focal * 2a / max(|c - eye| - R, near) exceeds l iff |c - eye| < R + max(near, focal * 2a / l).
+    if lod_tolerance > 0:
+        reach = lod.diameter[rows] * np.float32(view.focal / lod_tolerance)
         np.maximum(reach, np.float32(view.near), out=reach)
         reach += radius
         reach *= reach

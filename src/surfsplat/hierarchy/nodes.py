@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..frames import tangent_frame64
+
 #: (row, column) of the 10 unique entries of the symmetric 4x4 ``M_bar``,
 #: index 3 being the homogeneous coordinate (1): xx xy xz x yy yz y zz z n.
 COVARIANCE_ENTRIES = ((0, 0), (0, 1), (0, 2), (0, 3), (1, 1), (1, 2), (1, 3), (2, 2), (2, 3), (3, 3))
@@ -126,21 +128,6 @@ def quadratic_form(sym6, a, b) -> np.ndarray:
         mb *= a[i]
         out += mb
     return out
-
-
-def tangent_frame64(normals) -> tuple[np.ndarray, np.ndarray]:
-    """Orthonormal tangents ``(t1, t2)`` with ``t1 x t2 = n`` for unit normals, float64.
-
-    The branch-free construction of Duff et al. 2017 (as
-    :func:`surfsplat.geometry.splats.tangent_frame`, in float64).
-    """
-    nx, ny, nz = _columns(normals)
-    s = np.where(nz >= 0, 1.0, -1.0)
-    a = -1.0 / (s + nz)
-    b = nx * ny * a
-    t1 = np.stack([1.0 + s * nx * nx * a, s * b, -s * nx], axis=1)
-    t2 = np.stack([b, s + ny * ny * a, -ny], axis=1)
-    return t1, t2
 
 
 def average_normals(normal_sums, counts, covariance) -> np.ndarray:

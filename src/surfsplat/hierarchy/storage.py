@@ -1,8 +1,8 @@
-"""One-file storage of a :class:`~surfsplat.hierarchy.octree.Hierarchy`.
+"""One-file storage of a :class:`~surfsplat.hierarchy.model.Hierarchy`.
 
 The file is an uncompressed NumPy ``.npz`` archive (a zip of ``.npy``
 arrays, loaded without pickle) holding, besides the arrays of
-:meth:`Hierarchy.arrays <surfsplat.hierarchy.octree.Hierarchy.arrays>`:
+:meth:`Hierarchy.arrays <surfsplat.hierarchy.model.Hierarchy.arrays>`:
 
 - ``format``: the string ``"surfsplat-hierarchy"``,
 - ``format_version``: int, :data:`FORMAT_VERSION` (files of a newer version are refused),
@@ -32,13 +32,13 @@ import numpy as np
 
 from ..cloud import SplatCloud
 from ..errors import InputError
-from .octree import Hierarchy
+from .model import FORMAT_VERSION, Hierarchy
 
-#: Value of the ``format`` member.
+#: Value of the ``format`` member. The layout's version, :data:`FORMAT_VERSION`, is
+#: defined with the arrays in :mod:`~surfsplat.hierarchy.model`.
 FORMAT = "surfsplat-hierarchy"
 
-#: Version of the file layout written by this code.
-FORMAT_VERSION = 2
+__all__ = ["FORMAT", "FORMAT_VERSION", "save_hierarchy", "load_hierarchy"]
 
 #: name -> (dtype, shape after the first axis, first axis: "nodes", "points", "levels+1" or a number, required)
 _SPEC = {

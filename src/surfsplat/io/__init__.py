@@ -22,6 +22,7 @@ from pathlib import Path
 from ..cloud import SplatCloud
 from ..errors import InputError
 from .mesh import Mesh, area_weighted_normals, check_face_indices, read_obj
+from .las import read_las
 from .ply import read_ply, read_ply_mesh, write_ply
 
 #: File extensions :func:`load` understands (lower case).
@@ -63,8 +64,6 @@ def load(path: str | os.PathLike) -> SplatCloud:
     elif suffix == ".obj":
         cloud = _mesh_to_cloud(read_obj(path), str(path))
     else:
-        from .las import read_las
-
         cloud = read_las(path)
     return cloud.validated(source=str(path))
 

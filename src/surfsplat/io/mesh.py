@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import trimesh
 
 from ..errors import InputError
 
@@ -163,8 +164,6 @@ def read_obj(path: Path) -> Mesh:
     faces (a point cloud for ``load``, an error for ``load_mesh``). Any parse
     failure, and a file without vertices, raises InputError naming the file.
     """
-    import trimesh
-
     source = str(path)
     try:
         loaded = trimesh.load(source, file_type="obj", process=False)

@@ -40,6 +40,7 @@ from plyfile import PlyData, PlyElement, PlyElementParseError, PlyParseError
 
 from ..cloud import NO_CLIP, SplatCloud
 from ..errors import InputError
+from ..frames import tangent_frame
 from .mesh import Mesh, area_weighted_normals, check_face_indices
 
 #: Names of the face element's list property, in order of preference.
@@ -370,12 +371,10 @@ def circular_axes(normals: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, 
     """Tangent axes u, v of circular splats: (N, 3) float32 each, |u| = |v| = radius.
 
     ``u``, ``v`` and the unit normal form a right-handed orthogonal frame
-    (``u x v`` along ``n``; :func:`surfsplat.geometry.splats.tangent_frame`).
+    (``u x v`` along ``n``; :func:`surfsplat.frames.tangent_frame`).
     Zero-length or non-finite normals give NaN axes and non-positive or
     non-finite radii give zero axes; validation drops both.
     """
-    from ..geometry.splats import tangent_frame
-
     n = np.asarray(normals, dtype=np.float64)
     r = np.asarray(radius, dtype=np.float64)
     length = np.linalg.norm(n, axis=1)

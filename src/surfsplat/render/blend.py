@@ -10,18 +10,19 @@ hierarchy nodes carry a normal field (the smooth shading of sec. 5.2, fig. 14);
 it is evaluated per pixel.
 """
 
-from .technique import Technique, register
+from .options import RenderOptions
+from .technique import Technique
 
 
-def _uniforms(options) -> dict:
-    return {"u_kernel": options.blend_kernel()}
+def _uniforms(options: RenderOptions) -> dict:
+    return {"u_kernel": options.kernel.exponent()}
 
 
-BLEND = register(Technique(
+BLEND = Technique(
     name="blend",
     vertex="disk.vert",
     fragment="object_space.frag",
     blended=True,
     uniforms=_uniforms,
     description="object-space blending kernels psi_E, epsilon-z-buffer, normalization (Pajarola et al. 2003)",
-))
+)

@@ -1,4 +1,9 @@
-"""The OpenGL context: one headless EGL context per process, created on first use."""
+"""The OpenGL context: one headless EGL context per process, created on first use.
+
+:func:`reset_headless_context` releases it (the next :func:`headless_context`
+creates a new one); ``renderer.reset_default_renderer`` releases the default
+renderer with it.
+"""
 
 from __future__ import annotations
 
@@ -26,6 +31,17 @@ def headless_context() -> moderngl.Context:
                 "Install Mesa's EGL (Debian: libegl1 libegl-mesa0) or a GPU driver with EGL.")
         _headless = ctx
     return _headless
+
+
+def reset_headless_context() -> None:
+    """Release the process-wide headless context, if one exists; the next
+    :func:`headless_context` creates a new one. Every OpenGL object made on it
+    (renderers, buffers, programs) is unusable afterwards: release them first
+    (``Renderer.release``) or drop them."""
+    global _headless
+    ctx, _headless = _headless, None
+    if ctx is not None:
+        ctx.release()
 
 
 def renderer_name(ctx: moderngl.Context) -> str:

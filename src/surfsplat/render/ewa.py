@@ -6,13 +6,13 @@ cutoff contour, Gaussian weights, visibility splatting with per-fragment depth
 correction (sec. 5), accumulation and per-pixel normalization (sec. 7).
 """
 
-from .technique import Technique, filter_uniforms, register
+from .technique import Technique, filter_uniforms
 
-EWA = register(Technique(
+EWA = Technique(
     name="ewa",
     vertex="ewa.vert",
     fragment="ewa.frag",
     blended=True,
     uniforms=filter_uniforms,
     description="screen-space EWA splatting, three passes (Guennebaud & Paulin 2003)",
-))
+)

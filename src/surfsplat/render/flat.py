@@ -4,12 +4,12 @@ The baseline: one pass, no blending, per-splat lighting; exact per-pixel depth
 from the ray/plane intersection.
 """
 
-from .technique import Technique, register
+from .technique import Technique
 
-FLAT = register(Technique(
+FLAT = Technique(
     name="flat",
     vertex="disk.vert",
     fragment="flat.frag",
     blended=False,
     description="opaque elliptical disks, one pass (baseline)",
-))
+)

@@ -7,9 +7,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
 
 from ..camera import Camera
 from ..errors import InputError
+
+
+#: Image formats :meth:`Frame.save` (and the viewer's screenshots) write, by suffix.
+IMAGE_SUFFIXES = frozenset({".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"})
 
 
 @dataclass
@@ -48,10 +53,8 @@ class Frame:
 
     def save(self, path) -> Path:
         """Write the color image as PNG (or any format Pillow knows from the suffix); returns the path."""
-        from PIL import Image
-
         path = Path(path)
-        if path.suffix.lower() not in {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}:
+        if path.suffix.lower() not in IMAGE_SUFFIXES:
             raise InputError(f"{path}: unsupported image format {path.suffix!r}; use .png")
         if path.parent and not path.parent.exists():
             raise InputError(f"{path}: folder {path.parent} does not exist")
@@ -59,8 +62,6 @@ class Frame:
         return path
 
     def _repr_png_(self) -> bytes:
-        from PIL import Image
-
         buffer = io.BytesIO()
         Image.fromarray(self.image()).save(buffer, format="PNG")
         return buffer.getvalue()

@@ -28,7 +28,7 @@ from ..errors import InputError, RenderError
 from ..io.mesh import Mesh, area_weighted_normals
 from ..lighting import Lights
 from .frame import Frame
-from .technique import RenderOptions
+from .renderer import OPTIONAL_FRAME_UNIFORMS, Renderer, default_renderer
 
 #: Largest tile side in subsample pixels: bounds GPU memory (~24 bytes per subsample).
 MAX_TILE = 2048
@@ -69,7 +69,7 @@ def _tile_size(ctx: moderngl.Context, supersample: int) -> tuple[int, int]:
 
 
 def render_mesh(mesh: Mesh, camera: Camera, lights: Lights = Lights(), *, background=(1.0, 1.0, 1.0),
-                supersample: int = 4, smooth: bool = True, renderer=None) -> Frame:
+                supersample: int = 4, smooth: bool = True, renderer: Renderer | None = None) -> Frame:
     """Render a triangle mesh as the ground-truth image for splat renderings of it.
 
     Args:
@@ -85,7 +85,8 @@ def render_mesh(mesh: Mesh, camera: Camera, lights: Lights = Lights(), *, backgr
         smooth: shade with interpolated vertex normals (True) or with each
             face's geometric normal (False, flat shading).
         renderer: the :class:`~surfsplat.render.renderer.Renderer` whose
-            OpenGL context draws (default: ``surfsplat.api.default_renderer()``).
+            OpenGL context draws (default:
+            :func:`~surfsplat.render.renderer.default_renderer`).
 
     Returns:
         :class:`Frame` with the clip-planed camera and, per pixel (row 0 at the top):
@@ -108,8 +109,6 @@ def render_mesh(mesh: Mesh, camera: Camera, lights: Lights = Lights(), *, backgr
         raise InputError(f"render_mesh: supersample must be an integer in 1..{MAX_SUPERSAMPLE}, got {supersample!r}")
     bg = _check_background(background)
     if renderer is None:
-        from ..api import default_renderer
-
         renderer = default_renderer()
     if camera.near is None or camera.far is None:
         camera = camera.with_clip_from_bounds(*mesh.bounds())
@@ -120,8 +119,8 @@ def render_mesh(mesh: Mesh, camera: Camera, lights: Lights = Lights(), *, backgr
     big_w, big_h = width * s, height * s
     tile_w, tile_h = min(tile, big_w), min(tile, big_h)
 
-    program = renderer._program("mesh.vert", "mesh.frag", ())
-    uniforms = renderer._frame_uniforms(camera, lights, RenderOptions())
+    program = renderer.program("mesh.vert", "mesh.frag")
+    uniforms = renderer.frame_uniforms(camera, lights)
     uniforms |= {"u_viewport": (float(big_w), float(big_h)), "u_focal": float(camera.focal_px * s),
                  "u_albedo": (DEFAULT_ALBEDO,) * 3}
     rows, indices, colored = _vertex_data(mesh, smooth)
@@ -163,7 +162,8 @@ def render_mesh(mesh: Mesh, camera: Camera, lights: Lights = Lights(), *, backgr
                 fbo.viewport = (0, 0, tw, th)
                 fbo.use()
                 fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-                renderer._set_uniforms(program, uniforms | {"u_tile": (float(x0), float(y0), float(tw), float(th))})
+                renderer.set_uniforms(program, uniforms | {"u_tile": (float(x0), float(y0), float(tw), float(th))},
+                                      OPTIONAL_FRAME_UNIFORMS)
                 vao.render(moderngl.TRIANGLES)
                 rgba = np.frombuffer(fbo.read(viewport=(0, 0, tw, th), components=4, attachment=0, dtype="f4"),
                                      dtype="f4").reshape(th // s, s, tw // s, s, 4)
@@ -180,9 +180,9 @@ def render_mesh(mesh: Mesh, camera: Camera, lights: Lights = Lights(), *, backgr
     finally:
         ctx.disable(moderngl.DEPTH_TEST)
         # moderngl re-binds the current framebuffer when creating one: park on
-        # one that stays alive before freeing ours (see Renderer._ensure_targets);
-        # then free in reverse order: framebuffer, attachments, vertex array, buffers.
-        renderer._parking.use()
+        # one that stays alive before freeing ours (Renderer.park); then free in
+        # reverse order: framebuffer, attachments, vertex array, buffers.
+        renderer.park()
         for resource in reversed(resources):
             resource.release()
 

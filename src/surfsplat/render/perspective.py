@@ -19,13 +19,13 @@ Passes as ewa: visibility with exact ray-cast disks (depth + epsilon),
 accumulation with the kernel above, per-pixel normalization.
 """
 
-from .technique import Technique, filter_uniforms, register
+from .technique import Technique, filter_uniforms
 
-PERSPECTIVE = register(Technique(
+PERSPECTIVE = Technique(
     name="perspective",
     vertex="perspective.vert",
     fragment="perspective.frag",
     blended=True,
     uniforms=filter_uniforms,
     description="perspective accurate EWA splatting, three passes (Zwicker et al. 2004)",
-))
+)

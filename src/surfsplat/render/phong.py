@@ -10,18 +10,19 @@ accumulation, normalization. Splats without a normal field are lit per pixel
 with their constant normal.
 """
 
-from .technique import Technique, register
+from .options import RenderOptions
+from .technique import Technique
 
 
-def _uniforms(options) -> dict:
-    return {"u_kernel": (float(options.cutoff), 2.0)}
+def _uniforms(options: RenderOptions) -> dict:
+    return {"u_kernel": (float(options.filter.cutoff), 2.0)}
 
 
-PHONG = register(Technique(
+PHONG = Technique(
     name="phong",
     vertex="disk.vert",
     fragment="object_space.frag",
     blended=True,
     uniforms=_uniforms,
     description="Phong splats: per-pixel ray cast, linear normal fields, per-pixel lighting (Botsch et al. 2004)",
-))
+)

@@ -7,11 +7,16 @@
 3. normalization: a full-screen pass dividing by the accumulated weight (eq. 18).
 
 Opaque techniques draw once with a plain z-buffer and share pass 3.
+
+The process-wide renderer of the headless context is :func:`default_renderer`
+(created on first use); :func:`reset_default_renderer` releases it and the context.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable, Sequence
 
 import moderngl
 import numpy as np
@@ -20,12 +25,21 @@ from ..camera import Camera
 from ..cloud import SplatCloud
 from ..errors import InputError, RenderError
 from ..lighting import MAX_LIGHTS, Lights
-from .context import headless_context
+from .context import headless_context, reset_headless_context
 from .frame import Frame
-from .shaders import build_source
-from .technique import RenderOptions, Technique, get_technique
+from .options import RenderOptions
+from .shaders import PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBILITY, BuiltProgram, build_program, undeclared
+from .technique import Technique
+from .techniques import get_technique
 
-PASS_OPAQUE, PASS_VISIBILITY, PASS_ACCUMULATION = 0, 1, 2
+__all__ = ["GpuSplats", "Renderer", "default_renderer", "reset_default_renderer", "OPTIONAL_FRAME_UNIFORMS",
+           "PASS_OPAQUE", "PASS_VISIBILITY", "PASS_ACCUMULATION"]
+
+#: The frame-wide uniforms (:meth:`Renderer.frame_uniforms`) that only the splat programs
+#: declare: the normalization pass and the ground-truth mesh program lack them, so setting
+#: them there is no error. This is the one documented optional set of frame-wide uniforms;
+#: a technique lists its own optional ones in ``Technique.optional_uniforms``.
+OPTIONAL_FRAME_UNIFORMS = frozenset({"u_depth_epsilon", "u_cull_backfaces", "u_deferred"})
 
 
 @dataclass
@@ -56,32 +70,81 @@ def _with_clip_planes(camera: Camera, splats: GpuSplats) -> Camera:
 
 
 class Renderer:
-    """Renders SplatClouds with any registered technique into Frames.
+    """Renders SplatClouds with any technique of ``techniques.TECHNIQUES`` into Frames.
 
     Owns shader programs and render targets of one OpenGL context (the
     process-wide headless one unless a context is given, e.g. a window's).
+
+    Args:
+        ctx: the OpenGL context; default :func:`~surfsplat.render.context.headless_context`.
+        search_path: folders searched for shader files before the package's
+            ``glsl/`` (custom or experimental shaders; tests).
     """
 
-    def __init__(self, ctx: moderngl.Context | None = None):
+    def __init__(self, ctx: moderngl.Context | None = None, *, search_path: Sequence[Path] = ()):
         self.ctx = ctx or headless_context()
-        self._programs: dict[tuple, moderngl.Program] = {}
+        self.search_path = tuple(Path(p) for p in search_path)
+        self._programs: dict[tuple, BuiltProgram] = {}
+        self._built: dict[int, BuiltProgram] = {}   # id(program) -> its BuiltProgram
         self._quad = self.ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], dtype="f4"))
         self._targets: dict | None = None
-        self._parking = self.ctx.framebuffer([self.ctx.renderbuffer((1, 1))])
-        self._fullscreen = self.ctx.vertex_array(self._program("fullscreen.vert", "normalize.frag", ()), [])
+        self._parking_rb = self.ctx.renderbuffer((1, 1))
+        self._parking = self.ctx.framebuffer([self._parking_rb])
+        self._fullscreen = self.ctx.vertex_array(self.program("fullscreen.vert", "normalize.frag"), [])
 
     # -- resources ---------------------------------------------------------
 
-    def _program(self, vertex: str, fragment: str, defines: tuple) -> moderngl.Program:
-        key = (vertex, fragment, defines)
-        if key not in self._programs:
-            d = dict(defines)
-            try:
-                self._programs[key] = self.ctx.program(
-                    vertex_shader=build_source(vertex, d), fragment_shader=build_source(fragment, d))
-            except moderngl.Error as exc:
-                raise RenderError(f"shader {vertex}/{fragment} failed to build: {exc}") from None
-        return self._programs[key]
+    def program(self, vertex: str, fragment: str, defines: dict[str, object] | None = None) -> moderngl.Program:
+        """The linked program of two shader files with ``defines`` (built once, then cached).
+
+        Files come from ``search_path``, then the package's ``glsl/``; see
+        :func:`~surfsplat.render.shaders.compose` for includes and the shared defines.
+
+        Raises:
+            RenderError: the shaders failed to build; compiler positions name
+                the shader file and line (``ewa.vert:8(3): error: ...``).
+        """
+        key = (vertex, fragment, tuple(sorted((defines or {}).items())))
+        built = self._programs.get(key)
+        if built is None:
+            built = build_program(self.ctx, vertex, fragment, dict(key[2]), search_path=self.search_path)
+            self._programs[key] = built
+            self._built[id(built.program)] = built
+        return built.program
+
+    def declared_uniforms(self, program: moderngl.Program) -> frozenset[str]:
+        """Uniform names declared by the sources of a program built by :meth:`program` (used or not)."""
+        return self._built_program(program).uniforms
+
+    def _built_program(self, program: moderngl.Program) -> BuiltProgram:
+        built = self._built.get(id(program))
+        if built is None or built.program is not program:
+            raise RenderError("this program was not built by this renderer (Renderer.program)")
+        return built
+
+    def park(self) -> None:
+        """Bind the renderer's 1x1 framebuffer, which stays alive.
+
+        Call it before releasing framebuffers you created on the renderer's
+        context: moderngl re-binds the current framebuffer after creating one,
+        so the bound framebuffer must not be one being freed.
+        """
+        self._parking.use()
+
+    def release(self) -> None:
+        """Free the renderer's GPU objects (programs, targets, buffers); it is unusable afterwards.
+        The context stays (it may be shared, e.g. the headless one)."""
+        self._release_targets()
+        self._fullscreen.release()
+        for built in self._programs.values():
+            built.program.release()
+        self._programs.clear()
+        self._built.clear()
+        self._quad.release()
+        # leave the default framebuffer bound (see park): the parking framebuffer goes too
+        (self.ctx.screen or self.ctx.detect_framebuffer(0)).use()
+        self._parking.release()
+        self._parking_rb.release()
 
     def upload(self, cloud: SplatCloud) -> GpuSplats:
         """Copy a preprocessed SplatCloud (normals and tangent axes present) to the GPU."""
@@ -108,15 +171,19 @@ class Renderer:
             splats._vaos[key] = self.ctx.vertex_array(program, content)
         return splats._vaos[key]
 
+    def _release_targets(self) -> None:
+        if self._targets is not None:
+            # moderngl re-binds the current framebuffer after creating one: park on
+            # a framebuffer that stays alive, then free framebuffers before textures.
+            self.park()
+            for name in sorted(self._targets, key=lambda key: not key.startswith("fbo")):
+                if hasattr(self._targets[name], "release"):
+                    self._targets[name].release()
+            self._targets = None
+
     def _ensure_targets(self, width: int, height: int) -> dict:
         if self._targets is None or self._targets["size"] != (width, height):
-            if self._targets is not None:
-                # moderngl re-binds the current framebuffer after creating one: park on
-                # a framebuffer that stays alive, then free framebuffers before textures.
-                self._parking.use()
-                for name in sorted(self._targets, key=lambda key: not key.startswith("fbo")):
-                    if hasattr(self._targets[name], "release"):
-                        self._targets[name].release()
+            self._release_targets()
             ctx, size = self.ctx, (width, height)
             accum = ctx.texture(size, 4, dtype="f4")
             aux = ctx.texture(size, 4, dtype="f4")
@@ -134,12 +201,25 @@ class Renderer:
 
     # -- drawing -----------------------------------------------------------
 
-    def _set_uniforms(self, program: moderngl.Program, values: dict) -> None:
+    def set_uniforms(self, program: moderngl.Program, values: dict, optional: Iterable[str] = ()) -> None:
+        """Set uniforms of a program built by :meth:`program`.
+
+        A name the program's sources do not declare raises RenderError unless
+        it is in ``optional`` (a misspelled uniform is never silently dropped);
+        declared names the compiler dropped as unused are skipped.
+        """
+        built = self._built_program(program)
+        unknown = undeclared(values, built.uniforms, optional)
+        if unknown:
+            raise RenderError(f"shader {built.name} declares no uniform {', '.join(unknown)}")
         for name, value in values.items():
             if name in program:
                 program[name].value = value
 
-    def _frame_uniforms(self, camera: Camera, lights: Lights, options: RenderOptions) -> dict:
+    def frame_uniforms(self, camera: Camera, lights: Lights, options: RenderOptions = RenderOptions()) -> dict:
+        """The uniforms every splat program reads, for one frame: camera (``camera.glsl``), lights
+        (``lighting.glsl``) and the visibility and deferred options; those of
+        :data:`OPTIONAL_FRAME_UNIFORMS` are optional where set. ``camera`` needs near/far."""
         view = camera.view_matrix
         dirs = lights.world_directions(camera) @ view[:3, :3].T
         padded = np.zeros((MAX_LIGHTS, 3))
@@ -153,8 +233,8 @@ class Renderer:
             "u_num_lights": len(dirs),
             "u_light_dirs": [tuple(map(float, d)) for d in padded],
             "u_material": (lights.ambient, lights.diffuse, lights.specular, lights.shininess),
-            "u_depth_epsilon": float(options.depth_epsilon),
-            "u_cull_backfaces": bool(options.cull_backfaces),
+            "u_depth_epsilon": float(options.visibility.depth_epsilon),
+            "u_cull_backfaces": bool(options.visibility.cull_backfaces),
             "u_deferred": bool(options.deferred),
         }
 
@@ -170,7 +250,9 @@ class Renderer:
         camera = _with_clip_planes(camera, splats)
         ctx = self.ctx
         targets = self._ensure_targets(camera.width, camera.height)
-        uniforms = self._frame_uniforms(camera, lights, options) | technique.uniforms(options)
+        frame = self.frame_uniforms(camera, lights, options)
+        uniforms = frame | technique.uniforms(options)
+        optional = OPTIONAL_FRAME_UNIFORMS | technique.optional_uniforms
         passes = [PASS_VISIBILITY, PASS_ACCUMULATION] if technique.blended else [PASS_OPAQUE]
 
         targets["fbo_accum"].use()
@@ -179,8 +261,8 @@ class Renderer:
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)
         for pass_id in passes:
-            program = self._program(technique.vertex, technique.fragment, (("PASS", pass_id),))
-            self._set_uniforms(program, uniforms)
+            program = self.program(technique.vertex, technique.fragment, {"PASS": pass_id})
+            self.set_uniforms(program, uniforms, optional)
             if pass_id == PASS_ACCUMULATION:
                 fbo = targets["fbo_accum"]
                 fbo.use()
@@ -207,8 +289,8 @@ class Renderer:
         normalize = self._fullscreen.program
         targets["accum"].use(location=0)
         targets["aux"].use(location=1)
-        self._set_uniforms(normalize, uniforms | {"u_accum": 0, "u_aux": 1,
-                                                  "u_background": tuple(map(float, background))})
+        self.set_uniforms(normalize, frame | {"u_accum": 0, "u_aux": 1, "u_background": tuple(map(float, background))},
+                          OPTIONAL_FRAME_UNIFORMS)
         self._fullscreen.render(moderngl.TRIANGLES, vertices=3)
 
     def render(self, splats: GpuSplats | SplatCloud, camera: Camera, technique: Technique | str = "ewa",
@@ -236,3 +318,33 @@ class Renderer:
         finally:
             if uploaded is not None:
                 uploaded.release()
+
+
+_default: Renderer | None = None
+
+
+def default_renderer() -> Renderer:
+    """The process-wide :class:`Renderer` on the headless context (created on first use).
+
+    ``surfsplat.render()``, ``render_mesh`` and the CLI draw with it, so shader
+    programs are compiled once per process.
+    """
+    global _default
+    if _default is None:
+        _default = Renderer()
+    return _default
+
+
+def reset_default_renderer() -> None:
+    """Release the default renderer and the process-wide headless context.
+
+    Frees their GPU memory (programs, targets; the EGL context); the next
+    :func:`default_renderer` creates both anew. Every other object on the
+    headless context (other Renderers, GpuSplats, programs) is unusable
+    afterwards. Nothing happens when neither exists.
+    """
+    global _default
+    renderer, _default = _default, None
+    if renderer is not None:
+        renderer.release()
+    reset_headless_context()

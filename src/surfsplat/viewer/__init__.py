@@ -6,6 +6,6 @@ tests and by people without a mouse. Needs the optional ``glfw`` package
 (``pip install 'surfsplat[viewer]'``) and a display.
 """
 
-from .app import LevelOfDetail, ViewStats, view
+from .app import MOTION_MODES, LevelOfDetail, MotionOptions, ViewStats, view
 
-__all__ = ["LevelOfDetail", "ViewStats", "view"]
+__all__ = ["MOTION_MODES", "LevelOfDetail", "MotionOptions", "ViewStats", "view"]

@@ -7,9 +7,9 @@ Frame loop (one thread; glfw callbacks only record input, the loop acts on it):
 2. rendering, off-screen, into RGBA8 textures of the window's framebuffer size:
    - while the camera moves (and for ``SETTLE_S`` after its last change), where full quality
      is too slow to follow (over ``PREVIEW_ABOVE_S`` a frame), a cheap *preview*:
-     technique ``flat`` (one pass) on at most ``motion_budget`` splats (a fixed coarse cut of the
+     technique ``flat`` (one pass) on at most ``MotionOptions.budget`` splats (a fixed coarse cut of the
      LOD hierarchy: :func:`preview_cloud`), optionally at a lower internal
-     resolution (``motion_scale``);
+     resolution (``MotionOptions.scale``);
    - once the camera has been still for ``SETTLE_S``, one *full-quality* frame with the chosen
      technique; it is kept and shown again, not re-rendered, until something changes;
 3. presenting: the preview cross-faded into the full frame over ``FADE_S`` (no pop), then the HUD.
@@ -26,23 +26,29 @@ pixel ownership, and lets a still view be re-shown without re-rendering.
 
 from __future__ import annotations
 
-import itertools
 import math
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Literal
+from typing import Literal, get_args
 
+import moderngl
 import numpy as np
 
 from .. import progress
-from ..api import render_options
+from ..api import (DEFAULT_BACKGROUND, DEFAULT_K, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec,
+                   as_hierarchy, check_background, check_source, load_model, lod_splats, model_points, resolve_camera)
 from ..camera import Camera
 from ..cloud import SplatCloud
 from ..errors import InputError, RenderError
+from ..hierarchy import LodShading, uniform_cut
 from ..lighting import Lights
-from ..render.technique import TECHNIQUES, RenderOptions, get_technique
+from ..render.options import RenderOptions, TechniqueName
+from ..render.renderer import Renderer
+from ..render.techniques import TECHNIQUES
 from . import camera_control as cc
+from .hud import Hud, viewer_program
+from .screenshots import check_image_path, save_image, unique_screenshot_path
 
 #: Seconds the camera must be still before the full-quality frame replaces the preview.
 SETTLE_S = 0.25
@@ -51,17 +57,15 @@ FADE_S = 0.15
 #: Default (about) number of splats and resolution scale of the motion preview: with ``flat``
 #: at 1280x720 (drawn at 640x360) about 5-10 frames/s on llvmpipe with 2 cores. Only used
 #: where full quality is slow (motion "auto"), so a GPU usually never shows the preview.
-DEFAULT_MOTION_BUDGET = 100_000
-DEFAULT_MOTION_SCALE = 0.5
 #: LOD screen tolerance range, pixels, and the factor of one +/- step.
 TOLERANCE_RANGE = (0.125, 64.0)
 TOLERANCE_STEP = math.sqrt(2.0)
 #: Seconds between refreshes of the frame counter (and so of the HUD's text).
 FPS_INTERVAL_S = 0.5
-#: Image formats a scripted screenshot may be written in (by suffix).
-IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}
 
 Motion = Literal["auto", "flat", "same", "off"]
+#: The values of :data:`Motion`.
+MOTION_MODES = get_args(Motion)
 #: With motion "auto", the preview is used only where a full-quality frame takes longer than this
 #: (seconds): on a GPU the full quality usually keeps up and is drawn while moving too.
 PREVIEW_ABOVE_S = 0.05
@@ -70,6 +74,33 @@ NO_DISPLAY = ("cannot open a window: {why}. The viewer needs a display. Without 
               "with `surfsplat render INPUT -o out.png` (or `surfsplat demo`), or run the viewer under "
               "a virtual X server: `xvfb-run -s '-screen 0 1280x1024x24' surfsplat view INPUT --frames N "
               "--screenshot out.png` (Debian/Ubuntu: apt-get install xvfb)")
+
+
+@dataclass(frozen=True)
+class MotionOptions:
+    """What the viewer draws while the camera moves.
+
+    Attributes:
+        mode: "flat" (opaque one-pass disks) or "same" (the chosen technique), both on about
+            ``budget`` splats at ``scale`` of the resolution; "off": full quality always;
+            "auto": "flat" where a full-quality frame takes longer than ``PREVIEW_ABOVE_S``.
+        budget: about this many splats at most in the preview (0: all). The default, with
+            ``flat`` at 1280x720 drawn at 640x360, gives about 5-10 frames/s on llvmpipe with 2
+            cores; only used where full quality is slow, so a GPU usually never shows it.
+        scale: internal resolution of the preview, fraction of the window's, in (0, 1].
+    """
+
+    mode: Motion = "auto"
+    budget: int = 100_000
+    scale: float = 0.5
+
+    def __post_init__(self) -> None:
+        if self.mode not in MOTION_MODES:
+            raise InputError(f"motion must be one of {', '.join(map(repr, MOTION_MODES))}, got {self.mode!r}")
+        if not (0.0 < self.scale <= 1.0):
+            raise InputError(f"motion scale must be in (0, 1], got {self.scale}")
+        if int(self.budget) < 0:
+            raise InputError(f"motion budget must be >= 0 splats (0: all), got {self.budget}")
 
 
 @dataclass
@@ -99,37 +130,8 @@ class ViewStats:
 
 # -- inputs ----------------------------------------------------------------
 
-def load_source(source, k: int = 8):
-    """The model to view: a Hierarchy for a hierarchy (``.npz`` file or object), else a
-    render-ready SplatCloud from a SplatCloud, a file path, or ``"demo:NAME"`` (a built-in scene)."""
-    from ..api import load_model
-
-    if isinstance(source, str) and source.startswith("demo:"):
-        from ..scenes import demo_scene
-
-        with progress.stage(f"building scene {source[5:]}"):
-            return demo_scene(source[5:])
-    if isinstance(source, (str, Path)):
-        with progress.stage(f"loading {source}"):
-            return load_model(source, k=k)
-    return load_model(source, k=k)
-
-
-def check_source(source) -> None:
-    """Cheap checks before a window opens: a known demo scene, an existing file (InputError else)."""
-    if isinstance(source, str) and source.startswith("demo:"):
-        from ..scenes import SCENES
-
-        if source[5:] not in SCENES:
-            raise InputError(f"unknown demo scene {source[5:]!r}; choose one of "
-                             f"{', '.join('demo:' + name for name in sorted(SCENES))}")
-    elif isinstance(source, (str, Path)) and not Path(source).is_file():
-        raise InputError(f"{source}: no such file (or demo:NAME for a built-in scene)")
-
-
 def technique_names() -> list[str]:
-    """The registered techniques in the order T cycles through them and 1..9 select them."""
-    get_technique("ewa")  # importing the technique modules registers them
+    """The techniques in the order T cycles through them and 1..9 select them."""
     return sorted(TECHNIQUES)
 
 
@@ -142,11 +144,9 @@ def preview_cloud(hierarchy, budget: int) -> SplatCloud | None:
     preview has no holes; fixed, so it does not flicker. None when the model has
     no more than ``budget`` splats (or ``budget`` is 0): it is drawn whole.
     """
-    from ..hierarchy import uniform_cut
-
     if budget <= 0 or len(hierarchy.points) <= budget:
         return None
-    return hierarchy.node_splats(uniform_cut(hierarchy, budget), shading="flat")
+    return hierarchy.node_splats(uniform_cut(hierarchy, budget), lod_shading="flat")
 
 
 class LevelOfDetail:
@@ -159,22 +159,20 @@ class LevelOfDetail:
     cut. A cut is reused while the camera, tau and culling stay the same.
     """
 
-    def __init__(self, renderer, hierarchy, shading: str = "fit"):
-        self.renderer, self.hierarchy, self.shading = renderer, hierarchy, shading
+    def __init__(self, renderer, hierarchy, lod_shading: LodShading = DEFAULT_LOD_SHADING):
+        self.renderer, self.hierarchy, self.lod_shading = renderer, hierarchy, lod_shading
         self._key = None
         self._splats = None
         self.count = 0
         self.select_ms = 0.0
 
-    def __call__(self, camera: Camera, tolerance_px: float, cull_backfaces: bool):
+    def __call__(self, camera: Camera, lod_tolerance: float, cull_backfaces: bool):
         """(GpuSplats or None when nothing is visible, number of splats drawn)."""
-        from ..api import lod_splats
-
-        key = (camera, float(tolerance_px), bool(cull_backfaces))
+        key = (camera, float(lod_tolerance), bool(cull_backfaces))
         if key != self._key:
             start = time.perf_counter()
-            cloud, _ = lod_splats(self.hierarchy, camera, tolerance_px, cull_backfaces=cull_backfaces,
-                                  shading=self.shading)
+            cloud, _ = lod_splats(self.hierarchy, camera, lod_tolerance, cull_backfaces=cull_backfaces,
+                                  lod_shading=self.lod_shading)
             self.select_ms = 1000.0 * (time.perf_counter() - start)
             self.release()
             self._splats = self.renderer.upload(cloud) if len(cloud) else None
@@ -202,7 +200,6 @@ def open_window(width: int, height: int, title: str, visible: bool = True):
     except ImportError:
         raise RenderError(NO_DISPLAY.format(why="the glfw package is not installed "
                                             "(pip install 'surfsplat[viewer]')")) from None
-    import moderngl
 
     errors: list[str] = []
 
@@ -237,50 +234,6 @@ def open_window(width: int, height: int, title: str, visible: bool = True):
     return glfw, window, ctx
 
 
-def unique_screenshot_path(folder: Path | None = None, now: float | None = None) -> Path:
-    """``surfsplat-YYYYmmdd-HHMMSS.png`` in ``folder`` (default: the current folder), with ``-1``,
-    ``-2``, ... appended while that name exists. :func:`save_image` with ``exclusive``
-    re-checks atomically."""
-    folder = Path.cwd() if folder is None else Path(folder)
-    stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(now))
-    for i in itertools.count():
-        path = folder / f"surfsplat-{stamp}{'' if i == 0 else f'-{i}'}.png"
-        if not path.exists():
-            return path
-    raise AssertionError("unreachable")
-
-
-def save_image(image: np.ndarray, path: Path, exclusive: bool = False) -> Path:
-    """Write an (H, W, 3) uint8 image. ``exclusive``: never overwrite; the name gets ``-1``,
-    ``-2``, ... until a new file can be created (opened with O_EXCL, so no race). Returns the path."""
-    from PIL import Image
-
-    path = Path(path)
-    picture = Image.fromarray(image)
-    if not exclusive:
-        picture.save(path)
-        return path
-    stem, suffix = path.stem, path.suffix
-    for i in itertools.count():
-        candidate = path.with_name(f"{stem}{'' if i == 0 else f'-{i}'}{suffix}")
-        try:
-            with open(candidate, "xb") as handle:
-                picture.save(handle, format="PNG")
-            return candidate
-        except FileExistsError:
-            continue
-    raise AssertionError("unreachable")
-
-
-def _check_image_path(path) -> Path:
-    path = Path(path)
-    if path.suffix.lower() not in IMAGE_SUFFIXES:
-        raise InputError(f"{path}: unsupported image format {path.suffix!r}; use .png")
-    if not path.parent.exists():
-        raise InputError(f"{path}: folder {path.parent} does not exist")
-    return path
-
-
 HELP = """\
 left drag\torbit around the target (fly mode: look around)
 right / middle drag\tpan
@@ -305,42 +258,41 @@ class Viewer:
     Built by :func:`view`; usable directly for tests that drive it frame by frame.
     """
 
-    def __init__(self, glfw, window, ctx, model, camera: Camera | None, *, technique: str,
-                 lights: Lights, options: RenderOptions, background, up, fov: float, tolerance: float,
-                 motion: Motion, motion_budget: int, motion_scale: float, hud: bool):
-        from ..api import as_hierarchy, auto_camera
-        from ..render.renderer import Renderer
-        from .hud import Hud, viewer_program
-
+    def __init__(self, glfw, window, ctx, model, camera: Camera | CameraSpec | None, *, technique: TechniqueName,
+                 lights: Lights, options: RenderOptions, background, lod_tolerance: float,
+                 lod_shading: LodShading = DEFAULT_LOD_SHADING, motion: MotionOptions = MotionOptions(),
+                 hud: bool = True):
         self.glfw, self.window, self.ctx = glfw, window, ctx
         self.renderer = Renderer(ctx)
         self.techniques = technique_names()
         self.technique = technique
         self.lights, self.options, self.background = lights, options, tuple(background)
-        self.tolerance = float(tolerance)
-        self.motion, self.motion_scale = motion, float(motion_scale)
+        self.lod_tolerance = float(lod_tolerance)
+        self.motion, self.motion_scale = motion.mode, float(motion.scale)
 
         hierarchy = as_hierarchy(model)  # built on loading when the model is a cloud
         cloud = hierarchy.points
-        self.lod = LevelOfDetail(self.renderer, hierarchy)
+        self.lod = LevelOfDetail(self.renderer, hierarchy, lod_shading)
         self.model_splats = len(cloud)
-        small = preview_cloud(hierarchy, motion_budget) if motion != "off" else None
+        small = preview_cloud(hierarchy, int(motion.budget)) if motion.mode != "off" else None
         with progress.stage(f"uploading {len(small or cloud):,} preview splats"):
             self.preview_splats = self.renderer.upload(small if small is not None else cloud)
 
         fb_w, fb_h = glfw.get_framebuffer_size(window)
         fb_w, fb_h = max(fb_w, 1), max(fb_h, 1)
-        up = tuple(float(x) for x in up)
+        spec = camera if isinstance(camera, CameraSpec) else CameraSpec()
+        up = tuple(float(x) for x in (camera.up if isinstance(camera, Camera) else spec.up))
         lo, hi = cloud.bounds()
         scene_radius = 0.5 * float(np.linalg.norm(hi - lo)) or 1.0
+        home_spec = CameraSpec(up=up, fov=camera.fov if isinstance(camera, Camera) else spec.fov)
 
         def home(width: int, height: int) -> Camera:
-            return auto_camera(cloud, width, height, fov, up=up)
+            return home_spec.camera_for(cloud, width, height)
 
-        start = home(fb_w, fb_h) if camera is None else camera.resized(fb_w, fb_h)
+        start = resolve_camera(model, camera, fb_w, fb_h).resized(fb_w, fb_h)
         self.controller = cc.CameraController(start, home, scale=scene_radius, up=np.asarray(up))
 
-        self.present_program = viewer_program(ctx, "render:fullscreen.vert", "present.frag")
+        self.present_program = viewer_program(ctx, "fullscreen.vert", "present.frag")
         self._present_vao = ctx.vertex_array(self.present_program, [])
         self.hud = Hud(ctx, scale=max(glfw.get_window_content_scale(window)[0], 1.0)) if hud else None
         self.show_hud = hud
@@ -372,8 +324,6 @@ class Viewer:
 
     def _make_targets(self) -> None:
         """(Re)create the off-screen color targets for the current framebuffer size."""
-        import moderngl
-
         ctx = self.ctx
         if self._targets is not None:
             ctx.screen.use()  # park on the default framebuffer while freeing (see Renderer)
@@ -514,14 +464,16 @@ class Viewer:
                 return
             self.technique = names[index]
         elif kind == "prefilter":
-            self.options = replace(self.options, prefilter=not self.options.prefilter)
+            o = self.options
+            self.options = replace(o, filter=replace(o.filter, prefilter=not o.filter.prefilter))
         elif kind == "lighting":
             self.lights = replace(self.lights, enabled=not self.lights.enabled)
         elif kind == "cull":
-            self.options = replace(self.options, cull_backfaces=not self.options.cull_backfaces)
+            o = self.options
+            self.options = replace(o, visibility=replace(o.visibility, cull_backfaces=not o.visibility.cull_backfaces))
         elif kind == "tolerance":
             lo, hi = TOLERANCE_RANGE
-            self.tolerance = float(np.clip(self.tolerance * TOLERANCE_STEP ** action[1], lo, hi))
+            self.lod_tolerance = float(np.clip(self.lod_tolerance * TOLERANCE_STEP ** action[1], lo, hi))
         elif kind == "help":
             if self.hud is not None:
                 self.hud.show_help = not self.hud.show_help
@@ -558,7 +510,7 @@ class Viewer:
         """Render the current view off-screen: full quality, or the motion preview."""
         camera = self.controller.camera
         if full:
-            splats, self.drawn = self.lod(camera, self.tolerance, self.options.cull_backfaces)
+            splats, self.drawn = self.lod(camera, self.lod_tolerance, self.options.visibility.cull_backfaces)
             technique, fbo = self.technique, self._targets["full_fbo"]
         else:
             splats, self.drawn = self.preview_splats, self.preview_splats.count
@@ -629,8 +581,8 @@ class Viewer:
                    f"{self.preview_splats.count:,} splats)" if preview else "full quality")
         lines = [
             f"{self.technique}   {self.drawn:,} splats   {rate}   ({ms:.0f} ms/frame)",
-            f"prefilter {on[self.options.prefilter]}   lighting {on[self.lights.enabled]}   "
-            f"culling {on[self.options.cull_backfaces]}   LOD tolerance {self.tolerance:.3g} px "
+            f"prefilter {on[self.options.filter.prefilter]}   lighting {on[self.lights.enabled]}   "
+            f"culling {on[self.options.visibility.cull_backfaces]}   LOD tolerance {self.lod_tolerance:.3g} px "
             f"({self.lod.select_ms:.0f} ms to select)",
             f"{self.controller.mode} mode   {quality}   H: help",
         ]
@@ -744,33 +696,31 @@ class Viewer:
                          self.full_frames, self.model_splats, self.preview_splats.count, self.size)
 
 
-def view(source, camera: Camera | None = None, *, technique: str = "ewa", size: tuple[int, int] = (1280, 720),
-         eye=None, target=None, up=(0.0, 1.0, 0.0), fov: float = 40.0, lights: Lights | None = None,
-         background=(1.0, 1.0, 1.0), tolerance: float = 1.0, motion: Motion = "auto",
-         motion_budget: int = DEFAULT_MOTION_BUDGET, motion_scale: float = DEFAULT_MOTION_SCALE, hud: bool = True,
-         frames: int | None = None, orbit: float = 0.0, screenshot=None, k: int = 8,
-         title: str | None = None, **options) -> ViewStats:
+def view(source, camera: Camera | CameraSpec | None = None, *, technique: TechniqueName = "ewa",
+         size: tuple[int, int] = (1280, 720), lights: Lights | None = None, background=DEFAULT_BACKGROUND,
+         options: RenderOptions | None = None, lod_tolerance: float = DEFAULT_LOD_TOLERANCE,
+         lod_shading: LodShading = DEFAULT_LOD_SHADING, motion: MotionOptions | None = None, hud: bool = True,
+         frames: int | None = None, orbit: float = 0.0, screenshot=None, k: int = DEFAULT_K,
+         title: str | None = None) -> ViewStats:
     """Open an interactive window on a splat model (press H in it for the keys).
 
     Args:
-        source: a SplatCloud, a point/splat/mesh file (preprocessed with ``k`` neighbours
-            if needed) or ``"demo:NAME"`` for a built-in scene (``demo:torus``, ...).
-        camera: the first view; its size is replaced by the window's. Default: ``eye`` /
-            ``target`` if given, else the automatic framing (also what R returns to).
+        source: anything :func:`surfsplat.api.load_model` takes: a SplatCloud, a hierarchy, a
+            point/splat/mesh file (preprocessed with ``k`` neighbours if needed), a hierarchy file
+            or ``"demo:NAME"`` for a built-in scene (``demo:torus``, ...).
+        camera: the first view: a Camera (its size is replaced by the window's) or a
+            :class:`~surfsplat.api.CameraSpec` (eye, target, up, fov); None or a spec without an
+            eye frames the model automatically (also what R returns to). Orbits turn about
+            the camera's up axis.
         technique: the starting technique (T and 1..9 switch).
         size: window size (width, height) in screen coordinates; the image has the
             framebuffer's size (larger on HiDPI screens).
-        eye, target: camera position and point looked at (world); target defaults to the
-            model's center. up: the world up axis orbits turn about. fov: vertical, degrees.
-        lights, background, **options (prefilter, cutoff, deferred, kernel, ...): as for
-            :func:`surfsplat.render`.
-        tolerance: LOD screen tolerance tau in pixels (+/- change it): the model's
+        lights, background, options: as for :func:`surfsplat.render`.
+        lod_tolerance: LOD screen tolerance in pixels (+/- change it): the model's
             point-octree (built on loading, or a ``.npz`` from ``surfsplat build``) is cut
-            per view where nodes project to at most tau pixels, see :class:`LevelOfDetail`.
-        motion: what is drawn while the camera moves: "flat" (opaque one-pass disks) or
-            "same" (the chosen technique), both on about ``motion_budget`` splats (0: all) at
-            ``motion_scale`` of the resolution; "off": full quality always; "auto" (default):
-            "flat" where a full-quality frame takes longer than 50 ms, else "off".
+            per view where nodes project to at most that many pixels, see :class:`LevelOfDetail`.
+        lod_shading: normal field of coarse LOD splats ("fit", "cone", "flat").
+        motion: what is drawn while the camera moves (:class:`MotionOptions`).
         hud: show the heads-up display (status; help on H).
         frames, orbit, screenshot: scripted mode: render ``frames`` frames, turning the eye
             ``orbit`` degrees about ``up`` before each, save the last view at full quality
@@ -789,19 +739,15 @@ def view(source, camera: Camera | None = None, *, technique: str = "ewa", size: 
     names = technique_names()
     if technique not in names:
         raise InputError(f"unknown technique {technique!r}; choose one of {', '.join(names)}")
-    if motion not in ("auto", "flat", "same", "off"):
-        raise InputError(f"motion must be 'auto', 'flat', 'same' or 'off', got {motion!r}")
-    if not (0.0 < motion_scale <= 1.0):
-        raise InputError(f"motion scale must be in (0, 1], got {motion_scale}")
-    if int(motion_budget) < 0:
-        raise InputError(f"motion budget must be >= 0 splats (0: all), got {motion_budget}")
-    if not (tolerance > 0 and math.isfinite(tolerance)):
-        raise InputError(f"LOD tolerance must be a positive number of pixels, got {tolerance}")
+    motion = motion or MotionOptions()
+    options = options or RenderOptions()
+    if not (lod_tolerance > 0 and math.isfinite(lod_tolerance)):
+        raise InputError(f"LOD tolerance must be a positive number of pixels, got {lod_tolerance}")
     width, height = (int(x) for x in size)
     if not (1 <= width <= 16384 and 1 <= height <= 16384):
         raise InputError(f"window size must be within 1..16384 pixels, got {width}x{height}")
     if screenshot is not None:
-        screenshot = _check_image_path(screenshot)
+        screenshot = check_image_path(screenshot)
         frames = 1 if frames is None else frames
     if frames is not None and int(frames) < 1:
         raise InputError(f"--frames must be at least 1, got {frames}")
@@ -809,15 +755,10 @@ def view(source, camera: Camera | None = None, *, technique: str = "ewa", size: 
         raise InputError("--orbit is for the scripted mode: give --frames N too")
     if not math.isfinite(orbit):
         raise InputError(f"orbit must be a finite number of degrees per frame, got {orbit}")
-    if target is not None and eye is None and camera is None:
-        raise InputError("--target needs --eye (without camera flags the model is framed automatically)")
-    options = render_options(**options)
-    background = tuple(float(x) for x in np.asarray(background, dtype=float).reshape(-1))
-    if len(background) != 3 or not all(0.0 <= x <= 1.0 for x in background):
-        raise InputError(f"background must be 3 numbers in [0, 1], got {background}")
+    background = check_background(background)
     if title is None:
         title = source if isinstance(source, str) else (Path(source).name if isinstance(source, Path)
-                                                          else "SplatCloud")
+                                                          else type(source).__name__)
 
     check_source(source)
     # The window before loading: without a display, fail before a possibly long load.
@@ -827,14 +768,10 @@ def view(source, camera: Camera | None = None, *, technique: str = "ewa", size: 
         ctx.clear(*background)
         glfw.swap_buffers(window)
         glfw.poll_events()
-        model = load_source(source, k=k)
-        if camera is None and eye is not None:
-            lo, hi = model.bounds()
-            camera = Camera(eye=tuple(eye), target=tuple(0.5 * (lo + hi) if target is None else target),
-                            up=tuple(up), fov=fov)
+        model = load_model(source, k=k)
         viewer = Viewer(glfw, window, ctx, model, camera, technique=technique, lights=lights or Lights(),
-                        options=options, background=background, up=up, fov=fov, tolerance=tolerance,
-                        motion=motion, motion_budget=int(motion_budget), motion_scale=motion_scale, hud=hud)
+                        options=options, background=background, lod_tolerance=lod_tolerance,
+                        lod_shading=lod_shading, motion=motion, hud=hud)
         if frames is None:
             stats = viewer.run_interactive()
         else:

@@ -10,37 +10,31 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
+from pathlib import Path
 
 import moderngl
 import numpy as np
+from PIL import Image, ImageDraw, ImageFont
 
-from ..errors import RenderError
-from ..render.shaders import GLSL_VERSION, build_source, read_glsl
+from ..render.shaders import build_program
 
 #: Panel colors: white text on a translucent dark panel, readable on any background.
 TEXT_RGB = (1.0, 1.0, 1.0)
 PANEL_RGBA = (0.08, 0.08, 0.1, 0.62)
 
 
+#: The viewer's own shader files; the renderer's ``glsl/`` folder is searched after it.
+VIEWER_GLSL = Path(__file__).resolve().parent / "glsl"
+
+
 def viewer_program(ctx: moderngl.Context, vertex: str, fragment: str) -> moderngl.Program:
-    """Build a program from viewer shader files; a name starting with ``render:`` is taken
-    from the renderer's ``glsl/`` folder instead (shared snippets are not copied)."""
-
-    def source(name: str) -> str:
-        if name.startswith("render:"):
-            return build_source(name[len("render:"):])
-        return GLSL_VERSION + "\n#line 1\n" + read_glsl(name, __package__)
-
-    try:
-        return ctx.program(vertex_shader=source(vertex), fragment_shader=source(fragment))
-    except moderngl.Error as exc:
-        raise RenderError(f"viewer shader {vertex}/{fragment} failed to build: {exc}") from None
+    """Build a program from shader files of the viewer's ``glsl/`` folder, or else the renderer's
+    (shared snippets are not copied); a compile error names the file and line."""
+    return build_program(ctx, vertex, fragment, search_path=(VIEWER_GLSL,)).program
 
 
 @lru_cache(maxsize=8)
 def _font(size_px: int):
-    from PIL import ImageFont
-
     try:
         return ImageFont.load_default(size=size_px)  # scalable font: Pillow >= 10.1 with FreeType
     except TypeError:
@@ -56,8 +50,6 @@ def render_text(text: str, size_px: int = 14, padding_px: int = 6) -> np.ndarray
     Returns (H, W, 4) uint8 premultiplied RGBA, row 0 at the top; H and W in
     pixels follow from the text's extent plus ``padding_px`` on every side.
     """
-    from PIL import Image, ImageDraw
-
     font = _font(int(size_px))
     rows = [line.split("\t") for line in (text or " ").split("\n")]
     probe = ImageDraw.Draw(Image.new("L", (1, 1)))

@@ -10,7 +10,7 @@ flat in vec3 v_color;
 flat in vec3 v_normal;
 
 void main() {
-#if PASS == 1
+#if PASS == PASS_VISIBILITY
     vec3 ray = pixel_ray(gl_FragCoord.xy);
     float z;
     if (!ray_disk(ray, z)) discard;

@@ -14,7 +14,7 @@ flat out float v_scale;      // |J| / (2 c sqrt|V|)
 
 void main() {
     Splat s;
-#if PASS == 1
+#if PASS == PASS_VISIBILITY
     // Visibility: the exact disks, so the depth buffer holds the surface itself
     // and not planes extrapolated over the prefilter's margin.
     vec2 lo, hi;

@@ -1,7 +1,7 @@
-// Two-sided Blinn-Phong with up to 4 directional lights (surfsplat/lighting.py).
+// Two-sided Blinn-Phong with up to MAX_LIGHTS directional lights (surfsplat/lighting.py).
 uniform bool u_lighting;
 uniform int u_num_lights;
-uniform vec3 u_light_dirs[4];   // camera space, unit, toward the lights
+uniform vec3 u_light_dirs[MAX_LIGHTS];   // camera space, unit, toward the lights
 uniform vec4 u_material;        // ka, kd, ks, shininess
 
 vec3 shade(vec3 albedo, vec3 n, vec3 view) {

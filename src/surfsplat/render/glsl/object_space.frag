@@ -20,7 +20,7 @@ void main() {
     vec3 ray = pixel_ray(gl_FragCoord.xy);
     float z;
     if (!ray_disk(ray, z)) discard;
-#if PASS == 1
+#if PASS == PASS_VISIBILITY
     emit(ray, z, 1.0, v_albedo, v_normal);
 #else
     vec2 st = plane_st(ray, z);

@@ -13,7 +13,7 @@ flat in vec3 v_normal;
 
 void main() {
     vec3 ray = pixel_ray(gl_FragCoord.xy);
-#if PASS == 1
+#if PASS == PASS_VISIBILITY
     float z;
     if (!ray_disk(ray, z)) discard;
     emit(ray, z, 1.0, v_color, v_normal);

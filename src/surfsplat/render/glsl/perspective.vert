@@ -12,12 +12,10 @@ uniform float u_prefilter;   // H = u_prefilter * I, pixels^2 (1: EWA prefilter 
 
 // Sec. 6: splats whose mapping M_k is ill-conditioned are not splatted by their conic. The
 // condition number of the unit-scaled M_k ([u/|u|; v/|v|; p/|p|]) is (1 + sin a) / |cos a|,
-// a = angle between the normal and the center's viewing ray: 1e4 is within 0.011 degrees of
-// edge-on (reference.PERSPECTIVE_MAX_CONDITION). Such splats are ray-cast, not discarded.
-const float MAX_CONDITION = 1e4;
-// A splat whose nearest point is closer than max(near, NEAR_FRACTION * z) is ray-cast: its
-// image is no ellipse (sec. 4.2, Delta <= 0) or is near-clipped (reference.PERSPECTIVE_NEAR_FRACTION).
-const float NEAR_FRACTION = 1e-3;
+// a = angle between the normal and the center's viewing ray: PERSPECTIVE_MAX_CONDITION = 1e4
+// is within 0.011 degrees of edge-on (reference.py). Such splats are ray-cast, not discarded.
+// A splat whose nearest point is closer than max(near, PERSPECTIVE_NEAR_FRACTION * z) is
+// ray-cast: its image is no ellipse (sec. 4.2, Delta <= 0) or is near-clipped (reference.py).
 
 flat out int v_raycast;      // 1: exact ray/splat evaluation (Botsch 2004, eq. 6), 0: conic
 flat out vec2 v_center_px;   // conic center x_t (eq. 7), window pixels
@@ -62,7 +60,7 @@ void main() {
     Splat s;
     if (!camera_splat(s)) { gl_Position = CULLED; return; }
     vec2 lo, hi;
-#if PASS == 1
+#if PASS == PASS_VISIBILITY
     // Visibility: the exact disks, so the depth buffer holds the surface itself.
     if (!disk_bounds(s, lo, hi)) { gl_Position = CULLED; return; }
 #else
@@ -72,8 +70,8 @@ void main() {
     float len_p = length(s.p);
     float cos_a = abs(dot(s.n, s.p)) / len_p;
     float sin_a = sqrt(max(0.0, 1.0 - cos_a * cos_a));
-    bool conditioned = 1.0 + sin_a <= MAX_CONDITION * cos_a;
-    v_raycast = (conditioned && z - zext >= max(u_near_far.x, NEAR_FRACTION * z)) ? 0 : 1;
+    bool conditioned = 1.0 + sin_a <= PERSPECTIVE_MAX_CONDITION * cos_a;
+    v_raycast = (conditioned && z - zext >= max(u_near_far.x, PERSPECTIVE_NEAR_FRACTION * z)) ? 0 : 1;
     if (v_raycast == 1) {
         near_clipped_bounds(s, lo, hi);
     } else {

@@ -1,5 +1,5 @@
 // Fragment side shared by the splat techniques: the splat's disk, depth, outputs.
-// PASS 0: opaque (single pass), PASS 1: visibility (depth only), PASS 2: accumulation.
+// PASS is PASS_OPAQUE (single pass), PASS_VISIBILITY (depth only) or PASS_ACCUMULATION (shaders.py).
 layout(location = 0) out vec4 out_color;   // (w * rgb, w)
 layout(location = 1) out vec4 out_aux;     // (w * depth, w * normal), camera space
 
@@ -56,7 +56,7 @@ float footprint_depth(vec2 st) {
 
 // Writes depth (offset by epsilon along the ray in the visibility pass) and the outputs.
 void emit(vec3 ray, float z, float w, vec3 color, vec3 normal) {
-#if PASS == 1
+#if PASS == PASS_VISIBILITY
     // Guennebaud 2003, sec. 5: translate along the viewing ray, not along z.
     z += u_depth_epsilon * v_radius / length(ray);
 #endif

@@ -52,7 +52,7 @@ bool camera_splat(out Splat s) {
     float z = -s.p.z;
     float zext = length(vec2(s.u.z, s.v.z));   // half depth range of the ellipse
     if (z + zext < u_near_far.x || z - zext > u_near_far.y) return false;
-    if (-np <= 1e-7 * length(s.p)) return false;
+    if (-np <= EDGE_ON_TOLERANCE * length(s.p)) return false;   // reference.EDGE_ON_TOLERANCE
     v_plane = s.n / np;
     v_center = s.p;
     v_udual = s.u / dot(s.u, s.u);

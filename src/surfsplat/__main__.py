@@ -1,0 +1,7 @@
+"""``python -m surfsplat ...``: the ``surfsplat`` command."""
+
+import sys
+
+from .cli import main
+
+sys.exit(main())

@@ -1,0 +1,143 @@
+"""Command line: ``surfsplat render|demo|build|info|preprocess|phong|sample|view``.
+
+The parser is built here from the shared option groups of :mod:`surfsplat.cli.options`; each
+subcommand (:mod:`surfsplat.cli.commands`, :mod:`surfsplat.cli.view`) converts its flags into
+the typed options of :mod:`surfsplat.api` and calls it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+
+from .. import progress
+from ..version import __version__
+from ..errors import SurfsplatError
+from ..scenes import SCENES
+from . import commands
+from . import options as opt
+from .view import add_view_command
+
+PROG = "surfsplat"
+
+
+def _add_quiet(p: argparse.ArgumentParser, default) -> None:
+    # on the main parser and on every subcommand, so -q works in any position; a subcommand's
+    # default SUPPRESS keeps a -q given before the subcommand
+    p.add_argument("-q", "--quiet", action="store_true", default=default, help="no progress messages")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``surfsplat`` command."""
+    parser = argparse.ArgumentParser(prog=PROG, description="High-quality surface splatting of point clouds.")
+    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
+    _add_quiet(parser, False)
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("render", help="render a point cloud, splat model or LOD hierarchy to an image")
+    p.add_argument("input", help="PLY, OBJ or LAS file, or a hierarchy MODEL.npz (surfsplat build)")
+    p.add_argument("-o", "--output", required=True, help="output image (.png)")
+    opt.add_k_option(p)
+    p.add_argument("--depth", metavar="OUT.npy", help="also save the depth map (camera-space, inf = empty)")
+    opt.add_lod_options(p)
+    p.add_argument("--mesh", action="store_true",
+                   help="render the input's triangles instead (the ground truth: same camera and lighting, "
+                        "per-pixel shading, 4x4 supersampled); camera and lighting flags apply")
+    opt.add_render_options(p)
+    p.set_defaults(func=commands.cmd_render)
+
+    p = sub.add_parser("demo", help="render a built-in procedural scene (no input file needed)")
+    p.add_argument("-o", "--output", default="demo.png", help="output image (default demo.png)")
+    p.add_argument("--scene", default="torus", choices=sorted(SCENES), help="scene (default torus)")
+    opt.add_lod_options(p)
+    opt.add_render_options(p)
+    p.set_defaults(func=commands.cmd_demo)
+
+    p = sub.add_parser("build", help="build the point-octree LOD hierarchy of a model; save it as one .npz file")
+    p.add_argument("input", help="PLY, OBJ or LAS file (raw points are preprocessed first)")
+    p.add_argument("-o", "--output", required=True, help="output hierarchy MODEL.npz")
+    p.add_argument("--leaf-capacity", type=opt.number(int, low=1), default=8, metavar="N",
+                   help="at most N points in a leaf node (default %(default)s)")
+    opt.add_k_option(p)
+    opt.add_force_option(p)
+    p.set_defaults(func=commands.cmd_build)
+
+    p = sub.add_parser("info", help="counts, bounds, properties and spacing of a point file or hierarchy")
+    p.add_argument("input")
+    p.set_defaults(func=commands.cmd_info)
+
+    p = sub.add_parser("preprocess", help="estimate normals and splat ellipses; write a splat PLY")
+    p.add_argument("input")
+    p.add_argument("-o", "--output", required=True, help="output .ply")
+    opt.add_k_option(p)
+    p.add_argument("--shape", choices=("ellipse", "circle"), default="ellipse", help="splat shape (default ellipse)")
+    p.add_argument("--sharp-angle", type=opt.SHARP_ANGLE, metavar="DEG",
+                   help="clip lines at sharp edges and corners: where neighbouring normals split into groups "
+                        "more than DEG degrees apart (0 < DEG < 180; default: none)")
+    opt.add_force_option(p)
+    p.set_defaults(func=commands.cmd_preprocess)
+
+    p = sub.add_parser("phong", help="Phong splats: far fewer splats with linear normal fields (Botsch 2004)")
+    p.add_argument("input", help="dense samples: PLY, OBJ or LAS (normals estimated where missing)")
+    p.add_argument("-o", "--output", required=True, help="output .ply (splats with alpha beta normal fields)")
+    p.add_argument("--error", type=opt.number(float, low=0.0, low_open=True, what="model units"), metavar="EPS",
+                   help="every sample within EPS (model units) of a splat's plane, inside its ellipse")
+    p.add_argument("--count", type=opt.number(int, low=1), metavar="N",
+                   help="instead of --error: about N splats (within 3%%)")
+    p.add_argument("--sharp-angle", type=opt.SHARP_ANGLE, metavar="DEG",
+                   help="keep splats from growing across edges sharper than DEG degrees and clip them there")
+    p.add_argument("--relax", type=opt.number(int, low=0), default=2, metavar="N",
+                   help="relaxation iterations (default %(default)s)")
+    p.add_argument("--margin", type=opt.number(float, low=0.0), default=0.75, metavar="F",
+                   help="grow each ellipse by F times its samples' spacing so the surface between samples is "
+                        "covered too (default %(default)s; 0: the paper's bare smallest enclosing ellipses)")
+    opt.add_force_option(p)
+    p.set_defaults(func=commands.cmd_phong)
+
+    p = sub.add_parser("sample", help="sample points uniformly by area on a triangle mesh")
+    p.add_argument("mesh", help="PLY or OBJ triangle mesh")
+    p.add_argument("-n", type=opt.number(int, low=1), required=True, help="number of samples")
+    p.add_argument("-o", "--output", required=True, help="output .ply")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--smooth-normals", action="store_true",
+                   help="interpolate the vertex normals (as Phong shading of the mesh does) instead of "
+                        "giving each sample its face's normal")
+    p.add_argument("--sharp-angle", type=opt.SHARP_ANGLE, metavar="DEG",
+                   help="also give the samples splats, and clip lines where they cross an edge whose faces' "
+                        "normals differ by more than DEG degrees (0 < DEG < 180; default: points only)")
+    opt.add_force_option(p)
+    p.set_defaults(func=commands.cmd_sample)
+
+    add_view_command(sub)
+    for subparser in sub.choices.values():
+        _add_quiet(subparser, argparse.SUPPRESS)
+    return parser
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"{PROG}: warning: {message}", file=sys.stderr)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``surfsplat`` command; returns the exit status (0, or 2 for a usage error,
+    bad input or a failed render, after one line on stderr).
+
+    Progress messages and the warning format apply only while the command runs: the
+    process's settings are restored on return (so ``main`` can be called from Python).
+    """
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:  # --help, --version, or a usage error argparse has printed
+        return exc.code if isinstance(exc.code, int) else 2
+    with progress.enabled(not args.quiet), warnings.catch_warnings():
+        warnings.showwarning = _show_warning
+        try:
+            args.func(args)
+        except SurfsplatError as exc:
+            print(f"{PROG}: error: {exc}", file=sys.stderr)
+            return 2
+        except (FileNotFoundError, PermissionError, IsADirectoryError) as exc:
+            print(f"{PROG}: error: {exc.filename}: {exc.strerror}", file=sys.stderr)
+            return 2
+    return 0

@@ -1,0 +1,168 @@
+"""The subcommands: each turns parsed flags into typed options, calls :mod:`surfsplat.api` or the
+library function that does the work, writes the output and reports what it did."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .. import api, progress
+from ..errors import InputError
+from ..geometry.phong import phong_splats
+from ..geometry.preprocess import neighbour_spacing, preprocess
+from ..geometry.sampling import sample_mesh
+from ..hierarchy import build_hierarchy, load_hierarchy, save_hierarchy
+from ..io import load, load_mesh, save_ply
+from . import options as opt
+
+
+def refuse_overwriting_inputs(out: Path, inputs: tuple[Path, ...]) -> None:
+    """InputError when ``out`` is one of the input files."""
+    for path in inputs:
+        if out.exists() and path.exists() and out.resolve() == path.resolve():
+            raise InputError(f"{out}: refusing to overwrite the input file")
+
+
+def render_and_save(source, args, out: Path, inputs: tuple[Path, ...] = ()) -> None:
+    """Load ``source``, render it as the render flags in ``args`` ask, save the image (and depth)."""
+    refuse_overwriting_inputs(out, inputs)
+    depth = getattr(args, "depth", None)
+    if depth:
+        refuse_overwriting_inputs(Path(depth), inputs)
+    render_options, lights, spec = opt.render_options(args), opt.lights(args), opt.camera_spec(args)
+    model = api.load_model(source, k=getattr(args, "k", api.DEFAULT_K))
+    camera = api.resolve_camera(model, spec, args.width, args.height)
+    result = api.render_model(model, camera, technique=args.technique, lights=lights, background=args.background,
+                              options=render_options, lod_tolerance=args.lod_tolerance, lod_shading=args.lod_shading)
+    result.frame.save(out)
+    progress.message(f"rendered {result.describe()} with {args.technique} at {camera.width}x{camera.height} "
+                     f"in {result.seconds:.2f} s -> {out}")
+    if depth:
+        np.save(depth, result.frame.depth)
+        progress.message(f"depth (camera-space, inf = empty) -> {depth}")
+
+
+def cmd_render(args) -> None:
+    """``surfsplat render``: a point/splat/mesh file or a hierarchy to an image (or ``--mesh``: the triangles)."""
+    if args.mesh:
+        render_mesh_and_save(args)
+        return
+    api.check_source(args.input)
+    render_and_save(args.input, args, Path(args.output), (Path(args.input),))
+
+
+def render_mesh_and_save(args) -> None:
+    """``render --mesh``: the input's triangles with the same camera and lighting (ground truth)."""
+    out = Path(args.output)
+    refuse_overwriting_inputs(out, (Path(args.input),))
+    start = time.perf_counter()
+    frame = api.render_mesh(args.input, opt.camera_spec(args), width=args.width, height=args.height,
+                            lights=opt.lights(args), background=args.background)
+    frame.save(out)
+    progress.message(f"rendered the mesh at {frame.camera.width}x{frame.camera.height} "
+                     f"in {time.perf_counter() - start:.2f} s -> {out}")
+
+
+def cmd_demo(args) -> None:
+    """``surfsplat demo``: a built-in procedural scene to an image."""
+    render_and_save(api.DEMO_PREFIX + args.scene, args, Path(args.output))
+
+
+def cmd_info(args) -> None:
+    """``surfsplat info``: counts, bounds, properties and spacing of a point file or a hierarchy."""
+    if api.is_hierarchy_file(args.input):
+        hierarchy_info(args.input)
+        return
+    cloud = load(args.input)
+    lo, hi = cloud.bounds()
+    print(f"file:       {args.input}")
+    print(f"points:     {len(cloud):,}")
+    print(f"bounds:     min {np.array2string(lo, precision=4)}  max {np.array2string(hi, precision=4)}")
+    print(f"size:       {np.array2string(hi - lo, precision=4)} (diagonal {np.linalg.norm(hi - lo):.4g})")
+    present = [name for name in ("normals", "colors", "u", "v", "normal_field", "clip_lines")
+               if getattr(cloud, name) is not None]
+    print(f"properties: positions{', ' + ', '.join(present) if present else ''}")
+    if cloud.u is not None:
+        r = cloud.radii
+        print(f"splat radius: min {r.min():.4g}  median {np.median(r):.4g}  max {r.max():.4g}")
+    if len(cloud) > 1:
+        stats = neighbour_spacing(cloud.positions)
+        print("neighbour spacing: " + "  ".join(f"{key} {value:.4g}" for key, value in stats.items()))
+
+
+def hierarchy_info(path) -> None:
+    """Print what ``surfsplat info`` says of a hierarchy file."""
+    d = load_hierarchy(path).describe()
+    print(f"file:       {path} (surfsplat LOD hierarchy, format {d['format_version']})")
+    print(f"points:     {d['points']:,}")
+    print(f"nodes:      {d['nodes']:,} in {d['levels']} levels ({d['leaves']:,} leaves, capacity "
+          f"{d['leaf_capacity']}, mean {d['mean_leaf_points']:.2f} points a leaf)")
+    print(f"per level:  {', '.join(f'{n:,}' for n in d['nodes_per_level'])}")
+    lo, hi = (np.array(b) for b in d["bounds"])
+    print(f"bounds:     min {np.array2string(lo, precision=4)}  max {np.array2string(hi, precision=4)}")
+    present = [name for name in ("colors", "normal_field", "clip_lines") if d[f"has_{name}"]]
+    print(f"properties: positions, normals, u, v{', ' + ', '.join(present) if present else ''}")
+    print(f"memory:     {d['bytes'] / 2**20:.1f} MiB")
+
+
+def check_new_output(out: Path, inputs: tuple[Path, ...], force: bool) -> None:
+    """Before any work: the output is not an input, and exists only with ``--force``."""
+    refuse_overwriting_inputs(out, inputs)
+    if out.exists() and not force:
+        raise InputError(f"{out}: exists; use --force to overwrite it")
+
+
+def cmd_build(args) -> None:
+    """``surfsplat build``: the point-octree LOD hierarchy of a model, saved as one .npz file."""
+    out = Path(args.output)
+    if not api.is_hierarchy_file(out):
+        raise InputError(f"{out}: a hierarchy is saved as .npz; name the output MODEL.npz")
+    check_new_output(out, (Path(args.input),), args.force)
+    cloud = api.as_splats(args.input, k=args.k)
+    start = time.perf_counter()
+    with progress.stage(f"building the point-octree of {len(cloud):,} splats"):
+        hierarchy = build_hierarchy(cloud, args.leaf_capacity, source=args.input)
+    seconds = time.perf_counter() - start
+    save_hierarchy(hierarchy, out, overwrite=args.force)
+    progress.message(f"{len(hierarchy):,} nodes in {hierarchy.levels} levels, built in {seconds:.2f} s "
+                     f"({len(cloud) / max(seconds, 1e-9):,.0f} points/s) -> {out}")
+
+
+def cmd_phong(args) -> None:
+    """``surfsplat phong``: Phong splats with linear normal fields (Botsch 2004) from dense samples."""
+    out = Path(args.output)
+    if (args.error is None) == (args.count is None):
+        raise InputError("give exactly one of --error EPS (model units) and --count N")
+    check_new_output(out, (Path(args.input),), args.force)
+    cloud = api.load_cloud(args.input, "samples")
+    start = time.perf_counter()
+    splats = phong_splats(cloud, args.error, count=args.count, sharp_angle=args.sharp_angle, relax=args.relax,
+                          margin=args.margin, source=args.input)
+    seconds = time.perf_counter() - start
+    save_ply(splats, out, overwrite=args.force)
+    progress.message(f"{len(splats):,} Phong splats from {len(cloud):,} samples in {seconds:.1f} s "
+                     f"({len(cloud) / max(seconds, 1e-9):,.0f} samples/s) -> {out}")
+
+
+def cmd_preprocess(args) -> None:
+    """``surfsplat preprocess``: normals and splat ellipses of raw points, saved as a splat PLY."""
+    out = Path(args.output)
+    check_new_output(out, (Path(args.input),), args.force)
+    cloud = api.load_cloud(args.input)
+    cloud = preprocess(cloud, k=args.k, shape=args.shape, sharp_angle=args.sharp_angle)
+    save_ply(cloud, out, overwrite=args.force)
+    progress.message(f"wrote {len(cloud):,} splats -> {out}")
+
+
+def cmd_sample(args) -> None:
+    """``surfsplat sample``: points uniformly by area on a triangle mesh."""
+    out = Path(args.output)
+    check_new_output(out, (Path(args.mesh),), args.force)
+    mesh = load_mesh(args.mesh)
+    with progress.stage(f"sampling {args.n:,} points", count=args.n):
+        cloud = sample_mesh(mesh, args.n, seed=args.seed, sharp_angle=args.sharp_angle,
+                            smooth_normals=args.smooth_normals)
+    save_ply(cloud, out, overwrite=args.force)
+    progress.message(f"wrote {len(cloud):,} samples -> {out}")

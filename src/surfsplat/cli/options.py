@@ -1,0 +1,162 @@
+"""Option groups shared by the subcommands (``render``, ``demo``, ``view``, ...), and their
+conversion into the typed options of :mod:`surfsplat.api`.
+
+Defaults are read from the dataclasses that own them (``FilterOptions``, ``Lights``, ...), so
+each is written once and ``--help`` shows that value. Values are checked by argparse ``type=``
+functions as the command line is parsed, before any file is read: a bad value is one usage
+error naming the flag, the value and the allowed range (exit status 2).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+
+from ..api import (DEFAULT_BACKGROUND, DEFAULT_K, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec)
+from ..hierarchy import SHADINGS
+from ..lighting import MAX_LIGHTS, Lights
+from ..render.options import KERNELS, FilterOptions, KernelOptions, RenderOptions, VisibilityOptions
+from ..render.techniques import TECHNIQUES
+
+#: Output image size of ``render`` and ``demo`` (pixels).
+IMAGE_SIZE = 1024
+#: Largest image side accepted on the command line (pixels).
+MAX_IMAGE_SIDE = 16384
+
+
+def default(cls, name: str):
+    """The default value of field ``name`` of dataclass ``cls`` (the one place it is written)."""
+    for f in dataclasses.fields(cls):
+        if f.name == name:
+            return f.default if f.default is not dataclasses.MISSING else f.default_factory()
+    raise KeyError(name)
+
+
+def number(kind=float, *, low: float | None = None, high: float | None = None, low_open: bool = False,
+           high_open: bool = False, what: str = ""):
+    """An argparse ``type=`` parsing a finite ``kind`` (int or float) within [low, high] (a bound
+    excluded when ``*_open``); argparse turns the error into a usage message naming the flag."""
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            value = None
+        ok = value is not None and math.isfinite(value)
+        if ok and low is not None:
+            ok = value > low if low_open else value >= low
+        if ok and high is not None:
+            ok = value < high if high_open else value <= high
+        if not ok:
+            lo = "" if low is None else f"{'>' if low_open else '>='} {low:g}"
+            hi = "" if high is None else f"{'<' if high_open else '<='} {high:g}"
+            bounds = " and ".join(b for b in (lo, hi) if b)
+            noun = "an integer" if kind is int else "a number"
+            raise argparse.ArgumentTypeError(f"must be {noun}{' ' + bounds if bounds else ''}"
+                                             f"{' (' + what + ')' if what else ''}, got {text!r}")
+        return value
+
+    parse.__name__ = kind.__name__  # argparse names the type in some messages
+    return parse
+
+
+UNIT = number(float, low=0.0, high=1.0, what="a color component")
+SHARP_ANGLE = number(float, low=0.0, high=180.0, low_open=True, high_open=True,
+                     what="the dihedral angle in degrees above which an edge is sharp")
+
+
+def add_k_option(p: argparse.ArgumentParser) -> None:
+    """``--k``: neighbours for preprocessing raw points."""
+    p.add_argument("--k", type=number(int, low=3, what="neighbours"), default=DEFAULT_K,
+                   help="neighbours for preprocessing raw points (default %(default)s)")
+
+
+def add_force_option(p: argparse.ArgumentParser) -> None:
+    """``--force``: overwrite an existing output file."""
+    p.add_argument("--force", action="store_true", help="overwrite an existing output file")
+
+
+def add_lod_options(p: argparse.ArgumentParser) -> None:
+    """``--lod-tolerance`` and ``--lod-shading``."""
+    p.add_argument("--lod-tolerance", type=number(float, low=0.0, what="pixels"), metavar="PX",
+                   help=f"level of detail: draw hierarchy nodes whose projected size is at most PX pixels as "
+                        f"one splat (default {DEFAULT_LOD_TOLERANCE:g} for a hierarchy MODEL.npz; a point file given "
+                        f"PX gets its hierarchy built first; 0: every original splat)")
+    p.add_argument("--lod-shading", choices=SHADINGS, default=DEFAULT_LOD_SHADING,
+                   help="normal field of coarse LOD splats: fit (least squares, default), cone (the normal "
+                        "cone, Pajarola 2003 fig. 14) or flat")
+
+
+def add_camera_options(p: argparse.ArgumentParser) -> None:
+    """``--eye``, ``--target``, ``--up``, ``--fov``."""
+    p.add_argument("--eye", type=number(float), nargs=3, metavar=("X", "Y", "Z"), help="camera position (world)")
+    p.add_argument("--target", type=number(float), nargs=3, metavar=("X", "Y", "Z"),
+                   help="point looked at (default: the model's center)")
+    up = default(CameraSpec, "up")
+    p.add_argument("--up", type=number(float), nargs=3, metavar=("X", "Y", "Z"), default=up,
+                   help=f"camera up vector (default {' '.join(f'{x:g}' for x in up)})")
+    p.add_argument("--fov", type=number(float, low=0.0, high=180.0, low_open=True, high_open=True, what="degrees"),
+                   default=default(CameraSpec, "fov"), help="vertical field of view in degrees (default %(default)s)")
+
+
+def add_render_options(p: argparse.ArgumentParser, *, image_size: int | None = IMAGE_SIZE) -> None:
+    """Technique, image size, camera, lighting, background and the render options (filter,
+    visibility, deferred shading, blend kernel). ``image_size`` None: no default size."""
+    p.add_argument("--technique", default="ewa", choices=list(TECHNIQUES), help="rendering technique (default ewa)")
+    side = number(int, low=1, high=MAX_IMAGE_SIDE, what="pixels")
+    size_help = f" (default {image_size})" if image_size else ""
+    p.add_argument("--width", type=side, default=image_size, help=f"image width in pixels{size_help}")
+    p.add_argument("--height", type=side, default=image_size, help=f"image height in pixels{size_help}")
+    add_camera_options(p)
+    p.add_argument("--light", type=number(float), nargs=3, action="append", metavar=("X", "Y", "Z"),
+                   help=f"world direction toward a directional light; repeat for up to {MAX_LIGHTS} "
+                        f"(default: headlight)")
+    p.add_argument("--no-lighting", action="store_true", help="render unlit colors")
+    p.add_argument("--background", type=UNIT, nargs=3, metavar=("R", "G", "B"), default=DEFAULT_BACKGROUND,
+                   help="background color, components in [0, 1] (default white)")
+    p.add_argument("--no-prefilter", action="store_true", help="disable the EWA prefilter (H = I)")
+    p.add_argument("--cutoff", type=number(float, low=0.0, low_open=True), default=default(FilterOptions, "cutoff"),
+                   help="EWA kernel cutoff c (default %(default)s)")
+    p.add_argument("--depth-epsilon", type=number(float, low=0.0), default=default(VisibilityOptions, "depth_epsilon"),
+                   help="visibility offset along the viewing rays, in splat radii (default %(default)s)")
+    p.add_argument("--cull-backfaces", action="store_true",
+                   help="drop splats facing away from the eye (closed models with outward normals only)")
+    p.add_argument("--deferred", action="store_true",
+                   help="deferred shading: blend albedo and normals, light each pixel once (any technique)")
+    p.add_argument("--kernel", choices=KERNELS, default=default(KernelOptions, "name"),
+                   help="blend technique's kernel: pajarola exp(-a (r/b)^n) or gaussian exp(-r^2 / 2 sigma^2) "
+                        "(default %(default)s)")
+    positive = number(float, low=0.0, low_open=True)
+    p.add_argument("--kernel-a", type=positive, default=default(KernelOptions, "a"), metavar="A",
+                   help="a of the pajarola kernel (default %(default)s)")
+    p.add_argument("--kernel-b", type=positive, default=default(KernelOptions, "b"), metavar="B",
+                   help="b: the kernel's support radius r at the splat's rim (default %(default)s)")
+    p.add_argument("--kernel-n", type=positive, default=default(KernelOptions, "n"), metavar="N",
+                   help="n of the pajarola kernel (default %(default)s)")
+    p.add_argument("--kernel-sigma", type=positive, default=default(KernelOptions, "sigma"), metavar="S",
+                   help="sigma of the gaussian kernel, units of b (default %(default)s)")
+
+
+# -- parsed flags -> typed options -------------------------------------------------------
+
+def render_options(args) -> RenderOptions:
+    """The RenderOptions the flags of :func:`add_render_options` ask for."""
+    return RenderOptions(
+        filter=FilterOptions(prefilter=not args.no_prefilter, cutoff=args.cutoff),
+        visibility=VisibilityOptions(depth_epsilon=args.depth_epsilon, cull_backfaces=args.cull_backfaces),
+        kernel=KernelOptions(name=args.kernel, a=args.kernel_a, b=args.kernel_b, n=args.kernel_n,
+                             sigma=args.kernel_sigma),
+        deferred=args.deferred)
+
+
+def lights(args) -> Lights:
+    """The Lights of ``--light`` (repeatable) and ``--no-lighting``."""
+    directions = tuple(tuple(d) for d in args.light) if args.light else None
+    return Lights(directions=directions, enabled=not args.no_lighting)
+
+
+def camera_spec(args) -> CameraSpec:
+    """The CameraSpec of ``--eye``, ``--target``, ``--up``, ``--fov``."""
+    return CameraSpec(eye=tuple(args.eye) if args.eye is not None else None,
+                      target=tuple(args.target) if args.target is not None else None,
+                      up=tuple(args.up), fov=args.fov)

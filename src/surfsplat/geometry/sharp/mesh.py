@@ -1,0 +1,271 @@
+"""Clip lines for samples of a triangle mesh: exact planes of the faces across its sharp edges.
+
+Zwicker et al. 2004, section 5: the clip line of a splat is the intersection
+of its plane with the plane of the face on the other side of a sharp edge
+(dihedral angle above the threshold). Which side is kept: the side of the
+splat's own face. For a splat on face A next to face B, the line is A's plane
+intersected with B's plane; the kept side is the side of B's plane where A
+lies. At a convex edge that is the inside of B's plane, at a concave edge the
+outside, so the part of the splat that pokes out of the solid (convex) or
+through face B (concave) is cut. Used by
+:func:`surfsplat.geometry.sampling.sample_mesh`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from ...cloud import NO_CLIP
+from ..common import dot, first_of_runs
+from .lines import check_sharp_angle, lines_from_halfspaces
+
+#: Edge points per edge-sample query: candidates of the nearest edges.
+_EDGE_CANDIDATES = 24
+
+
+@dataclass
+class MeshFeatures:
+    """The sharp edges of a triangle mesh and the planes on either side.
+
+    Attributes:
+        vertices: (V', 3) float64 positions after merging duplicates.
+        faces: (F, 3) int64 faces on the merged vertices (same order as the mesh's).
+        normals: (F, 3) float64 unit face normals (zero for degenerate faces).
+        offsets: (F,) float64 ``normals . x`` on each face's plane.
+        patch: (F,) int64 label of the smooth patch (faces connected across
+            edges that are not sharp) each face belongs to.
+        edges: (E, 2) int64 merged vertex ids of the sharp edges.
+        edge_faces: (E, 2) int64 the two faces at each sharp edge.
+        angles: (E,) float64 dihedral angles between those faces' normals, degrees.
+        keep_sign: (E, 2) float64 +-1: for the splats on face ``edge_faces[e, i]``
+            the kept side of the *other* face's plane is
+            ``keep_sign[e, i] * (offset - normal . x) >= 0`` (+1 at convex edges).
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    normals: np.ndarray
+    offsets: np.ndarray
+    patch: np.ndarray
+    edges: np.ndarray
+    edge_faces: np.ndarray
+    angles: np.ndarray
+    keep_sign: np.ndarray
+
+
+def mesh_features(mesh, sharp_angle: float) -> MeshFeatures:
+    """Find the edges of ``mesh`` whose dihedral angle exceeds ``sharp_angle`` degrees.
+
+    Duplicated vertices (CAD meshes split them along creases so that each face
+    keeps its own normal) are merged first, at a tolerance of 1e-9 of the
+    bounding-box diagonal, so that the faces on either side of a crease become
+    neighbours. Edge adjacency (manifold edges shared by two faces) comes from
+    ``trimesh``; the angle is the one between the faces' normals as wound
+    (consistently wound meshes: 0 for coplanar faces). Zero-area faces take
+    part in no sharp edge.
+
+    Args:
+        mesh: a :class:`surfsplat.io.Mesh` (validated).
+        sharp_angle: degrees in (0, 180).
+
+    Returns:
+        :class:`MeshFeatures`.
+    """
+    sharp_angle = check_sharp_angle(sharp_angle)
+    verts = mesh.vertices.astype(np.float64)
+    lo, hi = verts.min(axis=0), verts.max(axis=0)
+    diagonal = max(float(np.linalg.norm(hi - lo)), 1e-300)
+    tol = diagonal * 1e-9
+    _, first, inverse = np.unique(np.round((verts - lo) / tol).astype(np.int64), axis=0,
+                                  return_index=True, return_inverse=True)
+    merged = verts[first]
+    faces = inverse.reshape(-1)[mesh.faces]
+    tri = trimesh.Trimesh(merged, faces, process=False, validate=False)
+    adjacency = np.asarray(tri.face_adjacency, dtype=np.int64).reshape(-1, 2)
+    shared = np.asarray(tri.face_adjacency_edges, dtype=np.int64).reshape(-1, 2)
+
+    a, b, c = merged[faces[:, 0]], merged[faces[:, 1]], merged[faces[:, 2]]
+    cross = np.cross(b - a, c - a)
+    length = np.linalg.norm(cross, axis=1)
+    proper = length > 1e-12 * diagonal * diagonal  # twice the area, relative to the model's size
+    normals = np.where(proper[:, None], cross / np.where(proper, length, 1.0)[:, None], 0.0)
+    offsets = np.einsum("ij,ij->i", normals, a)
+
+    f1, f2 = adjacency[:, 0], adjacency[:, 1]
+    cos = np.clip(np.einsum("ij,ij->i", normals[f1], normals[f2]), -1.0, 1.0)
+    angles = np.degrees(np.arccos(cos))
+    usable = proper[f1] & proper[f2]
+    sharp = usable & (angles > sharp_angle)
+    # smooth patches: faces connected across the edges that are not sharp
+    smooth = ~sharp
+    graph = coo_matrix((np.ones(int(smooth.sum())), (f1[smooth], f2[smooth])), shape=(len(faces),) * 2)
+    _, patch = connected_components(graph, directed=False)
+
+    f1, f2, shared, angles = f1[sharp], f2[sharp], shared[sharp], angles[sharp]
+    centroid = (a + b + c) / 3.0
+    # kept side of the other face's plane: the side where the own face lies
+    # (its centroid is off the shared edge, so strictly on one side)
+    side1 = offsets[f2] - np.einsum("ij,ij->i", normals[f2], centroid[f1])  # own f1, other f2
+    side2 = offsets[f1] - np.einsum("ij,ij->i", normals[f1], centroid[f2])  # own f2, other f1
+    keep_sign = np.stack([np.where(side1 >= 0, 1.0, -1.0), np.where(side2 >= 0, 1.0, -1.0)], axis=1)
+    return MeshFeatures(merged, faces, normals, offsets, patch.astype(np.int64), shared,
+                        np.stack([f1, f2], axis=1), angles, keep_sign)
+
+
+def _edge_points(vertices: np.ndarray, edges: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """Points along each edge, both ends included, at most ``spacing`` apart: (P, 3) points, (P,) edge ids."""
+    p0, p1 = vertices[edges[:, 0]], vertices[edges[:, 1]]
+    count = np.ceil(np.linalg.norm(p1 - p0, axis=1) / spacing).astype(np.int64) + 1
+    edge = np.repeat(np.arange(len(edges)), count)
+    start = np.cumsum(count) - count
+    step = np.arange(int(count.sum())) - start[edge]
+    t = step / (count[edge] - 1.0)
+    return p0[edge] + t[:, None] * (p1 - p0)[edge], edge
+
+
+def mesh_clip_lines(mesh, face, positions, u, v, sharp_angle: float, *,
+                    features: MeshFeatures | None = None) -> np.ndarray:
+    """Exact clip lines for splats sampled on a mesh, from the faces across its sharp edges.
+
+    Zwicker 2004, section 5: the line is the intersection of the splat's plane
+    with the plane of the face on the other side of a sharp edge (dihedral
+    angle above ``sharp_angle``), kept on the side of the splat's own face
+    (see the module docstring: convex and concave edges alike). A splat gets
+    a line from an edge when
+
+    * the edge segment is within the splat's largest semi-axis of its center,
+    * one of the edge's faces lies in the splat's own smooth patch (faces
+      connected across edges that are not sharp), so edges of other parts
+      of the model (the far side of a thin wall, the edges of a neighbouring
+      face at a corner) are ignored; the other face gives the plane,
+    * the line crosses the splat's ellipse.
+
+    Of those, the nearest edge gives the first line and the nearest edge whose
+    other face lies in a different patch the second (corners: two lines;
+    a curved patch across the edge contributes one line, the nearest
+    facet's plane). Two lines keep the intersection of two half-planes, which
+    is the face only at a convex corner of it; at a reflex corner (the floor
+    around the foot of a block standing on it), detected by an edge's
+    midpoint lying on the cut side of the other edge's plane, only the first
+    line is kept (two would cut a hole).
+
+    Candidate edges come from a k-d tree over points spaced half the median
+    splat radius along the sharp edges (vectorized, no per-splat loop).
+
+    Args:
+        mesh: the :class:`surfsplat.io.Mesh` the splats were sampled from.
+        face: (N,) int face index of each splat's sample.
+        positions: (N, 3) float splat centers (on their faces), model units.
+        u, v: (N, 3) float scaled splat axes in the face planes, model units.
+        sharp_angle: degrees in (0, 180).
+        features: precomputed :func:`mesh_features` of the mesh (optional).
+
+    Returns:
+        (N, 2, 3) float32 clip lines in normalized ``(s, t)``; ``(0, 0, 1)``
+        for unused slots.
+    """
+    sharp_angle = check_sharp_angle(sharp_angle)
+    feat = features if features is not None else mesh_features(mesh, sharp_angle)
+    pts = np.asarray(positions, dtype=np.float64)
+    u = np.asarray(u, dtype=np.float64)
+    v = np.asarray(v, dtype=np.float64)
+    face = np.asarray(face, dtype=np.int64)
+    n = len(pts)
+    lines = np.broadcast_to(NO_CLIP, (n, 2, 3)).astype(np.float32)
+    if n == 0 or len(feat.edges) == 0:
+        return lines
+    radius = np.sqrt(np.maximum(np.einsum("ij,ij->i", u, u), np.einsum("ij,ij->i", v, v)))
+    pairs = _splat_edge_pairs(feat, pts, radius)
+    if pairs is None:
+        return lines
+    row, e = pairs
+    p = pts[row]
+    # exact distance from the splat center to each edge segment
+    a0, a1 = feat.vertices[feat.edges[e, 0]], feat.vertices[feat.edges[e, 1]]
+    seg = a1 - a0
+    t = np.clip(dot(p - a0, seg) / np.maximum(dot(seg, seg), 1e-300), 0.0, 1.0)
+    seg_dist = np.linalg.norm(a0 + t[:, None] * seg - p, axis=1)
+    own_side, other, normal, offset = _across(feat, face[row], e, p)
+    cand, crossing = lines_from_halfspaces(normal, offset, u[row], v[row])
+    valid = np.flatnonzero(own_side & (seg_dist < radius[row]) & crossing)
+    # first line: the nearest edge; second: the nearest one across to another patch
+    order = valid[np.lexsort((seg_dist[valid], row[valid]))]
+    first = order[first_of_runs(row[order])]
+    first_of = np.full(n, -1)
+    first_of[row[first]] = first
+    other_patch = feat.patch[other]
+    rest = order[other_patch[order] != other_patch[first_of[row[order]]]]
+    second = rest[first_of_runs(row[rest])]
+    # Two lines keep the intersection of two half-planes: right where the splat's face has a
+    # convex corner there (each edge on the kept side of the other's plane), wrong at a reflex
+    # one (the floor around a block standing on it), which would punch a hole: one line there.
+    mid = 0.5 * (a0 + a1)                                                   # edge midpoints
+    one = first_of[row[second]]
+    slack = 1e-6 * radius[row[second]]
+
+    def kept(i, j):  # is the midpoint of pair i's edge on the kept side of pair j's plane?
+        return offset[j] - dot(normal[j], mid[i] - p[j]) >= -slack
+
+    second = second[kept(one, second) & kept(second, one)]
+    lines[row[first], 0] = cand[first]
+    lines[row[second], 1] = cand[second]
+    return lines
+
+
+def _splat_edge_pairs(feat: MeshFeatures, pts: np.ndarray, radius: np.ndarray):
+    """Candidate (splat, sharp edge) pairs ``(row, e)``: edges with a point near the splat; None if none.
+
+    ``pts`` (N, 3) float64 splat centers and ``radius`` (N,) their largest
+    semi-axes, model units. The candidates come from a k-d tree over points
+    spaced half the median radius along the sharp edges; each pair is listed
+    once, sorted by splat.
+    """
+    n = len(pts)
+    spacing = 0.5 * float(np.median(radius))
+    # cap the edge points at ~4 per splat (pathological meshes where every edge is sharp)
+    total = float(np.linalg.norm(np.diff(feat.vertices[feat.edges], axis=1)[:, 0], axis=1).sum())
+    spacing = max(spacing, total / (4.0 * n + 1000.0), 1e-12)
+    epts, eid = _edge_points(feat.vertices, feat.edges, spacing)
+    tree = cKDTree(epts)
+    # every point of an edge is within spacing / 2 of one of its edge points
+    reach = radius + 0.5 * spacing
+    near, _ = tree.query(pts, k=1, distance_upper_bound=float(reach.max()), workers=-1)
+    rows = np.flatnonzero(near < reach)
+    if len(rows) == 0:
+        return None
+    k = min(_EDGE_CANDIDATES, len(epts))
+    _, hit = tree.query(pts[rows], k=k, distance_upper_bound=float(reach[rows].max()), workers=-1)
+    hit = hit.reshape(len(rows), k)
+    # (splat, edge) pairs: one per distinct edge among each splat's candidate edge points
+    found = hit < len(epts)
+    key = np.unique(np.repeat(rows, k)[found.ravel()] * len(feat.edges) + eid[hit[found]])
+    return key // len(feat.edges), key % len(feat.edges)
+
+
+def _across(feat: MeshFeatures, own_face: np.ndarray, e: np.ndarray, p: np.ndarray):
+    """The plane across sharp edge ``e`` from each splat (on ``own_face``, centered at ``p``, model units).
+
+    Returns ``(own_side, other, normal, offset)``: (M,) bool whether either
+    face of the edge lies in the splat's own smooth patch (else the edge
+    belongs to another part of the model), (M,) the other face, and its plane
+    as the half-space ``normal . (x - p) <= offset`` that holds the splat's
+    own face (``sign * (d - n . x) >= 0`` with the edge's ``keep_sign``).
+    """
+    # which side of the edge the splat is on: the face in the splat's own patch
+    own_patch = feat.patch[own_face]
+    g1, g2 = feat.edge_faces[e, 0], feat.edge_faces[e, 1]
+    in1, in2 = feat.patch[g1] == own_patch, feat.patch[g2] == own_patch
+    nf = feat.normals[own_face]
+    own_is_1 = in1 & (~in2 | (dot(nf, feat.normals[g1]) >= dot(nf, feat.normals[g2])))
+    other = np.where(own_is_1, g2, g1)
+    sign = np.where(own_is_1, feat.keep_sign[e, 0], feat.keep_sign[e, 1])
+    # the other face's plane as the half-space sign * (d - n . x) >= 0, relative to the splat center
+    normal = sign[:, None] * feat.normals[other]
+    offset = sign * (feat.offsets[other] - dot(feat.normals[other], p))
+    return in1 | in2, other, normal, offset

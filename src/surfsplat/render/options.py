@@ -1,0 +1,140 @@
+"""Render options, typed by concern: the EWA filter, visibility splatting, the blend kernel.
+
+Every technique reads the groups it uses (see each technique's module):
+``ewa`` and ``perspective`` read :class:`FilterOptions`, ``phong`` its cutoff,
+``blend`` :class:`KernelOptions`; all blended techniques read
+:class:`VisibilityOptions`, and every technique ``deferred``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal, get_args
+
+from ..errors import InputError
+
+#: Names of the rendering techniques (``render.techniques.TECHNIQUES`` holds one of each).
+TechniqueName = Literal["ewa", "perspective", "phong", "blend", "flat"]
+
+#: Names of the ``blend`` technique's kernels (:attr:`KernelOptions.name`).
+KernelName = Literal["pajarola", "gaussian"]
+
+#: Kernels of the ``blend`` technique (:attr:`KernelOptions.name`).
+KERNELS: tuple[str, ...] = get_args(KernelName)
+
+#: Largest exponent a' of a blend kernel exp(-a' rho^n): its weight at the rim, exp(-80) = 1.8e-35,
+#: is still a normal float32 (the accumulation targets' precision).
+MAX_KERNEL_EXPONENT = 80.0
+
+
+@dataclass(frozen=True)
+class FilterOptions:
+    """The EWA resampling filter of ``ewa`` and ``perspective`` (Guennebaud 2003, sec. 6; Zwicker 2004).
+
+    Attributes:
+        prefilter: apply the one-pixel EWA prefilter ``H = I`` (variance 1 pixel^2);
+            off, a 1e-4 pixel^2 regularizer keeps edge-on splats invertible.
+        cutoff: c, unitless: the kernel is cut where ``0.5 x^T V^-1 x = c``
+            (the splat's ellipse is the contour of the reconstruction kernel at
+            c); ``phong`` uses it as its Gaussian's exponent ``exp(-c r^2)``, r
+            in splat radii.
+    """
+
+    prefilter: bool = True
+    cutoff: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not (self.cutoff > 0):
+            raise InputError(f"cutoff must be positive, got {self.cutoff}")
+
+
+@dataclass(frozen=True)
+class VisibilityOptions:
+    """Visibility splatting of the blended techniques (Guennebaud 2003, sec. 5).
+
+    Attributes:
+        depth_epsilon: visibility-pass offset along the viewing rays, in units
+            of each splat's largest semi-axis (>= 0): splats within it of the
+            nearest surface are blended.
+        cull_backfaces: drop splats whose normal faces away from the eye. Only
+            for closed models with outward normals; it avoids blending across
+            silhouette edges within depth_epsilon (default off: two-sided).
+            Splats with a normal field are dropped only when no normal of the
+            field faces the eye (Botsch 2004, sec. 4.1). Hierarchy selections
+            use it for normal-cone culling too.
+    """
+
+    depth_epsilon: float = 1.0
+    cull_backfaces: bool = False
+
+    def __post_init__(self) -> None:
+        if not (self.depth_epsilon >= 0):
+            raise InputError(f"depth epsilon must be non-negative, got {self.depth_epsilon}")
+
+
+@dataclass(frozen=True)
+class KernelOptions:
+    """The ``blend`` technique's kernel (Pajarola 2003, sec. 4.2), r in [0, b] across the ellipse
+    (the kernel is cut at the ellipse, r = b).
+
+    Attributes:
+        name: "pajarola": ``psi_E(r) = exp(-a (r / b)^n)`` (EQ 12), or
+            "gaussian": ``psi_G(r) = exp(-r^2 / (2 sigma^2))`` (EQ 11).
+        a: a of psi_E, unitless (the paper's 6).
+        b: b, the kernel radius at the splat's ellipse, in the kernel's units of r (the paper's 1.5).
+        n: n of psi_E, unitless exponent (the paper's 3).
+        sigma: sigma of psi_G, in the units of b.
+    """
+
+    name: KernelName = "pajarola"
+    a: float = 6.0
+    b: float = 1.5
+    n: float = 3.0
+    sigma: float = 0.5
+
+    def __post_init__(self) -> None:
+        if self.name not in KERNELS:
+            raise InputError(f"unknown kernel {self.name!r}; choose one of {', '.join(KERNELS)}")
+        for name in ("a", "b", "n", "sigma"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and 0 < value < float("inf")):
+                raise InputError(f"kernel {name} must be a positive number, got {value!r}")
+        a, _ = self.exponent()
+        if a > MAX_KERNEL_EXPONENT:
+            # exp(-a) at the rim would underflow float32: pixels only that splat covers get no weight (holes)
+            min_sigma = (2 * MAX_KERNEL_EXPONENT) ** 0.5
+            raise InputError(f"blend kernel too narrow: exp(-{a:.4g}) at the splat's rim underflows; keep "
+                             f"a <= {MAX_KERNEL_EXPONENT:g} (gaussian: sigma >= b / {min_sigma:.3g})")
+
+    def exponent(self) -> tuple[float, float]:
+        """``(a', n')`` with the kernel weight ``exp(-a' rho^n')`` at normalized radius rho = r / b."""
+        if self.name == "gaussian":
+            # Pajarola 2003, EQ 11 with r = b rho
+            return self.b ** 2 / (2.0 * self.sigma ** 2), 2.0
+        return float(self.a), float(self.n)   # EQ 12
+
+
+@dataclass(frozen=True)
+class RenderOptions:
+    """Options shared by the techniques, by concern (each technique reads the ones it uses).
+
+    Attributes:
+        filter: the EWA resampling filter (:class:`FilterOptions`): prefilter and cutoff.
+        visibility: visibility splatting (:class:`VisibilityOptions`): depth
+            epsilon (splat radii) and back-face culling.
+        kernel: the ``blend`` technique's kernel (:class:`KernelOptions`).
+        deferred: blend the splats' albedo and normals and light each pixel
+            once from the blended normal (Zwicker et al. 2001; Botsch 2004, fig. 7)
+            instead of lighting each splat; any technique.
+    """
+
+    filter: FilterOptions = field(default_factory=FilterOptions)
+    visibility: VisibilityOptions = field(default_factory=VisibilityOptions)
+    kernel: KernelOptions = field(default_factory=KernelOptions)
+    deferred: bool = False
+
+    def __post_init__(self) -> None:
+        for name, kind in (("filter", FilterOptions), ("visibility", VisibilityOptions), ("kernel", KernelOptions)):
+            value = getattr(self, name)
+            if not isinstance(value, kind):
+                raise InputError(f"render option {name} must be a {kind.__name__}, got {type(value).__name__}")

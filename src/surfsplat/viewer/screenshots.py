@@ -1,0 +1,58 @@
+"""Screenshots of the viewer: unique names, files never overwritten, checked paths."""
+
+from __future__ import annotations
+
+import itertools
+import time
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from ..errors import InputError
+from ..render.frame import IMAGE_SUFFIXES
+
+
+def unique_screenshot_path(folder: Path | None = None, now: float | None = None) -> Path:
+    """``surfsplat-YYYYmmdd-HHMMSS.png`` in ``folder`` (default: the current folder), with ``-1``,
+    ``-2``, ... appended while that name exists. :func:`save_image` with ``exclusive``
+    re-checks atomically."""
+    folder = Path.cwd() if folder is None else Path(folder)
+    stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(now))
+    for i in itertools.count():
+        path = folder / f"surfsplat-{stamp}{'' if i == 0 else f'-{i}'}.png"
+        if not path.exists():
+            return path
+    raise AssertionError("unreachable")
+
+
+def save_image(image: np.ndarray, path: Path, exclusive: bool = False) -> Path:
+    """Write an (H, W, 3) uint8 image. ``exclusive``: never overwrite; the name gets ``-1``,
+    ``-2``, ... until a new file can be created (opened with O_EXCL, so no race). Returns the path."""
+    path = Path(path)
+    picture = Image.fromarray(image)
+    if not exclusive:
+        picture.save(path)
+        return path
+    stem, suffix = path.stem, path.suffix
+    for i in itertools.count():
+        candidate = path.with_name(f"{stem}{'' if i == 0 else f'-{i}'}{suffix}")
+        try:
+            with open(candidate, "xb") as handle:
+                picture.save(handle, format="PNG")
+            return candidate
+        except FileExistsError:
+            continue
+    raise AssertionError("unreachable")
+
+
+def check_image_path(path) -> Path:
+    """``path`` as a Path; InputError for an unknown image suffix or a missing folder."""
+    path = Path(path)
+    if path.suffix.lower() not in IMAGE_SUFFIXES:
+        raise InputError(f"{path}: unsupported image format {path.suffix!r}; use .png")
+    if not path.parent.exists():
+        raise InputError(f"{path}: folder {path.parent} does not exist")
+    return path
+
+
