@@ -396,3 +396,35 @@ def test_csg_solid_curved_and_flat_faces_meet_at_sharp_edges(renderer, technique
         # the sphere's smooth silhouette is filtered over ~1.4 px like any EWA silhouette
         assert (frame.mask & ~ndimage.binary_dilation(inside, iterations=2)).sum() == 0, "leaks"
         assert wrong == 0
+
+
+def grid_plane(n: int, z: float, normal_z: float, color) -> SplatCloud:
+    """An n x n grid of touching disks on the plane z (spacing 2 / n), normals (0, 0, normal_z)."""
+    s = (np.arange(n) + 0.5) / n * 2.0 - 1.0
+    x, y = np.meshgrid(s, s)
+    p = np.column_stack([x.ravel(), y.ravel(), np.full(n * n, z)])
+    r = 1.5 / n
+    ones = np.ones(n * n)
+    return SplatCloud(p, np.column_stack([0 * ones, 0 * ones, normal_z * ones]), np.tile(color, (n * n, 1)),
+                      np.column_stack([r * ones, 0 * ones, 0 * ones]), np.column_stack([0 * ones, r * ones, 0 * ones]))
+
+
+@pytest.mark.parametrize("technique", ["ewa", "perspective", "phong", "blend"])
+def test_separate_sides_keep_a_hidden_back_face_out(renderer, technique):
+    """A red plane facing the eye and, within the depth epsilon behind it, the back of a blue one:
+    blended two-sided they mix; with separate sides (the default) the red front stays red. A plane
+    seen only from its back still renders (two-sided, not culled)."""
+    front = grid_plane(40, 0.0, 1.0, (1.0, 0.0, 0.0))
+    behind = grid_plane(40, -0.02, -1.0, (0.0, 0.0, 1.0))   # 0.02 < epsilon (one radius: 0.0375)
+    both = SplatCloud(*(np.concatenate([getattr(front, k), getattr(behind, k)])
+                        for k in ("positions", "normals", "colors", "u", "v")))
+    cam = Camera(eye=(0.1, 0.05, 3.0), target=(0, 0, 0), width=96, height=96, fov=30)
+    mixed = renderer.render(both, cam, technique, UNLIT,
+                            RenderOptions(visibility=VisibilityOptions(separate_sides=False)))
+    clean = renderer.render(both, cam, technique, UNLIT)
+    inner = ndimage.binary_erosion(clean.mask, iterations=4)
+    assert inner.sum() > 2000
+    assert mixed.color[inner][:, 2].mean() > 0.2                     # the back of the blue plane bleeds in
+    assert np.abs(clean.color[inner] - (1.0, 0.0, 0.0)).max() < 1e-3   # not with separate sides
+    back_only = renderer.render(behind, cam, technique, UNLIT)
+    assert np.abs(back_only.color[ndimage.binary_erosion(back_only.mask, iterations=4)] - (0, 0, 1)).max() < 1e-3

@@ -10,16 +10,17 @@ render) knows about the command line or the window; see ``docs/architecture.md``
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+import warnings
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Union
 
 import numpy as np
 
 from . import progress
-from .camera import Camera, frame_bounds
+from .camera import Camera, camera_flags, fit_points
 from .cloud import SplatCloud
-from .errors import InputError
+from .errors import EmptyFrameWarning, InputError
 from .geometry.preprocess import preprocess
 from .hierarchy import Hierarchy, LodShading, Selection, build_hierarchy, load_hierarchy, select
 from .io import Mesh, load, load_mesh
@@ -47,6 +48,8 @@ DEFAULT_LOD_SHADING: LodShading = "fit"
 DEFAULT_DIRECTION = (0.4, 0.35, 1.0)
 #: Suffix of hierarchy files (``surfsplat build``).
 HIERARCHY_SUFFIX = ".npz"
+#: A frame covering less than this fraction of the pixels the model's bounds project to warns.
+MIN_COVERAGE = 0.01
 #: Prefix naming a built-in scene as a source: ``"demo:torus"``.
 DEMO_PREFIX = "demo:"
 
@@ -143,25 +146,58 @@ def _rotate_y_to(up) -> np.ndarray:
     return np.eye(3) + s * kx + (1 - c) * kx @ kx
 
 
+#: Points used to fit the automatic view (a regular subsample of larger clouds).
+FIT_SAMPLE = 200_000
+#: Suffixes of files whose z axis points up (LiDAR).
+Z_UP_SUFFIXES = (".las", ".laz")
+#: A model whose extent along up is below this fraction of its horizontal extent (terrain, an
+#: aerial survey) is looked at from about 45 degrees above instead of from the front.
+FLAT_MODEL_RATIO = 0.2
+
+
+def natural_up(source) -> tuple[float, float, float]:
+    """The up axis a source's data assume: +z for LAS/LAZ files (LiDAR), else +y."""
+    if isinstance(source, (str, Path)) and Path(source).suffix.lower() in Z_UP_SUFFIXES:
+        return (0.0, 0.0, 1.0)
+    return (0.0, 1.0, 0.0)
+
+
+def default_direction(cloud: SplatCloud, up) -> np.ndarray:
+    """The automatic viewing direction (toward the eye): front, a little right and above relative to
+    ``up``; from about 45 degrees above for flat models (:data:`FLAT_MODEL_RATIO`)."""
+    up = np.asarray(up, dtype=np.float64)
+    up = up / np.linalg.norm(up)
+    lo, hi = cloud.bounds()
+    extent = np.asarray(hi, dtype=np.float64) - lo
+    along = abs(float(extent @ up))
+    across = float(np.linalg.norm(extent - (extent @ up) * up))
+    x, y, z = DEFAULT_DIRECTION
+    if along < FLAT_MODEL_RATIO * across:
+        y = 1.2   # about 45 degrees above the horizon
+    return _rotate_y_to(up) @ np.array([x, y, z])
+
+
 def auto_camera(cloud: SplatCloud, width: int = DEFAULT_WIDTH, height: int = DEFAULT_HEIGHT, fov: float = 40.0,
                 direction=None, up=(0.0, 1.0, 0.0)) -> Camera:
     """A camera framing the whole cloud from ``direction`` (world, toward the eye).
 
-    The bounding sphere of the splat centers (around the bounds' center) fills
-    90% of the smaller field of view; near/far enclose the splats. Without a
-    direction the view is from the front, a little right and above, relative
-    to ``up`` (so ``up=(0, 0, 1)`` suits z-up data such as LiDAR).
+    The splat centers' projections (grown by the 99th percentile splat radius) fill 90% of the
+    image's limiting side, centered (:func:`surfsplat.camera.fit_points`); near/far enclose the
+    splats. Without a direction: :func:`default_direction` (so ``up=(0, 0, 1)`` suits z-up
+    data such as LiDAR).
     """
     if np.linalg.norm(np.asarray(up, dtype=float)) == 0 or not np.isfinite(up).all():
         raise InputError(f"up must be a finite non-zero vector, got {up!r}")
     if direction is None:
-        direction = _rotate_y_to(up) @ np.asarray(DEFAULT_DIRECTION)
+        direction = default_direction(cloud, up)
+    step = max(1, len(cloud) // FIT_SAMPLE)
+    margin = float(np.percentile(cloud.radii, 99)) if cloud.u is not None else 0.0
     lo, hi = cloud.bounds()
-    center = 0.5 * (lo + hi)
-    radius = float(np.sqrt(np.max(np.sum((cloud.positions - center) ** 2, axis=1))))
-    margin = float(cloud.radii.max()) if cloud.u is not None else 0.0
-    return frame_bounds(lo, hi, width=width, height=height, fov=fov, direction=direction, up=up,
-                        radius=radius + margin, margin=margin)
+    camera = fit_points(cloud.positions[::step], direction=direction, up=up, fov=fov, width=width, height=height,
+                        margin=margin)
+    # near/far from every splat, not only the subsample
+    return replace(camera, near=None, far=None).with_clip_from_bounds(
+        lo, hi, float(cloud.radii.max()) if cloud.u is not None else 0.0)
 
 
 @dataclass(frozen=True)
@@ -173,13 +209,14 @@ class CameraSpec:
             (:func:`auto_camera`).
         target: point looked at (world units); None: the model's bounding-box center.
             Needs ``eye``.
-        up: world up vector (also the axis the viewer orbits about).
+        up: world up vector (also the axis the viewer orbits about); None: the data's own
+            (:func:`natural_up` of the source: +z for LAS/LAZ, else +y).
         fov: vertical field of view, degrees, in (0, 180).
     """
 
     eye: tuple[float, float, float] | None = None
     target: tuple[float, float, float] | None = None
-    up: tuple[float, float, float] = (0.0, 1.0, 0.0)
+    up: tuple[float, float, float] | None = None
     fov: float = 40.0
 
     def __post_init__(self) -> None:
@@ -188,24 +225,25 @@ class CameraSpec:
         if not (0.0 < float(self.fov) < 180.0):
             raise InputError(f"--fov must be in (0, 180) degrees, got {self.fov:g}")
 
-    def camera_for(self, cloud: SplatCloud, width: int, height: int) -> Camera:
+    def camera_for(self, cloud: SplatCloud, width: int, height: int, default_up=(0.0, 1.0, 0.0)) -> Camera:
         """The camera for a model whose splats (or points) are ``cloud``, at ``width`` x ``height`` pixels;
-        near/far enclose the model."""
+        near/far enclose the model. ``default_up`` stands in for ``up`` None."""
+        up = tuple(self.up) if self.up is not None else tuple(default_up)
         if self.eye is None:
-            return auto_camera(cloud, width, height, self.fov, up=tuple(self.up))
+            return auto_camera(cloud, width, height, self.fov, up=up)
         lo, hi = cloud.bounds()
         target = self.target if self.target is not None else 0.5 * (lo + hi)
-        camera = Camera(eye=tuple(self.eye), target=tuple(target), up=tuple(self.up), fov=self.fov,
-                        width=width, height=height)
+        camera = Camera(eye=tuple(self.eye), target=tuple(target), up=up, fov=self.fov, width=width, height=height)
         return camera.with_clip_from_bounds(lo, hi, margin=float(cloud.radii.max()) if cloud.u is not None else 0.0)
 
 
-def resolve_camera(model: Model, camera: Camera | CameraSpec | None, width: int, height: int) -> Camera:
+def resolve_camera(model: Model, camera: Camera | CameraSpec | None, width: int, height: int, *,
+                   default_up=(0.0, 1.0, 0.0)) -> Camera:
     """A Camera as it is; a CameraSpec (None: automatic framing) resolved against the model at
-    ``width`` x ``height`` pixels."""
+    ``width`` x ``height`` pixels, with ``default_up`` (see :func:`natural_up`) where it has no up."""
     if isinstance(camera, Camera):
         return camera
-    return (camera or CameraSpec()).camera_for(model_points(model), width, height)
+    return (camera or CameraSpec()).camera_for(model_points(model), width, height, default_up)
 
 
 # -- level of detail -------------------------------------------------------------
@@ -272,6 +310,43 @@ class RenderResult:
                 f"{s.point_total:,} points)")
 
 
+def bounds_pixels(camera: Camera, lo, hi) -> float:
+    """Pixels of the image the box [lo, hi] (model units) projects to: the area of its projected
+    corners' bounding rectangle clipped to the image; the whole image when the eye is inside or
+    beside the box (a corner at or behind the eye); 0 when the box lies behind the eye."""
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])],
+                       dtype=np.float64)
+    view = camera.view_matrix
+    p = corners @ view[:3, :3].T + view[:3, 3]
+    depth = -p[:, 2]
+    if (depth <= 0).all():
+        return 0.0
+    if (depth <= 0).any():
+        return float(camera.width * camera.height)
+    xy = p[:, :2] / depth[:, None] * camera.focal_px
+    x0, y0 = np.clip(xy.min(axis=0) + (camera.width / 2, camera.height / 2), 0, (camera.width, camera.height))
+    x1, y1 = np.clip(xy.max(axis=0) + (camera.width / 2, camera.height / 2), 0, (camera.width, camera.height))
+    return float((x1 - x0) * (y1 - y0))
+
+
+def check_coverage(frame: Frame, model: Model, what: str = "the model") -> None:
+    """Warn (:class:`~surfsplat.errors.EmptyFrameWarning`) when ``frame`` shows nothing, or less
+    than :data:`MIN_COVERAGE` of the pixels the model's bounds project to; the message names the
+    bounds and the camera (as flags)."""
+    lo, hi = model_points(model).bounds()
+    expected = bounds_pixels(frame.camera, lo, hi)
+    drawn = int(frame.mask.sum())
+    if drawn > 0 and drawn >= MIN_COVERAGE * expected:
+        return
+    where = (f"{what}'s bounds are min {np.array2string(np.asarray(lo), precision=4)} max "
+             f"{np.array2string(np.asarray(hi), precision=4)}; the camera is {camera_flags(frame.camera)}")
+    if drawn == 0:
+        warnings.warn(f"nothing was drawn: {where}", EmptyFrameWarning, stacklevel=3)
+    else:
+        warnings.warn(f"only {drawn:,} pixels were drawn, {100 * drawn / expected:.2g}% of the {expected:,.0f} "
+                      f"its bounds cover in the image: {where}", EmptyFrameWarning, stacklevel=3)
+
+
 def render_model(model: Model, camera: Camera, *, technique: TechniqueName = "ewa", lights: Lights | None = None,
                  background=DEFAULT_BACKGROUND, options: RenderOptions | None = None,
                  lod_tolerance: float | None = None, lod_shading: LodShading = DEFAULT_LOD_SHADING) -> RenderResult:
@@ -291,7 +366,9 @@ def render_model(model: Model, camera: Camera, *, technique: TechniqueName = "ew
         frame = Frame.empty(camera, background)
     else:
         frame = default_renderer().render(cloud, camera, technique, lights or Lights(), options, background)
-    return RenderResult(frame, len(cloud), selection, time.perf_counter() - start)
+    result = RenderResult(frame, len(cloud), selection, time.perf_counter() - start)
+    check_coverage(frame, model)
+    return result
 
 
 def render(source, camera: Camera | CameraSpec | None = None, *, technique: TechniqueName = "ewa",
@@ -321,7 +398,7 @@ def render(source, camera: Camera | CameraSpec | None = None, *, technique: Tech
     """
     background = check_background(background)
     model = load_model(source, k=k)
-    camera = resolve_camera(model, camera, width, height)
+    camera = resolve_camera(model, camera, width, height, default_up=natural_up(source))
     return render_model(model, camera, technique=technique, lights=lights, background=background, options=options,
                         lod_tolerance=lod_tolerance, lod_shading=lod_shading).frame
 
@@ -341,6 +418,6 @@ def render_mesh(source, camera: Camera | CameraSpec | None = None, *, width: int
     else:
         with progress.stage(f"loading {source}"):
             mesh = load_mesh(source)
-    camera = resolve_camera(SplatCloud(mesh.vertices), camera, width, height)
+    camera = resolve_camera(SplatCloud(mesh.vertices), camera, width, height, default_up=natural_up(source))
     return rasterize_mesh(mesh, camera, lights or Lights(), background=background, supersample=supersample,
                           smooth=smooth, renderer=default_renderer())

@@ -55,9 +55,9 @@ class Camera:
             raise InputError(f"image size must be within 1..16384 pixels, got {self.width}x{self.height}")
         if self.near is not None and self.far is not None and not (0 < self.near < self.far):
             raise InputError(f"need 0 < near < far, got near={self.near}, far={self.far}")
-        object.__setattr__(self, "eye", tuple(eye))
-        object.__setattr__(self, "target", tuple(target))
-        object.__setattr__(self, "up", tuple(up))
+        object.__setattr__(self, "eye", tuple(map(float, eye)))
+        object.__setattr__(self, "target", tuple(map(float, target)))
+        object.__setattr__(self, "up", tuple(map(float, up)))
         object.__setattr__(self, "width", int(self.width))
         object.__setattr__(self, "height", int(self.height))
 
@@ -139,3 +139,78 @@ def frame_bounds(lo, hi, *, width: int = 512, height: int = 512, fov: float = 40
         up = (0.0, 0.0, 1.0) if abs(d[2]) < 0.9 else (0.0, 1.0, 0.0)
     cam = Camera(eye=tuple(center + dist * d), target=tuple(center), up=tuple(up), fov=fov, width=width, height=height)
     return cam.with_clip_from_bounds(lo, hi, margin)
+
+
+def fit_points(points, *, direction, up=(0.0, 1.0, 0.0), fov: float = 40.0, width: int = 512, height: int = 512,
+               fill: float = 0.9, margin: float = 0.0) -> Camera:
+    """A camera looking along ``-direction`` whose image the points' projections fill tightly.
+
+    For a fixed viewing direction, the eye distance D and the target's offset (cx, cy) across
+    the view are chosen so every point (grown by ``margin``, model units) projects inside
+    ``fill`` of the image's half-extent on both axes, with the projected extremes centered:
+    a point at lateral offset x and depth z toward the eye needs |x - cx| + margin <=
+    t (D - z), t = fill * tan(half field of view); D is the smallest distance satisfying all
+    of them (a closed form: the two extremes on each axis balance). The image's limiting
+    side is then filled to ``fill`` (0.9: 90%). near/far enclose the points.
+
+    Args:
+        points: (N, 3) world positions (model units), N >= 1.
+        direction: world vector from the model toward the eye.
+        up: world up vector. fov: vertical field of view, degrees. width, height: pixels.
+    """
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    d = _vec3(direction, "direction")
+    d /= np.linalg.norm(d)
+    up = _vec3(up, "up")
+    if np.linalg.norm(np.cross(d, up)) < 1e-6 * np.linalg.norm(up):
+        up = np.array([0.0, 0.0, 1.0]) if abs(d[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    right = np.cross(-d, up)
+    right /= np.linalg.norm(right)
+    screen_up = np.cross(right, -d)
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    center = 0.5 * (lo + hi)
+    q = p - center
+    x, y, z = q @ right, q @ screen_up, q @ d
+    half_v = np.radians(fov) / 2.0
+    ty = fill * np.tan(half_v)
+    tx = fill * np.tan(half_v) * width / height
+    offsets, distances = [], []
+    for lateral, t in ((x, tx), (y, ty)):
+        a = float(np.max(z + (lateral + margin) / t))   # the extreme on the + side sets D >= a - c / t
+        b = float(np.max(z + (margin - lateral) / t))   # the - side: D >= b + c / t
+        offsets.append(0.5 * t * (a - b))
+        distances.append(0.5 * (a + b))
+    extent = float(np.linalg.norm(hi - lo)) or 1.0
+    dist = max(max(distances), float(z.max()) + margin + 1e-3 * extent)
+    for axis, lateral in enumerate((x, y)):
+        if distances[axis] < dist:   # not the limiting side: center its projected extremes at this distance
+            offsets[axis] = _centering_offset(lateral, dist - z, margin)
+    target = center + offsets[0] * right + offsets[1] * screen_up
+    cam = Camera(eye=tuple(target + dist * d), target=tuple(target), up=tuple(up), fov=fov, width=width,
+                 height=height)
+    return cam.with_clip_from_bounds(lo, hi, margin)
+
+
+def _centering_offset(lateral: np.ndarray, depth: np.ndarray, margin: float) -> float:
+    """The offset c with max((x + m - c) / d) = -min((x - m - c) / d): projected extremes symmetric
+    about the image center (bisection; the difference decreases monotonically in c)."""
+    lo, hi = float(lateral.min()) - margin, float(lateral.max()) + margin
+    for _ in range(60):
+        c = 0.5 * (lo + hi)
+        if np.max((lateral + margin - c) / depth) + np.min((lateral - margin - c) / depth) > 0:
+            lo = c
+        else:
+            hi = c
+    return 0.5 * (lo + hi)
+
+
+def camera_flags(camera: Camera) -> str:
+    """The command-line flags that reproduce ``camera``: ``--eye X Y Z --target X Y Z --up X Y Z
+    --fov F --width W --height H`` (10 significant digits: georeferenced coordinates keep their cm)."""
+    def vec(v) -> str:
+        # positional, never an exponent: argparse takes "-1e-05" for an option, "-0.00001" for a number
+        return " ".join(np.format_float_positional(float(x), precision=10, unique=True, fractional=False, trim="-")
+                        for x in v)
+
+    return (f"--eye {vec(camera.eye)} --target {vec(camera.target)} --up {vec(camera.up)} "
+            f"--fov {np.format_float_positional(float(camera.fov), precision=10, fractional=False, trim='-')} --width {camera.width} --height {camera.height}")

@@ -11,3 +11,8 @@ class InputError(SurfsplatError, ValueError):
 
 class RenderError(SurfsplatError, RuntimeError):
     """The OpenGL renderer could not be created or a shader failed to build."""
+
+
+class EmptyFrameWarning(UserWarning):
+    """A rendered image shows nothing, or far less than the model's bounds cover: the camera most
+    likely looks past the model (the message names the bounds and the camera)."""

@@ -44,12 +44,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--mesh", action="store_true",
                    help="render the input's triangles instead (the ground truth: same camera and lighting, "
                         "per-pixel shading, 4x4 supersampled); camera and lighting flags apply")
+    opt.add_output_options(p)
     opt.add_render_options(p)
     p.set_defaults(func=commands.cmd_render)
 
     p = sub.add_parser("demo", help="render a built-in procedural scene (no input file needed)")
     p.add_argument("-o", "--output", default="demo.png", help="output image (default demo.png)")
     p.add_argument("--scene", default="torus", choices=sorted(SCENES), help="scene (default torus)")
+    opt.add_output_options(p)
     opt.add_lod_options(p)
     opt.add_render_options(p)
     p.set_defaults(func=commands.cmd_demo)

@@ -9,7 +9,11 @@ from pathlib import Path
 import numpy as np
 
 from .. import api, progress
+from ..camera import camera_flags
 from ..errors import InputError
+from ..io.atomic import atomic_path, check_writable
+from ..io.camera_file import save_camera
+from ..render.frame import check_image_path
 from ..geometry.phong import phong_splats
 from ..geometry.preprocess import neighbour_spacing, preprocess
 from ..geometry.sampling import sample_mesh
@@ -25,49 +29,81 @@ def refuse_overwriting_inputs(out: Path, inputs: tuple[Path, ...]) -> None:
             raise InputError(f"{out}: refusing to overwrite the input file")
 
 
-def render_and_save(source, args, out: Path, inputs: tuple[Path, ...] = ()) -> None:
-    """Load ``source``, render it as the render flags in ``args`` ask, save the image (and depth)."""
-    refuse_overwriting_inputs(out, inputs)
+def check_image_outputs(args, inputs: tuple[Path, ...]) -> tuple[Path, Path | None, Path | None]:
+    """Before any work: the image, depth and camera outputs can be written (suffix, folder, not an
+    input, not existing unless --force). Returns (image, depth or None, camera file or None)."""
+    refuse_overwriting_inputs(Path(args.output), inputs)
+    out = check_writable(check_image_path(args.output), overwrite=args.force)
     depth = getattr(args, "depth", None)
     if depth:
-        refuse_overwriting_inputs(Path(depth), inputs)
-    render_options, lights, spec = opt.render_options(args), opt.lights(args), opt.camera_spec(args)
+        depth = Path(depth)
+        refuse_overwriting_inputs(depth, inputs)
+        if depth.suffix.lower() != ".npy":
+            raise InputError(f"{depth}: --depth writes a NumPy array: name it OUT.npy")
+        check_writable(depth, overwrite=args.force)
+    camera_file = Path(args.save_camera) if args.save_camera else None
+    if camera_file is not None:
+        refuse_overwriting_inputs(camera_file, inputs)
+        check_writable(camera_file, overwrite=args.force)
+    return out, depth, camera_file
+
+
+def save_outputs(frame, camera_file: Path | None, depth: Path | None, force: bool) -> None:
+    """Write the depth array and the camera file (atomically; see :mod:`surfsplat.io.atomic`)."""
+    if depth is not None:
+        with atomic_path(depth, overwrite=force) as temp:
+            with open(temp, "wb") as handle:
+                np.save(handle, frame.depth)
+        progress.message(f"depth (camera-space, inf = empty) -> {depth}")
+    if camera_file is not None:
+        save_camera(frame.camera, camera_file, overwrite=force)
+        progress.message(f"camera -> {camera_file}")
+
+
+def render_and_save(source, args, inputs: tuple[Path, ...] = ()) -> None:
+    """Load ``source``, render it as the render flags in ``args`` ask, save the image (and depth, camera)."""
+    out, depth, camera_file = check_image_outputs(args, inputs)
+    api.check_source(source)
+    render_options, lights, camera = opt.render_options(args), opt.lights(args), opt.camera_spec(args)
+    width, height = opt.image_size(args, camera)
     model = api.load_model(source, k=getattr(args, "k", api.DEFAULT_K))
-    camera = api.resolve_camera(model, spec, args.width, args.height)
+    camera = api.resolve_camera(model, camera, width, height, default_up=api.natural_up(source))
+    progress.message(f"camera: {camera_flags(camera)}")
     result = api.render_model(model, camera, technique=args.technique, lights=lights, background=args.background,
                               options=render_options, lod_tolerance=args.lod_tolerance, lod_shading=args.lod_shading)
-    result.frame.save(out)
+    result.frame.save(out, overwrite=args.force)
     progress.message(f"rendered {result.describe()} with {args.technique} at {camera.width}x{camera.height} "
                      f"in {result.seconds:.2f} s -> {out}")
-    if depth:
-        np.save(depth, result.frame.depth)
-        progress.message(f"depth (camera-space, inf = empty) -> {depth}")
+    save_outputs(result.frame, camera_file, depth, args.force)
 
 
 def cmd_render(args) -> None:
     """``surfsplat render``: a point/splat/mesh file or a hierarchy to an image (or ``--mesh``: the triangles)."""
+    inputs = (Path(args.input),)
     if args.mesh:
-        render_mesh_and_save(args)
+        render_mesh_and_save(args, inputs)
         return
-    api.check_source(args.input)
-    render_and_save(args.input, args, Path(args.output), (Path(args.input),))
+    render_and_save(args.input, args, inputs)
 
 
-def render_mesh_and_save(args) -> None:
+def render_mesh_and_save(args, inputs: tuple[Path, ...]) -> None:
     """``render --mesh``: the input's triangles with the same camera and lighting (ground truth)."""
-    out = Path(args.output)
-    refuse_overwriting_inputs(out, (Path(args.input),))
+    out, depth, camera_file = check_image_outputs(args, inputs)
+    camera = opt.camera_spec(args)
+    width, height = opt.image_size(args, camera)
     start = time.perf_counter()
-    frame = api.render_mesh(args.input, opt.camera_spec(args), width=args.width, height=args.height,
-                            lights=opt.lights(args), background=args.background)
-    frame.save(out)
+    frame = api.render_mesh(args.input, camera, width=width, height=height, lights=opt.lights(args),
+                            background=args.background)
+    progress.message(f"camera: {camera_flags(frame.camera)}")
+    frame.save(out, overwrite=args.force)
     progress.message(f"rendered the mesh at {frame.camera.width}x{frame.camera.height} "
                      f"in {time.perf_counter() - start:.2f} s -> {out}")
+    save_outputs(frame, camera_file, depth, args.force)
 
 
 def cmd_demo(args) -> None:
     """``surfsplat demo``: a built-in procedural scene to an image."""
-    render_and_save(api.DEMO_PREFIX + args.scene, args, Path(args.output))
+    render_and_save(api.DEMO_PREFIX + args.scene, args)
 
 
 def cmd_info(args) -> None:

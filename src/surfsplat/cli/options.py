@@ -13,8 +13,11 @@ import argparse
 import dataclasses
 import math
 
-from ..api import (DEFAULT_BACKGROUND, DEFAULT_K, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec)
+from ..api import DEFAULT_BACKGROUND, DEFAULT_K, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec
+from ..camera import Camera
+from ..errors import InputError
 from ..hierarchy import SHADINGS
+from ..io.camera_file import load_camera
 from ..lighting import MAX_LIGHTS, Lights
 from ..render.options import KERNELS, FilterOptions, KernelOptions, RenderOptions, VisibilityOptions
 from ..render.techniques import TECHNIQUES
@@ -65,6 +68,13 @@ SHARP_ANGLE = number(float, low=0.0, high=180.0, low_open=True, high_open=True,
                      what="the dihedral angle in degrees above which an edge is sharp")
 
 
+def add_output_options(p: argparse.ArgumentParser) -> None:
+    """``--force`` and ``--save-camera`` of the commands that write an image."""
+    add_force_option(p)
+    p.add_argument("--save-camera", metavar="FILE.json",
+                   help="also write the camera used (for --camera; the chosen camera is printed as flags too)")
+
+
 def add_k_option(p: argparse.ArgumentParser) -> None:
     """``--k``: neighbours for preprocessing raw points."""
     p.add_argument("--k", type=number(int, low=3, what="neighbours"), default=DEFAULT_K,
@@ -92,21 +102,24 @@ def add_camera_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--eye", type=number(float), nargs=3, metavar=("X", "Y", "Z"), help="camera position (world)")
     p.add_argument("--target", type=number(float), nargs=3, metavar=("X", "Y", "Z"),
                    help="point looked at (default: the model's center)")
-    up = default(CameraSpec, "up")
-    p.add_argument("--up", type=number(float), nargs=3, metavar=("X", "Y", "Z"), default=up,
-                   help=f"camera up vector (default {' '.join(f'{x:g}' for x in up)})")
+    p.add_argument("--up", type=number(float), nargs=3, metavar=("X", "Y", "Z"),
+                   help="camera up vector (default: 0 0 1 for LAS/LAZ files, which are z-up, else 0 1 0)")
     p.add_argument("--fov", type=number(float, low=0.0, high=180.0, low_open=True, high_open=True, what="degrees"),
                    default=default(CameraSpec, "fov"), help="vertical field of view in degrees (default %(default)s)")
+    p.add_argument("--camera", metavar="FILE.json",
+                   help="the camera of a file written by --save-camera (instead of the camera flags; its image "
+                        "size unless --width/--height are given)")
 
 
-def add_render_options(p: argparse.ArgumentParser, *, image_size: int | None = IMAGE_SIZE) -> None:
+def add_render_options(p: argparse.ArgumentParser, *, window: bool = False) -> None:
     """Technique, image size, camera, lighting, background and the render options (filter,
-    visibility, deferred shading, blend kernel). ``image_size`` None: no default size."""
+    visibility, deferred shading, blend kernel). ``window``: the sizes are a window's."""
     p.add_argument("--technique", default="ewa", choices=list(TECHNIQUES), help="rendering technique (default ewa)")
     side = number(int, low=1, high=MAX_IMAGE_SIDE, what="pixels")
-    size_help = f" (default {image_size})" if image_size else ""
-    p.add_argument("--width", type=side, default=image_size, help=f"image width in pixels{size_help}")
-    p.add_argument("--height", type=side, default=image_size, help=f"image height in pixels{size_help}")
+    what = "window" if window else "image"
+    size_help = " (overrides --size)" if window else f" (default {IMAGE_SIZE}, or the --camera file's)"
+    p.add_argument("--width", type=side, help=f"{what} width in pixels{size_help}")
+    p.add_argument("--height", type=side, help=f"{what} height in pixels{size_help}")
     add_camera_options(p)
     p.add_argument("--light", type=number(float), nargs=3, action="append", metavar=("X", "Y", "Z"),
                    help=f"world direction toward a directional light; repeat for up to {MAX_LIGHTS} "
@@ -121,6 +134,10 @@ def add_render_options(p: argparse.ArgumentParser, *, image_size: int | None = I
                    help="visibility offset along the viewing rays, in splat radii (default %(default)s)")
     p.add_argument("--cull-backfaces", action="store_true",
                    help="drop splats facing away from the eye (closed models with outward normals only)")
+    p.add_argument("--no-separate-sides", action="store_true",
+                   help="blend splats seen from the back with the front surface within the depth epsilon "
+                        "(default: a pixel blends only splats seen from the side of its nearest one, so hidden "
+                        "walls never show through)")
     p.add_argument("--deferred", action="store_true",
                    help="deferred shading: blend albedo and normals, light each pixel once (any technique)")
     p.add_argument("--kernel", choices=KERNELS, default=default(KernelOptions, "name"),
@@ -143,7 +160,8 @@ def render_options(args) -> RenderOptions:
     """The RenderOptions the flags of :func:`add_render_options` ask for."""
     return RenderOptions(
         filter=FilterOptions(prefilter=not args.no_prefilter, cutoff=args.cutoff),
-        visibility=VisibilityOptions(depth_epsilon=args.depth_epsilon, cull_backfaces=args.cull_backfaces),
+        visibility=VisibilityOptions(depth_epsilon=args.depth_epsilon, cull_backfaces=args.cull_backfaces,
+                                     separate_sides=not args.no_separate_sides),
         kernel=KernelOptions(name=args.kernel, a=args.kernel_a, b=args.kernel_b, n=args.kernel_n,
                              sigma=args.kernel_sigma),
         deferred=args.deferred)
@@ -155,8 +173,21 @@ def lights(args) -> Lights:
     return Lights(directions=directions, enabled=not args.no_lighting)
 
 
-def camera_spec(args) -> CameraSpec:
-    """The CameraSpec of ``--eye``, ``--target``, ``--up``, ``--fov``."""
+def camera_spec(args) -> Camera | CameraSpec:
+    """The Camera of ``--camera FILE`` (sized by ``--width``/``--height`` when given), else the
+    CameraSpec of ``--eye``, ``--target``, ``--up``, ``--fov``."""
+    if args.camera:
+        if args.eye is not None or args.target is not None or args.up is not None:
+            raise InputError("give either --camera FILE or --eye/--target/--up, not both")
+        camera = load_camera(args.camera)
+        return camera.resized(args.width or camera.width, args.height or camera.height)
     return CameraSpec(eye=tuple(args.eye) if args.eye is not None else None,
                       target=tuple(args.target) if args.target is not None else None,
-                      up=tuple(args.up), fov=args.fov)
+                      up=tuple(args.up) if args.up is not None else None, fov=args.fov)
+
+
+def image_size(args, camera=None) -> tuple[int, int]:
+    """(width, height): the flags', else the camera file's, else :data:`IMAGE_SIZE`."""
+    width = args.width or (camera.width if isinstance(camera, Camera) else IMAGE_SIZE)
+    height = args.height or (camera.height if isinstance(camera, Camera) else IMAGE_SIZE)
+    return width, height

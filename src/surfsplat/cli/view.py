@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..api import DEFAULT_K, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE
+from ..api import DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE
 from ..hierarchy import SHADINGS
 from ..viewer import MOTION_MODES, MotionOptions, view
 from . import options as opt
@@ -29,7 +29,7 @@ def add_view_command(subparsers) -> argparse.ArgumentParser:
     p.add_argument("input", help="PLY, OBJ or LAS file, a hierarchy MODEL.npz (surfsplat build), or demo:NAME "
                                  "for a built-in scene (e.g. demo:torus)")
     opt.add_k_option(p)
-    opt.add_render_options(p, image_size=None)
+    opt.add_render_options(p, window=True)
     p.add_argument("--size", type=opt.number(int, low=1, high=opt.MAX_IMAGE_SIDE, what="pixels"), nargs=2,
                    metavar=("W", "H"), default=WINDOW_SIZE,
                    help=f"window size in pixels (default {WINDOW_SIZE[0]} {WINDOW_SIZE[1]}; larger framebuffer on "

@@ -11,10 +11,23 @@ from PIL import Image
 
 from ..camera import Camera
 from ..errors import InputError
+from ..io.atomic import atomic_path
 
 
 #: Image formats :meth:`Frame.save` (and the viewer's screenshots) write, by suffix.
 IMAGE_SUFFIXES = frozenset({".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"})
+
+
+def check_image_path(path) -> Path:
+    """``path`` as a Path; InputError for an image suffix :meth:`Frame.save` does not write or a
+    missing folder."""
+    path = Path(path)
+    if path.suffix.lower() not in IMAGE_SUFFIXES:
+        raise InputError(f"{path}: unsupported image format {path.suffix!r}; use .png")
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise InputError(f"{path}: folder {folder} does not exist")
+    return path
 
 
 @dataclass
@@ -51,14 +64,16 @@ class Frame:
         """(H, W, 3) uint8 sRGB-agnostic 8-bit image (values clamped, rounded)."""
         return np.round(np.clip(self.color, 0.0, 1.0) * 255.0).astype(np.uint8)
 
-    def save(self, path) -> Path:
-        """Write the color image as PNG (or any format Pillow knows from the suffix); returns the path."""
-        path = Path(path)
-        if path.suffix.lower() not in IMAGE_SUFFIXES:
-            raise InputError(f"{path}: unsupported image format {path.suffix!r}; use .png")
-        if path.parent and not path.parent.exists():
-            raise InputError(f"{path}: folder {path.parent} does not exist")
-        Image.fromarray(self.image()).save(path)
+    def save(self, path, *, overwrite: bool = True) -> Path:
+        """Write the color image as PNG (or JPEG, BMP, TIFF, WebP by the suffix); returns the path.
+
+        The image is written to a temporary file that then replaces ``path``, so a failed write
+        never leaves a partial file or touches an existing one; ``overwrite=False`` refuses an
+        existing file.
+        """
+        path = check_image_path(path)
+        with atomic_path(path, overwrite=overwrite) as temp:
+            Image.fromarray(self.image()).save(temp, format=Image.registered_extensions()[path.suffix.lower()])
         return path
 
     def _repr_png_(self) -> bytes:

@@ -62,10 +62,18 @@ class VisibilityOptions:
             Splats with a normal field are dropped only when no normal of the
             field faces the eye (Botsch 2004, sec. 4.1). Hierarchy selections
             use it for normal-cone culling too.
+        separate_sides: a pixel blends only the splats seen from the same side
+            (front or back of the splat, by its normal) as its nearest splat.
+            Without it the back of a hidden wall lying within depth_epsilon
+            behind a visible surface (thin walls, pocket walls of CAD parts,
+            silhouettes) blends into it as a dark outline; with it models render
+            two-sided and clean, as long as the normals are consistently
+            oriented (preprocessing orients estimated normals).
     """
 
     depth_epsilon: float = 1.0
     cull_backfaces: bool = False
+    separate_sides: bool = True
 
     def __post_init__(self) -> None:
         if not (self.depth_epsilon >= 0):

@@ -39,7 +39,10 @@ __all__ = ["GpuSplats", "Renderer", "default_renderer", "reset_default_renderer"
 #: declare: the normalization pass and the ground-truth mesh program lack them, so setting
 #: them there is no error. This is the one documented optional set of frame-wide uniforms;
 #: a technique lists its own optional ones in ``Technique.optional_uniforms``.
-OPTIONAL_FRAME_UNIFORMS = frozenset({"u_depth_epsilon", "u_cull_backfaces", "u_deferred"})
+OPTIONAL_FRAME_UNIFORMS = frozenset({"u_depth_epsilon", "u_cull_backfaces", "u_deferred", "u_separate_sides",
+                                     "u_side"})
+#: Texture unit of the side target during the accumulation pass (units 0 and 1 serve pass 3).
+SIDE_TEXTURE_UNIT = 2
 
 
 @dataclass
@@ -189,11 +192,12 @@ class Renderer:
             aux = ctx.texture(size, 4, dtype="f4")
             depth = ctx.depth_texture(size)
             out = ctx.texture(size, 4, dtype="f4")
-            for tex in (accum, aux, out):
+            side = ctx.texture(size, 1, dtype="f1")   # the side of each pixel's nearest splat
+            for tex in (accum, aux, out, side):
                 tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
             self._targets = {
-                "size": size, "accum": accum, "aux": aux, "depth": depth, "out": out,
-                "fbo_visibility": ctx.framebuffer(depth_attachment=depth),
+                "size": size, "accum": accum, "aux": aux, "depth": depth, "out": out, "side": side,
+                "fbo_visibility": ctx.framebuffer([side], depth),
                 "fbo_accum": ctx.framebuffer([accum, aux], depth),
                 "fbo_out": ctx.framebuffer([out]),
             }
@@ -235,6 +239,8 @@ class Renderer:
             "u_material": (lights.ambient, lights.diffuse, lights.specular, lights.shininess),
             "u_depth_epsilon": float(options.visibility.depth_epsilon),
             "u_cull_backfaces": bool(options.visibility.cull_backfaces),
+            "u_separate_sides": bool(options.visibility.separate_sides),
+            "u_side": SIDE_TEXTURE_UNIT,
             "u_deferred": bool(options.deferred),
         }
 
@@ -258,12 +264,15 @@ class Renderer:
         targets["fbo_accum"].use()
         targets["fbo_accum"].depth_mask = True
         targets["fbo_accum"].clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        if technique.blended:
+            targets["fbo_visibility"].clear(0.5, 0.0, 0.0, 0.0)   # side 0.5: none; depth is cleared above
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)
         for pass_id in passes:
             program = self.program(technique.vertex, technique.fragment, {"PASS": pass_id})
             self.set_uniforms(program, uniforms, optional)
             if pass_id == PASS_ACCUMULATION:
+                targets["side"].use(location=SIDE_TEXTURE_UNIT)
                 fbo = targets["fbo_accum"]
                 fbo.use()
                 fbo.depth_mask = False

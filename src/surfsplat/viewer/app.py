@@ -37,7 +37,8 @@ import numpy as np
 
 from .. import progress
 from ..api import (DEFAULT_BACKGROUND, DEFAULT_K, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec,
-                   as_hierarchy, check_background, check_source, load_model, lod_splats, model_points, resolve_camera)
+                   as_hierarchy, check_background, check_source, load_model, lod_splats, natural_up,
+                   resolve_camera)
 from ..camera import Camera
 from ..cloud import SplatCloud
 from ..errors import InputError, RenderError
@@ -48,7 +49,8 @@ from ..render.renderer import Renderer
 from ..render.techniques import TECHNIQUES
 from . import camera_control as cc
 from .hud import Hud, viewer_program
-from .screenshots import check_image_path, save_image, unique_screenshot_path
+from ..render.frame import check_image_path
+from .screenshots import save_image, unique_screenshot_path
 
 #: Seconds the camera must be still before the full-quality frame replaces the preview.
 SETTLE_S = 0.25
@@ -281,7 +283,7 @@ class Viewer:
         fb_w, fb_h = glfw.get_framebuffer_size(window)
         fb_w, fb_h = max(fb_w, 1), max(fb_h, 1)
         spec = camera if isinstance(camera, CameraSpec) else CameraSpec()
-        up = tuple(float(x) for x in (camera.up if isinstance(camera, Camera) else spec.up))
+        up = tuple(float(x) for x in (camera.up if isinstance(camera, Camera) else spec.up or (0.0, 1.0, 0.0)))
         lo, hi = cloud.bounds()
         scene_radius = 0.5 * float(np.linalg.norm(hi - lo)) or 1.0
         home_spec = CameraSpec(up=up, fov=camera.fov if isinstance(camera, Camera) else spec.fov)
@@ -761,6 +763,9 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
                                                           else type(source).__name__)
 
     check_source(source)
+    if not isinstance(camera, Camera):
+        spec = camera or CameraSpec()
+        camera = spec if spec.up is not None else replace(spec, up=natural_up(source))
     # The window before loading: without a display, fail before a possibly long load.
     glfw, window, ctx = open_window(width, height, f"surfsplat - {title}")
     viewer = None

@@ -9,8 +9,6 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from ..errors import InputError
-from ..render.frame import IMAGE_SUFFIXES
 
 
 def unique_screenshot_path(folder: Path | None = None, now: float | None = None) -> Path:
@@ -44,15 +42,3 @@ def save_image(image: np.ndarray, path: Path, exclusive: bool = False) -> Path:
         except FileExistsError:
             continue
     raise AssertionError("unreachable")
-
-
-def check_image_path(path) -> Path:
-    """``path`` as a Path; InputError for an unknown image suffix or a missing folder."""
-    path = Path(path)
-    if path.suffix.lower() not in IMAGE_SUFFIXES:
-        raise InputError(f"{path}: unsupported image format {path.suffix!r}; use .png")
-    if not path.parent.exists():
-        raise InputError(f"{path}: folder {path.parent} does not exist")
-    return path
-
-

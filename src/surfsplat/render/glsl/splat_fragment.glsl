@@ -4,6 +4,8 @@ layout(location = 0) out vec4 out_color;   // (w * rgb, w)
 layout(location = 1) out vec4 out_aux;     // (w * depth, w * normal), camera space
 
 uniform float u_depth_epsilon;   // visibility offset along the viewing ray, in splat radii
+uniform bool u_separate_sides;   // blend only splats seen from the same side as the nearest one
+uniform sampler2D u_side;        // visibility pass: the side (v_back) of each pixel's nearest splat, 0.5 none
 
 flat in vec3 v_plane;
 flat in vec3 v_center;
@@ -13,6 +15,7 @@ flat in vec2 v_uvz;
 flat in float v_radius;
 flat in vec3 v_clip0;
 flat in vec3 v_clip1;
+flat in float v_back;
 
 // Normalized (s, t) of the point t * ray on the splat's plane.
 vec2 plane_st(vec3 ray, float t) {
@@ -55,12 +58,24 @@ float footprint_depth(vec2 st) {
 }
 
 // Writes depth (offset by epsilon along the ray in the visibility pass) and the outputs.
+// The visibility pass also records which side of its splat the nearest fragment shows; with
+// u_separate_sides the accumulation pass then blends only splats seen from that side, so the
+// back of a hidden wall within epsilon behind a surface never bleeds into it.
 void emit(vec3 ray, float z, float w, vec3 color, vec3 normal) {
 #if PASS == PASS_VISIBILITY
     // Guennebaud 2003, sec. 5: translate along the viewing ray, not along z.
     z += u_depth_epsilon * v_radius / length(ray);
+    gl_FragDepth = window_depth(z);
+    out_color = vec4(v_back, 0.0, 0.0, 1.0);
+    out_aux = vec4(0.0);
+#else
+#if PASS == PASS_ACCUMULATION
+    // side 0 front, 1 back, 0.5 no splat's disk covers the pixel (a filter's fringe only): any side blends
+    float side = texelFetch(u_side, ivec2(gl_FragCoord.xy), 0).r;
+    if (u_separate_sides && abs(side - 0.5) > 0.25 && abs(side - v_back) > 0.5) discard;
 #endif
     gl_FragDepth = window_depth(z);
     out_color = vec4(color * w, w);
     out_aux = vec4(z, normal) * w;
+#endif
 }

@@ -14,6 +14,7 @@ flat out vec3 v_field_u;  // alpha * u_hat and beta * v_hat, signed like v_norma
 flat out vec3 v_field_v;  // at (s, t) is v_normal + s v_field_u + t v_field_v (Botsch 2004, eq. 2)
 flat out vec3 v_clip0;    // clip lines, passed through (Botsch 2004, sec. 4; Zwicker 2004, sec. 5)
 flat out vec3 v_clip1;
+flat out float v_back;    // 1: the eye sees the back of the splat (its normal faces away), else 0
 
 uniform bool u_cull_backfaces;   // closed, outward-oriented models only
 
@@ -48,6 +49,7 @@ bool camera_splat(out Splat s) {
         vec3 e = -s.p;
         if (dot(s.shading, e) + length(vec2(dot(field_u, e), dot(field_v, e))) <= 0.0) return false;
     }
+    v_back = np > 0.0 ? 1.0 : 0.0;
     if (np > 0.0) { s.n = -s.n; s.shading = -s.shading; field_u = -field_u; field_v = -field_v; np = -np; }
     float z = -s.p.z;
     float zext = length(vec2(s.u.z, s.v.z));   // half depth range of the ellipse
