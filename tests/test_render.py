@@ -428,3 +428,59 @@ def test_separate_sides_keep_a_hidden_back_face_out(renderer, technique):
     assert np.abs(clean.color[inner] - (1.0, 0.0, 0.0)).max() < 1e-3   # not with separate sides
     back_only = renderer.render(behind, cam, technique, UNLIT)
     assert np.abs(back_only.color[ndimage.binary_erosion(back_only.mask, iterations=4)] - (0, 0, 1)).max() < 1e-3
+
+
+# -- supersampling, tiles, transparency (issue 12) ------------------------------------------------
+
+@pytest.fixture(scope="module")
+def torus_view():
+    cloud = scenes.torus(200, 80)
+    cam = frame_bounds(*cloud.bounds(), width=90, height=70, direction=(0.3, 0.8, 1.0))
+    return cloud, cam
+
+
+@pytest.mark.parametrize("technique", ["ewa", "perspective", "phong", "flat"])
+def test_tiled_rendering_equals_one_tile(renderer, torus_view, technique):
+    cloud, cam = torus_view
+    whole = renderer.render(cloud, cam, technique, Lights(), supersample=2)
+    tiled = renderer.render(cloud, cam, technique, Lights(), supersample=2, max_tile=32)   # 6 x 5 tiles
+    for name in ("color", "depth", "weight", "alpha"):
+        np.testing.assert_array_equal(getattr(tiled, name), getattr(whole, name), err_msg=name)
+
+
+def test_supersampling_is_the_box_filtered_larger_image(renderer, torus_view):
+    cloud, cam = torus_view
+    k = 3
+    small = renderer.render(cloud, cam, "ewa", Lights(), supersample=k)
+    big = renderer.render(cloud, cam.resized(cam.width * k, cam.height * k), "ewa", Lights())
+    blocks = (cam.height, k, cam.width, k)
+    np.testing.assert_allclose(small.color, big.color.reshape(*blocks, 3).mean(axis=(1, 3)), atol=1e-6)
+    np.testing.assert_allclose(small.alpha, big.mask.reshape(blocks).mean(axis=(1, 3)), atol=1e-6)
+    np.testing.assert_array_equal(small.depth, big.depth.reshape(blocks).min(axis=(1, 3)))
+    edge = (small.alpha > 0) & (small.alpha < 1)
+    assert edge.sum() > 50   # the silhouette is antialiased: fractional coverage
+
+
+def test_transparent_and_16_bit_output(renderer, torus_view, tmp_path):
+    import png
+    from PIL import Image
+
+    cloud, cam = torus_view
+    background = (0.2, 0.4, 0.9)
+    frame = renderer.render(cloud, cam, "ewa", Lights(), background=background, supersample=2)
+    rgba = frame.rgba()
+    composited = rgba[..., :3] * rgba[..., 3:] + (1 - rgba[..., 3:]) * np.asarray(background)
+    np.testing.assert_allclose(composited, frame.color, atol=1e-5)   # over its own background: the frame
+    assert (rgba[~frame.mask] == 0).all()
+    png8 = frame.save(tmp_path / "t.png", transparent=True)
+    assert Image.open(png8).mode == "RGBA"
+    np.testing.assert_array_equal(np.asarray(Image.open(png8)), frame.image(transparent=True))
+    png16 = frame.save(tmp_path / "t16.png", transparent=True, bit_depth=16)
+    width, height, rows, info = png.Reader(filename=str(png16)).read()
+    assert info["bitdepth"] == 16 and info["alpha"] and (width, height) == (cam.width, cam.height)
+    read = np.vstack([np.asarray(r, dtype=np.uint16) for r in rows]).reshape(height, width, 4)
+    np.testing.assert_array_equal(read, frame.image(transparent=True, bit_depth=16))
+    with pytest.raises(InputError, match="no alpha channel"):
+        frame.save(tmp_path / "t.jpg", transparent=True)
+    with pytest.raises(InputError, match="supersample"):
+        renderer.render(cloud, cam, "ewa", Lights(), supersample=9)

@@ -349,7 +349,8 @@ def check_coverage(frame: Frame, model: Model, what: str = "the model") -> None:
 
 def render_model(model: Model, camera: Camera, *, technique: TechniqueName = "ewa", lights: Lights | None = None,
                  background=DEFAULT_BACKGROUND, options: RenderOptions | None = None,
-                 lod_tolerance: float | None = None, lod_shading: LodShading = DEFAULT_LOD_SHADING) -> RenderResult:
+                 lod_tolerance: float | None = None, lod_shading: LodShading = DEFAULT_LOD_SHADING,
+                 supersample: int = 1) -> RenderResult:
     """Draw a loaded model (:func:`load_model`) with a resolved camera.
 
     A SplatCloud given ``lod_tolerance`` gets its hierarchy built first; a Hierarchy is cut
@@ -365,7 +366,8 @@ def render_model(model: Model, camera: Camera, *, technique: TechniqueName = "ew
     if len(cloud) == 0:
         frame = Frame.empty(camera, background)
     else:
-        frame = default_renderer().render(cloud, camera, technique, lights or Lights(), options, background)
+        frame = default_renderer().render(cloud, camera, technique, lights or Lights(), options, background,
+                                          supersample=supersample)
     result = RenderResult(frame, len(cloud), selection, time.perf_counter() - start)
     check_coverage(frame, model)
     return result
@@ -374,7 +376,7 @@ def render_model(model: Model, camera: Camera, *, technique: TechniqueName = "ew
 def render(source, camera: Camera | CameraSpec | None = None, *, technique: TechniqueName = "ewa",
            width: int = DEFAULT_WIDTH, height: int = DEFAULT_HEIGHT, lights: Lights | None = None,
            background=DEFAULT_BACKGROUND, options: RenderOptions | None = None, lod_tolerance: float | None = None,
-           lod_shading: LodShading = DEFAULT_LOD_SHADING, k: int = DEFAULT_K) -> Frame:
+           lod_shading: LodShading = DEFAULT_LOD_SHADING, k: int = DEFAULT_K, supersample: int = 1) -> Frame:
     """Render a SplatCloud, a hierarchy, a file or a built-in scene to a :class:`Frame`.
 
     Args:
@@ -395,12 +397,15 @@ def render(source, camera: Camera | CameraSpec | None = None, *, technique: Tech
             tolerance is turned into a hierarchy first (``surfsplat build`` saves one).
         lod_shading: normal field of coarse LOD splats: "fit", "cone" or "flat".
         k: neighbours for preprocessing when needed.
+        supersample: K in 1..8: draw K x K sub-pixels per pixel and average them (antialiased
+            edges and an antialiased ``Frame.alpha``; any size is drawn in tiles). The LOD cut
+            is chosen for the output pixel, the EWA prefilter acts on the sub-pixels.
     """
     background = check_background(background)
     model = load_model(source, k=k)
     camera = resolve_camera(model, camera, width, height, default_up=natural_up(source))
     return render_model(model, camera, technique=technique, lights=lights, background=background, options=options,
-                        lod_tolerance=lod_tolerance, lod_shading=lod_shading).frame
+                        lod_tolerance=lod_tolerance, lod_shading=lod_shading, supersample=supersample).frame
 
 
 def render_mesh(source, camera: Camera | CameraSpec | None = None, *, width: int = DEFAULT_WIDTH,

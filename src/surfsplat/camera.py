@@ -21,6 +21,11 @@ def _vec3(value, name: str) -> np.ndarray:
     return arr
 
 
+#: Largest image side, pixels: rendered in tiles (``render/tiles.py``); the frame's arrays take
+#: about 24 bytes a pixel in memory (a 32768 x 32768 frame: 26 GB).
+MAX_IMAGE_SIDE = 32768
+
+
 @dataclass(frozen=True)
 class Camera:
     """A perspective camera.
@@ -51,8 +56,8 @@ class Camera:
             raise InputError("camera up vector must not be parallel to the viewing direction (or zero)")
         if not (0.0 < float(self.fov) < 180.0):
             raise InputError(f"field of view must be in (0, 180) degrees, got {self.fov}")
-        if int(self.width) < 1 or int(self.height) < 1 or int(self.width) > 16384 or int(self.height) > 16384:
-            raise InputError(f"image size must be within 1..16384 pixels, got {self.width}x{self.height}")
+        if not (1 <= int(self.width) <= MAX_IMAGE_SIDE and 1 <= int(self.height) <= MAX_IMAGE_SIDE):
+            raise InputError(f"image size must be within 1..{MAX_IMAGE_SIDE} pixels, got {self.width}x{self.height}")
         if self.near is not None and self.far is not None and not (0 < self.near < self.far):
             raise InputError(f"need 0 < near < far, got near={self.near}, far={self.far}")
         object.__setattr__(self, "eye", tuple(map(float, eye)))

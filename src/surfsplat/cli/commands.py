@@ -70,8 +70,9 @@ def render_and_save(source, args, inputs: tuple[Path, ...] = ()) -> None:
     camera = api.resolve_camera(model, camera, width, height, default_up=api.natural_up(source))
     progress.message(f"camera: {camera_flags(camera)}")
     result = api.render_model(model, camera, technique=args.technique, lights=lights, background=args.background,
-                              options=render_options, lod_tolerance=args.lod_tolerance, lod_shading=args.lod_shading)
-    result.frame.save(out, overwrite=args.force)
+                              options=render_options, lod_tolerance=args.lod_tolerance, lod_shading=args.lod_shading,
+                              supersample=args.supersample)
+    result.frame.save(out, overwrite=args.force, transparent=args.transparent, bit_depth=args.bit_depth)
     progress.message(f"rendered {result.describe()} with {args.technique} at {camera.width}x{camera.height} "
                      f"in {result.seconds:.2f} s -> {out}")
     save_outputs(result.frame, camera_file, depth, args.force)
@@ -93,9 +94,9 @@ def render_mesh_and_save(args, inputs: tuple[Path, ...]) -> None:
     width, height = opt.image_size(args, camera)
     start = time.perf_counter()
     frame = api.render_mesh(args.input, camera, width=width, height=height, lights=opt.lights(args),
-                            background=args.background)
+                            background=args.background, supersample=max(4, args.supersample))
     progress.message(f"camera: {camera_flags(frame.camera)}")
-    frame.save(out, overwrite=args.force)
+    frame.save(out, overwrite=args.force, transparent=args.transparent, bit_depth=args.bit_depth)
     progress.message(f"rendered the mesh at {frame.camera.width}x{frame.camera.height} "
                      f"in {time.perf_counter() - start:.2f} s -> {out}")
     save_outputs(frame, camera_file, depth, args.force)

@@ -14,18 +14,18 @@ import dataclasses
 import math
 
 from ..api import DEFAULT_BACKGROUND, DEFAULT_K, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec
-from ..camera import Camera
+from ..camera import MAX_IMAGE_SIDE, Camera
 from ..errors import InputError
 from ..hierarchy import SHADINGS
 from ..io.camera_file import load_camera
 from ..lighting import MAX_LIGHTS, Lights
+from ..render.frame import BIT_DEPTHS
+from ..render.tiles import MAX_SUPERSAMPLE
 from ..render.options import KERNELS, FilterOptions, KernelOptions, RenderOptions, VisibilityOptions
 from ..render.techniques import TECHNIQUES
 
 #: Output image size of ``render`` and ``demo`` (pixels).
 IMAGE_SIZE = 1024
-#: Largest image side accepted on the command line (pixels).
-MAX_IMAGE_SIDE = 16384
 
 
 def default(cls, name: str):
@@ -69,8 +69,16 @@ SHARP_ANGLE = number(float, low=0.0, high=180.0, low_open=True, high_open=True,
 
 
 def add_output_options(p: argparse.ArgumentParser) -> None:
-    """``--force`` and ``--save-camera`` of the commands that write an image."""
+    """``--force``, ``--save-camera``, ``--supersample``, ``--transparent``, ``--bit-depth`` of the
+    commands that write an image."""
     add_force_option(p)
+    p.add_argument("--supersample", type=number(int, low=1, high=MAX_SUPERSAMPLE), default=1, metavar="K",
+                   help="antialiasing: K x K samples per pixel, box-filtered (1..8; default 1); any image size "
+                        "is drawn in tiles")
+    p.add_argument("--transparent", action="store_true",
+                   help="write RGBA: alpha is the surface's coverage (antialiased with --supersample), for "
+                        "compositing over any background (.png, .tif, .webp)")
+    p.add_argument("--bit-depth", type=int, choices=BIT_DEPTHS, default=8, help="bits per channel (16: PNG only)")
     p.add_argument("--save-camera", metavar="FILE.json",
                    help="also write the camera used (for --camera; the chosen camera is printed as flags too)")
 

@@ -30,6 +30,7 @@ from .frame import Frame
 from .options import RenderOptions
 from .shaders import PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBILITY, BuiltProgram, build_program, undeclared
 from .technique import Technique
+from .tiles import MAX_SUPERSAMPLE, MAX_TILE, SubPixels, box_reduce, tile_rects, tile_side
 from .techniques import get_technique
 
 __all__ = ["GpuSplats", "Renderer", "default_renderer", "reset_default_renderer", "OPTIONAL_FRAME_UNIFORMS",
@@ -246,17 +247,21 @@ class Renderer:
 
     def draw(self, splats: GpuSplats, camera: Camera, technique: Technique | str = "ewa",
              lights: Lights = Lights(), options: RenderOptions = RenderOptions(),
-             background=(1.0, 1.0, 1.0), output: moderngl.Framebuffer | None = None) -> None:
+             background=(1.0, 1.0, 1.0), output: moderngl.Framebuffer | None = None,
+             tile: tuple[int, int, int, int] | None = None) -> None:
         """Run the passes of ``technique`` and write the normalized image to ``output``.
 
         ``output`` defaults to the renderer's float color target (read by
-        :meth:`render`); a window passes its own framebuffer.
+        :meth:`render`); a window passes its own framebuffer. ``tile`` ``(x0, y0, w, h)``
+        (window pixels of the camera's image, y up) draws only that rectangle, into
+        targets of its size (default: the whole image).
         """
         technique = get_technique(technique) if isinstance(technique, str) else technique
         camera = _with_clip_planes(camera, splats)
         ctx = self.ctx
-        targets = self._ensure_targets(camera.width, camera.height)
-        frame = self.frame_uniforms(camera, lights, options)
+        tile = tile or (0, 0, camera.width, camera.height)
+        targets = self._ensure_targets(tile[2], tile[3])
+        frame = self.frame_uniforms(camera, lights, options) | {"u_tile": tuple(map(float, tile))}
         uniforms = frame | technique.uniforms(options)
         optional = OPTIONAL_FRAME_UNIFORMS | technique.optional_uniforms
         passes = [PASS_VISIBILITY, PASS_ACCUMULATION] if technique.blended else [PASS_OPAQUE]
@@ -302,28 +307,52 @@ class Renderer:
                           OPTIONAL_FRAME_UNIFORMS)
         self._fullscreen.render(moderngl.TRIANGLES, vertices=3)
 
+    def _read_tile(self, width: int, height: int) -> SubPixels:
+        """The tile's sub-pixels from the targets of the last :meth:`draw`."""
+        targets = self._targets
+        color = np.frombuffer(targets["out"].read(), dtype="f4").reshape(height, width, 4)[..., :3]
+        accum = np.frombuffer(targets["accum"].read(), dtype="f4").reshape(height, width, 4)
+        aux = np.frombuffer(targets["aux"].read(), dtype="f4").reshape(height, width, 4)
+        weight = accum[..., 3].copy()
+        with np.errstate(divide="ignore", invalid="ignore"):
+            depth = np.where(weight > 0, aux[..., 0] / weight, np.inf).astype("f4")
+        return SubPixels(color, weight, depth)
+
     def render(self, splats: GpuSplats | SplatCloud, camera: Camera, technique: Technique | str = "ewa",
                lights: Lights = Lights(), options: RenderOptions = RenderOptions(),
-               background=(1.0, 1.0, 1.0)) -> Frame:
-        """Render into a :class:`Frame` (color, depth, weight as NumPy arrays)."""
+               background=(1.0, 1.0, 1.0), *, supersample: int = 1, max_tile: int = MAX_TILE) -> Frame:
+        """Render into a :class:`Frame` (color, depth, weight, alpha as NumPy arrays).
+
+        ``supersample`` K (1..8): the image is drawn at K times the size and box-filtered per
+        pixel (:mod:`surfsplat.render.tiles`); any size is drawn in tiles of at most
+        ``max_tile`` sub-pixels. The EWA prefilter and the kernels act on the sub-pixels.
+        """
+        k = int(supersample)
+        if isinstance(supersample, bool) or not 1 <= k <= MAX_SUPERSAMPLE or k != supersample:
+            raise InputError(f"supersample must be an integer in 1..{MAX_SUPERSAMPLE}, got {supersample!r}")
         uploaded = None
         if isinstance(splats, SplatCloud):
             splats = uploaded = self.upload(splats)
         try:
             camera = _with_clip_planes(camera, splats)
-            self.draw(splats, camera, technique, lights, options, background)
-            targets = self._targets
+            big = camera.resized(camera.width * k, camera.height * k)
+            side = tile_side(self.ctx, k, max_tile)
             w, h = camera.width, camera.height
-            color = np.frombuffer(targets["out"].read(), dtype="f4").reshape(h, w, 4)[::-1, :, :3]
-            accum = np.frombuffer(targets["accum"].read(), dtype="f4").reshape(h, w, 4)[::-1]
-            aux = np.frombuffer(targets["aux"].read(), dtype="f4").reshape(h, w, 4)[::-1]
-            weight = accum[..., 3].copy()
-            with np.errstate(divide="ignore", invalid="ignore"):
-                depth = np.where(weight > 0, aux[..., 0] / weight, np.inf).astype("f4")
+            color = np.empty((h, w, 3), "f4")
+            weight = np.empty((h, w), "f4")
+            depth = np.empty((h, w), "f4")
+            alpha = np.empty((h, w), "f4")
+            for x0, y0, tw, th in tile_rects(big.width, big.height, side):
+                self.draw(splats, big, technique, lights, options, background, tile=(x0, y0, tw, th))
+                block = np.s_[y0 // k:(y0 + th) // k, x0 // k:(x0 + tw) // k]
+                color[block], weight[block], depth[block], alpha[block] = box_reduce(self._read_tile(tw, th), k)
             error = self.ctx.error
             if error != "GL_NO_ERROR":
                 raise RenderError(f"OpenGL reported {error} while rendering")
-            return Frame(np.ascontiguousarray(color), depth, weight, camera)
+            flip = np.s_[::-1]   # window rows run bottom-up, Frame rows top-down
+            return Frame(np.ascontiguousarray(color[flip]), np.ascontiguousarray(depth[flip]),
+                         np.ascontiguousarray(weight[flip]), camera, alpha=np.ascontiguousarray(alpha[flip]),
+                         background=tuple(map(float, background)))
         finally:
             if uploaded is not None:
                 uploaded.release()

@@ -4,6 +4,10 @@ uniform mat4 u_view;        // world -> camera
 uniform vec2 u_viewport;    // width, height in pixels
 uniform float u_focal;      // focal length in pixels: (height / 2) / tan(fov / 2)
 uniform vec2 u_near_far;    // clip distances along -z, model units
+uniform vec4 u_tile;        // the window rectangle of the full image this draw covers: origin (x, y), size (w, h)
+
+// The full image's window pixel of the fragment (fragment shaders only): tiles offset gl_FragCoord.
+#define FRAG_PX (gl_FragCoord.xy + u_tile.xy)
 
 vec2 project_px(vec3 p) {
     return 0.5 * u_viewport + u_focal * p.xy / (-p.z);
@@ -20,8 +24,12 @@ float window_depth(float z) {
 }
 
 vec4 px_to_clip(vec2 px) {
-    return vec4(px / u_viewport * 2.0 - 1.0, 0.0, 1.0);
+    return vec4((px - u_tile.xy) / u_tile.zw * 2.0 - 1.0, 0.0, 1.0);
 }
+
+// The tile's window box, full-image pixels: quads are clipped to it.
+vec2 tile_lo() { return u_tile.xy; }
+vec2 tile_hi() { return u_tile.xy + u_tile.zw; }
 
 // Outside every clip volume: the instance draws nothing.
 const vec4 CULLED = vec4(2.0, 2.0, 2.0, 1.0);

@@ -2,7 +2,7 @@
 // per pixel): used by "flat" and by every blended technique's visibility pass.
 
 // Window-pixel box of the projected parallelogram p +- u +- v, which contains
-// the ellipse; the whole viewport when a corner is not in front of the near
+// the ellipse, within the tile; the whole tile when a corner is not in front of the near
 // plane. The box is shrunk to the pixel centers it holds; false when it holds
 // none (a sub-pixel disk between centers cannot cover any: no primitive is sent).
 bool disk_bounds(Splat s, out vec2 lo, out vec2 hi) {
@@ -16,9 +16,9 @@ bool disk_bounds(Splat s, out vec2 lo, out vec2 hi) {
         lo = min(lo, q);
         hi = max(hi, q);
     }
-    if (behind) { lo = vec2(-1.0); hi = u_viewport + 1.0; }
+    if (behind) { lo = tile_lo() - 1.0; hi = tile_hi() + 1.0; }
     // pixel i (center i + 0.5) is inside when lo <= i + 0.5 <= hi
-    lo = max(ceil(lo - 0.5), vec2(0.0));
-    hi = min(floor(hi - 0.5) + 1.0, u_viewport);
+    lo = max(ceil(lo - 0.5), tile_lo());
+    hi = min(floor(hi - 0.5) + 1.0, tile_hi());
     return all(lessThan(lo, hi));
 }

@@ -11,15 +11,15 @@ flat in vec3 v_normal;
 
 void main() {
 #if PASS == PASS_VISIBILITY
-    vec3 ray = pixel_ray(gl_FragCoord.xy);
+    vec3 ray = pixel_ray(FRAG_PX);
     float z;
     if (!ray_disk(ray, z)) discard;
     emit(ray, z, 1.0, v_color, v_normal);
 #else
-    vec2 d = gl_FragCoord.xy - v_center_px;
+    vec2 d = FRAG_PX - v_center_px;
     float beta = 0.5 * (v_conic.x * d.x * d.x + 2.0 * v_conic.y * d.x * d.y + v_conic.z * d.y * d.y);
     if (beta > u_cutoff) discard;
-    vec3 ray = pixel_ray(gl_FragCoord.xy);
+    vec3 ray = pixel_ray(FRAG_PX);
     vec2 st = footprint_st(ray);
     if (clipped(st)) discard;
     emit(ray, footprint_depth(st), v_scale * exp(-beta), v_color, v_normal);

@@ -35,10 +35,10 @@ void main() {
     v_conic = vec3(V[1][1], -V[0][1], V[0][0]) / det;
     v_scale = abs(determinant(J)) / (2.0 * u_cutoff * sqrt(det));
     v_center_px = project_px(s.p);
-    // Tight box of the cutoff ellipse, limited to the viewport (the kernel is exact inside it).
+    // Tight box of the cutoff ellipse, limited to the tile (the kernel is exact inside it).
     vec2 half_extent = sqrt(2.0 * u_cutoff * vec2(V[0][0], V[1][1]));
-    vec2 lo = max(v_center_px - half_extent, vec2(-1.0));
-    vec2 hi = min(v_center_px + half_extent, u_viewport + 1.0);
+    vec2 lo = max(v_center_px - half_extent, tile_lo() - 1.0);
+    vec2 hi = min(v_center_px + half_extent, tile_hi() + 1.0);
     if (any(greaterThanEqual(lo, hi))) { gl_Position = CULLED; return; }
     gl_Position = px_to_clip(mix(lo, hi, in_corner * 0.5 + 0.5));
 #endif

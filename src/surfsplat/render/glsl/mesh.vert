@@ -2,7 +2,6 @@
 // The image may be drawn in tiles: u_tile is the window rectangle this draw covers.
 #include "camera.glsl"
 
-uniform vec4 u_tile;           // tile origin (x, y) and size (w, h), window pixels of the full image
 uniform bool u_vertex_colors;  // in_color present; else every vertex gets u_albedo
 uniform vec3 u_albedo;
 

@@ -17,7 +17,7 @@ void main() {
     vec3 color = a.rgb / a.w;
     if (u_deferred) {
         vec3 n = texelFetch(u_aux, px, 0).yzw;
-        if (dot(n, n) > 0.0) color = shade(color, normalize(n), normalize(-pixel_ray(gl_FragCoord.xy)));
+        if (dot(n, n) > 0.0) color = shade(color, normalize(n), normalize(-pixel_ray(FRAG_PX)));
     }
     out_color = vec4(clamp(color, 0.0, 1.0), 1.0);
 }

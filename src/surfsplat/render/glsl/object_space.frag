@@ -17,7 +17,7 @@ flat in vec3 v_field_u;
 flat in vec3 v_field_v;
 
 void main() {
-    vec3 ray = pixel_ray(gl_FragCoord.xy);
+    vec3 ray = pixel_ray(FRAG_PX);
     float z;
     if (!ray_disk(ray, z)) discard;
 #if PASS == PASS_VISIBILITY

@@ -12,7 +12,7 @@ flat in vec3 v_color;
 flat in vec3 v_normal;
 
 void main() {
-    vec3 ray = pixel_ray(gl_FragCoord.xy);
+    vec3 ray = pixel_ray(FRAG_PX);
 #if PASS == PASS_VISIBILITY
     float z;
     if (!ray_disk(ray, z)) discard;
@@ -29,7 +29,7 @@ void main() {
     } else {
         // Eq. 3 with R'_k = Q'''^-1 (eq. 11), centered at x_t (eq. 7): beta = 0.5 x^T V^-1 x in
         // V's principal axes, cut at beta = c.
-        vec2 d = gl_FragCoord.xy - v_center_px;
+        vec2 d = FRAG_PX - v_center_px;
         vec2 q = vec2(dot(d, v_axis), dot(d, vec2(-v_axis.y, v_axis.x)));
         float beta = 0.5 * (q.x * q.x * v_inv_lambda.x + q.y * q.y * v_inv_lambda.y);
         if (beta > u_cutoff) discard;

@@ -49,10 +49,10 @@ void near_clipped_bounds(Splat s, out vec2 lo, out vec2 hi) {
 }
 
 // Shrink a window box to the pixel centers it holds (pixel i is drawn when
-// lo <= i + 0.5 <= hi), within the viewport; false when it holds none.
+// lo <= i + 0.5 <= hi), within the tile; false when it holds none.
 bool pixel_box(inout vec2 lo, inout vec2 hi) {
-    lo = max(ceil(max(lo, vec2(-1.0)) - 0.5), vec2(0.0));
-    hi = min(floor(min(hi, u_viewport + 1.0) - 0.5) + 1.0, u_viewport);
+    lo = max(ceil(max(lo, tile_lo() - 1.0) - 0.5), tile_lo());
+    hi = min(floor(min(hi, tile_hi() + 1.0) - 0.5) + 1.0, tile_hi());
     return all(lessThan(lo, hi));
 }
 

@@ -1,0 +1,65 @@
+"""Tiles and supersampling: images larger than the GL limits, and antialiased edges.
+
+An image of W x H pixels supersampled K times is drawn as a (K W) x (K H) image of sub-pixels,
+cut into tiles that fit the GL limits (a tile's side is a multiple of K, so every output pixel's
+K x K sub-pixels lie in one tile). Each tile is drawn with the full image's camera and an offset
+(``u_tile`` in ``camera.glsl``), so tiles meet without seams. The sub-pixels are then reduced
+per output pixel with a box filter: the output pixel is the mean of its K x K sub-pixels, the
+same reconstruction as the mesh ground truth's (``render_mesh``) and as an area-coverage alpha,
+so coverage, color and alpha stay consistent; a wider filter (tent, Lanczos) would blur edges
+and ring on silhouettes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import moderngl
+import numpy as np
+
+#: Largest tile side in sub-pixels: bounds GPU memory (about 60 bytes per sub-pixel of targets).
+MAX_TILE = 2048
+#: Largest supersampling factor K accepted.
+MAX_SUPERSAMPLE = 8
+
+
+def tile_side(ctx: moderngl.Context, supersample: int, limit: int = MAX_TILE) -> int:
+    """Largest tile side (sub-pixels) the context allows, at most ``limit``, a multiple of ``supersample``."""
+    side = min(limit, int(ctx.info["GL_MAX_TEXTURE_SIZE"]), int(ctx.info["GL_MAX_RENDERBUFFER_SIZE"]),
+               *map(int, ctx.info["GL_MAX_VIEWPORT_DIMS"]))
+    return max(supersample, side - side % supersample)
+
+
+def tile_rects(width: int, height: int, side: int) -> list[tuple[int, int, int, int]]:
+    """``(x0, y0, w, h)`` tiles of at most ``side`` covering a ``width`` x ``height`` image, window
+    pixels (y up), row by row from the bottom."""
+    return [(x0, y0, min(side, width - x0), min(side, height - y0))
+            for y0 in range(0, height, side) for x0 in range(0, width, side)]
+
+
+@dataclass
+class SubPixels:
+    """What the passes leave in a tile's targets, window orientation (row 0 at the bottom).
+
+    Attributes:
+        color: (h, w, 3) normalized color, the background where nothing was drawn.
+        weight: (h, w) accumulated splat weight (0: empty).
+        depth: (h, w) weighted camera-space depth, inf where empty.
+    """
+
+    color: np.ndarray
+    weight: np.ndarray
+    depth: np.ndarray
+
+
+def box_reduce(sub: SubPixels, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per output pixel of K x K sub-pixels: (color: mean, over the background where uncovered;
+    weight: mean sub-pixel weight; depth: the nearest sub-pixel's, inf where none is covered;
+    alpha: the fraction of covered sub-pixels). Window orientation kept."""
+    h, w = sub.weight.shape
+    shape = (h // k, k, w // k, k)
+    color = sub.color.reshape(*shape, 3).mean(axis=(1, 3), dtype=np.float64)
+    weight = sub.weight.reshape(shape).mean(axis=(1, 3), dtype=np.float64)
+    depth = sub.depth.reshape(shape).min(axis=(1, 3))
+    alpha = (sub.weight > 0).reshape(shape).mean(axis=(1, 3), dtype=np.float64)
+    return color.astype("f4"), weight.astype("f4"), depth.astype("f4"), alpha.astype("f4")
