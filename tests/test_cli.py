@@ -257,3 +257,49 @@ def test_the_main_function_leaves_the_process_settings_alone(tmp_path, capsys):
     before = warnings.showwarning
     main(["demo", "-o", str(tmp_path / "d.png"), "--width", "16", "--height", "16"])
     assert warnings.showwarning is before and not progress.is_enabled()
+
+
+def test_a_mesh_renders_its_surface_by_default(tmp_path, capsys, shared_data):
+    """Issue "real data in": `render featuretype.ply` draws the sampled surface (welded, crease
+    normals, clip lines), close to `render --mesh` of the same file; `--vertices` the old cloud."""
+    import trimesh
+
+    from surfsplat import metrics
+    from scipy import ndimage
+
+    path = shared_data / "featuretype.ply"
+    if not path.exists():
+        pytest.skip(f"{path} is absent")
+    soup = tmp_path / "soup.stl"   # a triangle soup: every triangle its own three vertices
+    trimesh.load(path, process=False).export(soup)
+    size = ["--width", 200, "--height", 200]
+    images = {}
+    for name, args in (("truth", [path, "--mesh"]), ("surface", [path]), ("soup", [soup]),
+                       ("vertices", [path, "--vertices"])):
+        out = tmp_path / f"{name}.png"
+        status, _, err = run(capsys, "render", *args, "-o", out, *size)
+        assert status == 0, err
+        images[name] = np.asarray(Image.open(out)).astype(np.float64) / 255
+    silhouette = (images["truth"] < 0.98).any(axis=2)
+    inner = ndimage.binary_erosion(silhouette, iterations=2)
+    scores = {name: metrics.psnr(images[name][inner], images["truth"][inner])
+              for name in ("surface", "soup", "vertices")}
+    assert scores["surface"] > 28 and scores["soup"] > 28, scores   # measured 31-32 dB
+    assert scores["vertices"] < scores["surface"] - 10, scores       # the vertices as splats: about 12 dB
+    holes = inner & ~(images["surface"] < 0.98).any(axis=2)
+    assert holes.sum() == 0
+
+
+def test_preprocess_and_build_sample_a_mesh(tmp_path, capsys):
+    import trimesh
+
+    mesh_path = tmp_path / "box.off"
+    trimesh.creation.box(extents=(2, 1, 0.5)).export(mesh_path)
+    splats = tmp_path / "box.ply"
+    status, _, err = run(capsys, "preprocess", mesh_path, "-o", splats, "--samples", 5000)
+    assert status == 0, err
+    cloud = load(splats)
+    assert len(cloud) == 5000 and cloud.has_splats and cloud.clip_lines is not None   # a box has sharp edges
+    assert run(capsys, "build", mesh_path, "-o", tmp_path / "box.npz", "--samples", 3000)[0] == 0
+    status, out, _ = run(capsys, "info", tmp_path / "box.npz")
+    assert "points:     3,000" in out

@@ -12,7 +12,7 @@ from plyfile import PlyData, PlyElement
 
 from surfsplat import InputError, SplatCloud
 from surfsplat.cloud import InvalidPointsWarning
-from surfsplat.io import Mesh, load, load_mesh, save_ply
+from surfsplat.io import Mesh, load, load_input, load_mesh, save_ply
 from surfsplat.io.mesh import area_weighted_normals
 from surfsplat.io.ply import circular_axes, fan_triangulate
 
@@ -622,3 +622,17 @@ def test_saved_real_file_reloads_identically(shared_data, tmp_path):
     assert PlyData.read(str(path))["vertex"].data.dtype["red"] == np.uint8  # 8-bit colors stay 8-bit
     back = load(path)
     assert_same_cloud(cloud, back, normals_exact=False)
+
+
+def test_load_input_ply_with_and_without_faces(tmp_path):
+    mesh_path = write_vertices(tmp_path / "tetra.ply", tetra_columns(), faces=TETRA_F)
+    mesh = load_input(mesh_path)
+    assert isinstance(mesh, Mesh) and np.array_equal(mesh.faces, TETRA_F) and mesh.merged_vertices == 0
+    empty = write_vertices(tmp_path / "empty_faces.ply", tetra_columns(), faces=np.zeros((0, 3), int))
+    cloud = load_input(empty)                    # an empty face element: a point cloud
+    assert isinstance(cloud, SplatCloud) and len(cloud) == 4 and cloud.normals is None
+    doubled = {c: np.concatenate([v, v]) for c, v in tetra_columns().items()}
+    split = write_vertices(tmp_path / "split.ply", doubled, faces=np.vstack([TETRA_F[:2], TETRA_F[2:] + 4]))
+    welded = load_input(split)                   # duplicated vertices are merged and counted
+    assert len(welded.vertices) == 4 and welded.merged_vertices == 4
+    assert len(load_mesh(split).vertices) == 8 and len(load_mesh(split, welded=True).vertices) == 4

@@ -15,7 +15,8 @@ from surfsplat import metrics, reference
 from surfsplat.camera import Camera, frame_bounds
 from surfsplat.cloud import DEFAULT_ALBEDO
 from surfsplat.errors import InputError
-from surfsplat.io.mesh import Mesh
+from surfsplat.io.mesh import Mesh, area_weighted_normals
+from surfsplat.io.surface import weld
 from surfsplat.lighting import Lights
 from surfsplat.render import mesh as mesh_module
 from surfsplat.render.frame import Frame
@@ -264,6 +265,47 @@ def test_render_mesh_rejects_bad_input(renderer):
         render_mesh(flat_quad(), cam, background=(1, 1), renderer=renderer)
     with pytest.raises(InputError, match="Mesh"):
         render_mesh(np.zeros((3, 3)), cam, renderer=renderer)
+
+
+# -- the normals the ground truth shades with ---------------------------------------------------
+
+
+def test_mesh_without_normals_shades_with_crease_normals(renderer):
+    """A cube without stored normals: crease-aware normals (its 90-degree edges are sharp) shade
+    it exactly as flat shading; the area-weighted vertex normals it had before rounded it off.
+    ``sharp_angle=None`` smooths it (one normal per vertex)."""
+    trimesh = pytest.importorskip("trimesh")
+    box = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+    cube = Mesh(box.vertices, box.faces)
+    cam = Camera(eye=(1.6, 1.2, 2.2), target=(0, 0, 0), width=96, height=96, fov=40)
+    crease = render_mesh(cube, cam, renderer=renderer)
+    flat = render_mesh(cube, cam, smooth=False, renderer=renderer)
+    np.testing.assert_allclose(crease.color, flat.color, atol=1e-6)
+    old = render_mesh(Mesh(box.vertices, box.faces, area_weighted_normals(box.vertices, box.faces)), cam,
+                      renderer=renderer)
+    assert metrics.psnr(old.color, flat.color, flat.mask) < 30.0
+    rounded = render_mesh(cube, cam, sharp_angle=None, renderer=renderer)
+    assert metrics.psnr(rounded.color, flat.color, flat.mask) < 30.0
+    with pytest.raises(InputError, match="sharp_angle"):
+        render_mesh(cube, cam, sharp_angle=0, renderer=renderer)
+
+
+def test_welded_mesh_keeps_the_files_normals(renderer):
+    """A crease-split cube with per-face normals (as CAD files store them) renders the same
+    before and after welding (its normals kept per corner), and so does its triangle soup
+    without normals (crease normals of the welded soup)."""
+    trimesh = pytest.importorskip("trimesh")
+    box = trimesh.creation.box(extents=(1.0, 0.6, 0.4))
+    split = box.copy()
+    split.unmerge_vertices()
+    stored = Mesh(split.vertices, split.faces, vertex_normals=np.repeat(box.face_normals, 3, axis=0))
+    welded = weld(stored)
+    assert len(welded.vertices) == 8 and welded.corner_normals is not None
+    cam = Camera(eye=(1.0, 0.9, 1.6), target=(0, 0, 0), width=96, height=96, fov=40)
+    before = render_mesh(stored, cam, renderer=renderer)
+    np.testing.assert_allclose(render_mesh(welded, cam, renderer=renderer).color, before.color, atol=1e-6)
+    soup = Mesh(split.vertices, split.faces)
+    np.testing.assert_allclose(render_mesh(soup, cam, renderer=renderer).color, before.color, atol=1e-6)
 
 
 # -- the splat renderer against the mesh it was sampled from ------------------------------

@@ -22,8 +22,10 @@ from .camera import Camera, camera_flags, fit_points
 from .cloud import SplatCloud
 from .errors import EmptyFrameWarning, InputError
 from .geometry.preprocess import preprocess
+from .geometry.sampling import DEFAULT_SPACING_PX, samples_for_pixels, surface_splats
 from .hierarchy import Hierarchy, LodShading, Selection, build_hierarchy, load_hierarchy, select
-from .io import Mesh, load, load_mesh
+from .io import Mesh, load, load_input, load_mesh
+from .io.surface import AUTO
 from .lighting import Lights
 from .render.frame import Frame
 from .render.mesh import render_mesh as rasterize_mesh
@@ -31,8 +33,9 @@ from .render.options import RenderOptions, TechniqueName
 from .render.renderer import default_renderer
 from .scenes import SCENES, demo_scene
 
-#: What can be rendered: splats as they are, or a point-octree cut per view.
-Model = Union[SplatCloud, Hierarchy]
+#: What can be rendered: splats as they are, a point-octree cut per view, or a surface (a mesh,
+#: sampled into splats for the view).
+Model = Union[SplatCloud, Hierarchy, Mesh]
 
 #: Image size (pixels) of :func:`render` when no camera is given.
 DEFAULT_WIDTH = DEFAULT_HEIGHT = 512
@@ -85,26 +88,90 @@ def load_cloud(path: str | Path, noun: str = "points") -> SplatCloud:
     return cloud
 
 
-def as_splats(source: SplatCloud | str | Path, *, k: int = DEFAULT_K) -> SplatCloud:
-    """A render-ready SplatCloud from a cloud or a file, preprocessed (k neighbours) if needed."""
+def raw_sharp_angle(surface: SurfaceOptions | None) -> float | None:
+    """The sharp-feature angle for raw points: a number given in ``surface.sharp_angle``, else none
+    ("auto" decides for meshes only)."""
+    angle = surface.sharp_angle if surface is not None else None
+    return float(angle) if isinstance(angle, (int, float)) and not isinstance(angle, bool) else None
+
+
+def as_splats(source: SplatCloud | str | Path, *, k: int = DEFAULT_K, sharp_angle: float | None = None) -> SplatCloud:
+    """A render-ready SplatCloud from a cloud or a file, preprocessed (k neighbours; sharp features
+    above ``sharp_angle`` degrees) if needed."""
     if isinstance(source, (str, Path)):
         source = load_cloud(source)
     if not isinstance(source, SplatCloud):
         raise InputError(f"expected a SplatCloud or a file path, got {type(source).__name__}")
     if not source.has_splats:
-        source = preprocess(source, k=k)
+        source = preprocess(source, k=k, sharp_angle=sharp_angle)
     return source
 
 
-def load_model(source, *, k: int = DEFAULT_K) -> Model:
+@dataclass(frozen=True)
+class SurfaceOptions:
+    """How a mesh (a file or object with faces) becomes splats.
+
+    Attributes:
+        vertices: draw the mesh's vertices as points (preprocessed like a scan) instead of
+            sampling its surface (the default).
+        samples: number of surface samples; None: from the view, ``spacing_px`` apart on
+            screen (:func:`surfsplat.geometry.sampling.samples_for_pixels`, capped at 2M).
+        spacing_px: mean on-screen sample spacing, pixels, when ``samples`` is None.
+        sharp_angle: dihedral angle (degrees) above which mesh edges are sharp (crease
+            normals, clip lines); "auto": 30 for meshes with creases (CAD), none for smooth
+            scans (:func:`surfsplat.io.surface.auto_sharp_angle`); None: no sharp edges.
+        seed: random seed of the samples.
+    """
+
+    vertices: bool = False
+    samples: int | None = None
+    spacing_px: float = DEFAULT_SPACING_PX
+    sharp_angle: float | str | None = AUTO
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.samples is not None and not (isinstance(self.samples, (int, np.integer)) and self.samples >= 2):
+            raise InputError(f"samples must be an integer >= 2, got {self.samples!r}")
+        if not (np.isfinite(self.spacing_px) and self.spacing_px > 0):
+            raise InputError(f"sample spacing must be a positive number of pixels, got {self.spacing_px!r}")
+
+
+def surface_model(model: Model, camera: Camera | None = None, surface: SurfaceOptions | None = None, *,
+                  image_size: int = DEFAULT_WIDTH) -> SplatCloud | Hierarchy:
+    """A mesh's surface as splats (others as they are): sampled for ``camera`` (the spacing on
+    screen), or with the model's diagonal spanning ``image_size`` pixels when no view is known."""
+    if not isinstance(model, Mesh):
+        return model
+    surface = surface or SurfaceOptions()
+    n = surface.samples
+    if n is None:
+        n = samples_for_pixels(model, surface.spacing_px, camera=camera, image_size=image_size)
+    where = (f"{surface.spacing_px:g} px apart at {camera.width}x{camera.height}" if camera is not None and
+             surface.samples is None else "as asked" if surface.samples is not None else
+             f"{surface.spacing_px:g} px apart with the model {image_size} px wide")
+    progress.message(f"{n:,} samples on the surface ({where})")
+    cloud = surface_splats(model, n, sharp_angle=surface.sharp_angle, seed=surface.seed)
+    lines = cloud.clip_lines is not None
+    progress.message(f"{len(cloud):,} surface splats" + (", clipped at sharp and open edges" if lines else ""))
+    return cloud
+
+
+def load_model(source, *, k: int = DEFAULT_K, surface: SurfaceOptions | None = None) -> Model:
     """The model a source names, ready to draw.
 
     A :class:`~surfsplat.hierarchy.Hierarchy` for a hierarchy (object or ``.npz`` file from
-    ``surfsplat build``); for ``"demo:NAME"`` the built-in scene; else a render-ready
-    SplatCloud from a SplatCloud or a point/splat/mesh file (see :func:`as_splats`).
+    ``surfsplat build``); for ``"demo:NAME"`` the built-in scene; a :class:`~surfsplat.io.Mesh`
+    for a mesh (a file with faces: PLY, OBJ, STL, OFF, GLB/glTF; welded; its surface is sampled
+    for the view by :func:`render_model`), or its vertices as points with
+    ``surface.vertices``; else a render-ready SplatCloud from a SplatCloud or a point file
+    (see :func:`as_splats`).
     """
+    surface = surface or SurfaceOptions()
     if isinstance(source, Hierarchy):
         return source
+    if isinstance(source, Mesh):
+        return as_splats(SplatCloud(source.vertices, source.vertex_normals, source.vertex_colors), k=k,
+                         sharp_angle=raw_sharp_angle(surface)) if surface.vertices else source
     if is_demo_source(source):
         check_source(source)
         with progress.stage(f"building scene {source[len(DEMO_PREFIX):]}"):
@@ -114,19 +181,34 @@ def load_model(source, *, k: int = DEFAULT_K) -> Model:
             hierarchy = load_hierarchy(source)
         progress.message(f"{len(hierarchy.points):,} points, {len(hierarchy):,} nodes in {hierarchy.levels} levels")
         return hierarchy
-    return as_splats(source, k=k)
+    if isinstance(source, (str, Path)) and not surface.vertices:
+        with progress.stage(f"loading {source}"):
+            data = load_input(source)
+        if isinstance(data, Mesh):
+            merged = f"; welded {data.merged_vertices:,} coincident vertices" if data.merged_vertices else ""
+            progress.message(f"a mesh: {len(data.faces):,} faces, {len(data.vertices):,} vertices{merged} "
+                             f"(its surface is sampled; --vertices draws the vertices instead)")
+            return data
+        progress.message(f"{len(data):,} points")
+        return as_splats(data, k=k, sharp_angle=raw_sharp_angle(surface))
+    return as_splats(source, k=k, sharp_angle=raw_sharp_angle(surface))
 
 
-def as_hierarchy(model: Model) -> Hierarchy:
-    """A Hierarchy as it is, or the point-octree built over a render-ready SplatCloud."""
+def as_hierarchy(model: Model, surface: SurfaceOptions | None = None, *, image_size: int = DEFAULT_WIDTH) -> Hierarchy:
+    """A Hierarchy as it is, or the point-octree built over a render-ready SplatCloud (a mesh's
+    surface is sampled first, see :func:`surface_model`)."""
     if isinstance(model, Hierarchy):
         return model
+    model = surface_model(model, None, surface, image_size=image_size)
     with progress.stage(f"building the point-octree of {len(model):,} splats"):
         return build_hierarchy(model)
 
 
 def model_points(model: Model) -> SplatCloud:
-    """The original splats of a model: a SplatCloud itself, a Hierarchy's points (for framing)."""
+    """The original splats of a model (for framing): a SplatCloud itself, a Hierarchy's points, a
+    mesh's vertices."""
+    if isinstance(model, Mesh):
+        return SplatCloud(model.vertices)
     return model.points if isinstance(model, Hierarchy) else model
 
 
@@ -350,18 +432,20 @@ def check_coverage(frame: Frame, model: Model, what: str = "the model") -> None:
 def render_model(model: Model, camera: Camera, *, technique: TechniqueName = "ewa", lights: Lights | None = None,
                  background=DEFAULT_BACKGROUND, options: RenderOptions | None = None,
                  lod_tolerance: float | None = None, lod_shading: LodShading = DEFAULT_LOD_SHADING,
-                 supersample: int = 1) -> RenderResult:
+                 supersample: int = 1, surface: SurfaceOptions | None = None) -> RenderResult:
     """Draw a loaded model (:func:`load_model`) with a resolved camera.
 
-    A SplatCloud given ``lod_tolerance`` gets its hierarchy built first; a Hierarchy is cut
-    per view (:func:`view_splats`). See :func:`render` for the arguments.
+    A mesh's surface is sampled for this camera (:func:`surface_model`); a SplatCloud given
+    ``lod_tolerance`` gets its hierarchy built first; a Hierarchy is cut per view
+    (:func:`view_splats`). See :func:`render` for the arguments.
     """
     options = options or RenderOptions()
     background = check_background(background)
+    drawn = surface_model(model, camera, surface)
     if lod_tolerance is not None:
-        model = as_hierarchy(model)
+        drawn = as_hierarchy(drawn)
     start = time.perf_counter()
-    cloud, selection = view_splats(model, camera, lod_tolerance, cull_backfaces=options.visibility.cull_backfaces,
+    cloud, selection = view_splats(drawn, camera, lod_tolerance, cull_backfaces=options.visibility.cull_backfaces,
                                    lod_shading=lod_shading)
     if len(cloud) == 0:
         frame = Frame.empty(camera, background)
@@ -376,13 +460,16 @@ def render_model(model: Model, camera: Camera, *, technique: TechniqueName = "ew
 def render(source, camera: Camera | CameraSpec | None = None, *, technique: TechniqueName = "ewa",
            width: int = DEFAULT_WIDTH, height: int = DEFAULT_HEIGHT, lights: Lights | None = None,
            background=DEFAULT_BACKGROUND, options: RenderOptions | None = None, lod_tolerance: float | None = None,
-           lod_shading: LodShading = DEFAULT_LOD_SHADING, k: int = DEFAULT_K, supersample: int = 1) -> Frame:
+           lod_shading: LodShading = DEFAULT_LOD_SHADING, k: int = DEFAULT_K, supersample: int = 1,
+           surface: SurfaceOptions | None = None) -> Frame:
     """Render a SplatCloud, a hierarchy, a file or a built-in scene to a :class:`Frame`.
 
     Args:
         source: a SplatCloud (preprocessed if it lacks normals or splat axes), a
-            :class:`~surfsplat.hierarchy.Hierarchy`, ``"demo:NAME"``, or a path: a
-            point/splat/mesh file or a hierarchy file (``.npz`` from ``surfsplat build``).
+            :class:`~surfsplat.hierarchy.Hierarchy`, a :class:`~surfsplat.io.Mesh`,
+            ``"demo:NAME"``, or a path: a point/splat file, a mesh file (its surface is
+            sampled for the view, see ``surface``) or a hierarchy file (``.npz`` from
+            ``surfsplat build``).
         camera: a :class:`Camera`; or a :class:`CameraSpec` (eye, target, up, fov) or None
             (automatic framing), resolved at ``width`` x ``height`` pixels.
         technique: "ewa" (Guennebaud 2003), "perspective" (Zwicker 2004), "phong"
@@ -400,12 +487,16 @@ def render(source, camera: Camera | CameraSpec | None = None, *, technique: Tech
         supersample: K in 1..8: draw K x K sub-pixels per pixel and average them (antialiased
             edges and an antialiased ``Frame.alpha``; any size is drawn in tiles). The LOD cut
             is chosen for the output pixel, the EWA prefilter acts on the sub-pixels.
+        surface: how a mesh becomes splats (:class:`SurfaceOptions`: the surface sampled
+            0.75 px apart for the view, crease-aware normals, clip lines at sharp and open
+            edges; or the vertices).
     """
     background = check_background(background)
-    model = load_model(source, k=k)
+    model = load_model(source, k=k, surface=surface)
     camera = resolve_camera(model, camera, width, height, default_up=natural_up(source))
     return render_model(model, camera, technique=technique, lights=lights, background=background, options=options,
-                        lod_tolerance=lod_tolerance, lod_shading=lod_shading, supersample=supersample).frame
+                        lod_tolerance=lod_tolerance, lod_shading=lod_shading, supersample=supersample,
+                        surface=surface).frame
 
 
 def render_mesh(source, camera: Camera | CameraSpec | None = None, *, width: int = DEFAULT_WIDTH,

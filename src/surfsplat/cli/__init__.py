@@ -38,7 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("render", help="render a point cloud, splat model or LOD hierarchy to an image")
     p.add_argument("input", help="PLY, OBJ or LAS file, or a hierarchy MODEL.npz (surfsplat build)")
     p.add_argument("-o", "--output", required=True, help="output image (.png)")
-    opt.add_k_option(p)
+    opt.add_surface_options(p)
     p.add_argument("--depth", metavar="OUT.npy", help="also save the depth map (camera-space, inf = empty)")
     opt.add_lod_options(p)
     p.add_argument("--mesh", action="store_true",
@@ -57,11 +57,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=commands.cmd_demo)
 
     p = sub.add_parser("build", help="build the point-octree LOD hierarchy of a model; save it as one .npz file")
-    p.add_argument("input", help="PLY, OBJ or LAS file (raw points are preprocessed first)")
+    p.add_argument("input", help="a point, splat or mesh file (raw points are preprocessed, meshes sampled first)")
     p.add_argument("-o", "--output", required=True, help="output hierarchy MODEL.npz")
     p.add_argument("--leaf-capacity", type=opt.number(int, low=1), default=8, metavar="N",
                    help="at most N points in a leaf node (default %(default)s)")
-    opt.add_k_option(p)
+    opt.add_surface_options(p)
     opt.add_force_option(p)
     p.set_defaults(func=commands.cmd_build)
 
@@ -69,14 +69,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("input")
     p.set_defaults(func=commands.cmd_info)
 
-    p = sub.add_parser("preprocess", help="estimate normals and splat ellipses; write a splat PLY")
+    p = sub.add_parser("preprocess", help="splats from raw points (normals, ellipses) or from a mesh's surface; "
+                                          "write a splat PLY")
     p.add_argument("input")
     p.add_argument("-o", "--output", required=True, help="output .ply")
-    opt.add_k_option(p)
-    p.add_argument("--shape", choices=("ellipse", "circle"), default="ellipse", help="splat shape (default ellipse)")
-    p.add_argument("--sharp-angle", type=opt.SHARP_ANGLE, metavar="DEG",
-                   help="clip lines at sharp edges and corners: where neighbouring normals split into groups "
-                        "more than DEG degrees apart (0 < DEG < 180; default: none)")
+    opt.add_surface_options(p)
+    p.add_argument("--shape", choices=("ellipse", "circle"), default="ellipse",
+                   help="splat shape of raw points (default ellipse)")
     opt.add_force_option(p)
     p.set_defaults(func=commands.cmd_preprocess)
 

@@ -17,7 +17,8 @@ from ..render.frame import check_image_path
 from ..geometry.phong import phong_splats
 from ..geometry.preprocess import neighbour_spacing, preprocess
 from ..geometry.sampling import sample_mesh
-from ..hierarchy import build_hierarchy, load_hierarchy, save_hierarchy
+from ..cloud import SplatCloud
+from ..hierarchy import Hierarchy, build_hierarchy, load_hierarchy, save_hierarchy
 from ..io import load, load_mesh, save_ply
 from . import options as opt
 
@@ -66,12 +67,13 @@ def render_and_save(source, args, inputs: tuple[Path, ...] = ()) -> None:
     api.check_source(source)
     render_options, lights, camera = opt.render_options(args), opt.lights(args), opt.camera_spec(args)
     width, height = opt.image_size(args, camera)
-    model = api.load_model(source, k=getattr(args, "k", api.DEFAULT_K))
+    surface = opt.surface_options(args) if hasattr(args, "vertices") else None
+    model = api.load_model(source, k=getattr(args, "k", api.DEFAULT_K), surface=surface)
     camera = api.resolve_camera(model, camera, width, height, default_up=api.natural_up(source))
     progress.message(f"camera: {camera_flags(camera)}")
     result = api.render_model(model, camera, technique=args.technique, lights=lights, background=args.background,
                               options=render_options, lod_tolerance=args.lod_tolerance, lod_shading=args.lod_shading,
-                              supersample=args.supersample)
+                              supersample=args.supersample, surface=surface)
     result.frame.save(out, overwrite=args.force, transparent=args.transparent, bit_depth=args.bit_depth)
     progress.message(f"rendered {result.describe()} with {args.technique} at {camera.width}x{camera.height} "
                      f"in {result.seconds:.2f} s -> {out}")
@@ -151,13 +153,28 @@ def check_new_output(out: Path, inputs: tuple[Path, ...], force: bool) -> None:
         raise InputError(f"{out}: exists; use --force to overwrite it")
 
 
+def surface_splats_of(args) -> SplatCloud:
+    """The splats of ``args.input`` with no view known: a mesh's surface sampled with the model
+    :data:`~surfsplat.cli.options.IMAGE_SIZE` pixels wide (or ``--samples``), raw points
+    preprocessed (``--k``, ``--sharp-angle``, ``--shape``), splat files as they are."""
+    surface = opt.surface_options(args)
+    shape = getattr(args, "shape", "ellipse")
+    if shape != "ellipse":
+        cloud = api.load_cloud(args.input)
+        return preprocess(cloud, k=args.k, shape=shape, sharp_angle=api.raw_sharp_angle(surface))
+    model = api.load_model(args.input, k=args.k, surface=surface)
+    if isinstance(model, Hierarchy):
+        raise InputError(f"{args.input}: is a hierarchy already (surfsplat build writes them)")
+    return api.surface_model(model, None, surface, image_size=opt.IMAGE_SIZE)
+
+
 def cmd_build(args) -> None:
     """``surfsplat build``: the point-octree LOD hierarchy of a model, saved as one .npz file."""
     out = Path(args.output)
     if not api.is_hierarchy_file(out):
         raise InputError(f"{out}: a hierarchy is saved as .npz; name the output MODEL.npz")
     check_new_output(out, (Path(args.input),), args.force)
-    cloud = api.as_splats(args.input, k=args.k)
+    cloud = surface_splats_of(args)
     start = time.perf_counter()
     with progress.stage(f"building the point-octree of {len(cloud):,} splats"):
         hierarchy = build_hierarchy(cloud, args.leaf_capacity, source=args.input)
@@ -184,11 +201,10 @@ def cmd_phong(args) -> None:
 
 
 def cmd_preprocess(args) -> None:
-    """``surfsplat preprocess``: normals and splat ellipses of raw points, saved as a splat PLY."""
+    """``surfsplat preprocess``: splats of raw points (normals, ellipses) or of a mesh's surface, saved as a PLY."""
     out = Path(args.output)
     check_new_output(out, (Path(args.input),), args.force)
-    cloud = api.load_cloud(args.input)
-    cloud = preprocess(cloud, k=args.k, shape=args.shape, sharp_angle=args.sharp_angle)
+    cloud = surface_splats_of(args)
     save_ply(cloud, out, overwrite=args.force)
     progress.message(f"wrote {len(cloud):,} splats -> {out}")
 

@@ -13,11 +13,13 @@ import argparse
 import dataclasses
 import math
 
-from ..api import DEFAULT_BACKGROUND, DEFAULT_K, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec
+from ..api import (DEFAULT_BACKGROUND, DEFAULT_K, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec,
+                   SurfaceOptions)
 from ..camera import MAX_IMAGE_SIDE, Camera
 from ..errors import InputError
 from ..hierarchy import SHADINGS
 from ..io.camera_file import load_camera
+from ..io.surface import AUTO
 from ..lighting import MAX_LIGHTS, Lights
 from ..render.frame import BIT_DEPTHS
 from ..render.tiles import MAX_SUPERSAMPLE
@@ -81,6 +83,34 @@ def add_output_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--bit-depth", type=int, choices=BIT_DEPTHS, default=8, help="bits per channel (16: PNG only)")
     p.add_argument("--save-camera", metavar="FILE.json",
                    help="also write the camera used (for --camera; the chosen camera is printed as flags too)")
+
+
+def sharp_angle_or_auto(text: str):
+    """argparse ``type=`` of ``--sharp-angle``: degrees in (0, 180), ``auto`` or ``none``."""
+    if text.lower() in ("auto", "none"):
+        return text.lower()
+    return SHARP_ANGLE(text)
+
+
+def add_surface_options(p: argparse.ArgumentParser) -> None:
+    """How inputs become splats: meshes (``--vertices``, ``--samples``, ``--sharp-angle``), raw points (``--k``)."""
+    add_k_option(p)
+    p.add_argument("--vertices", action="store_true",
+                   help="a mesh (a file with faces) is drawn as its vertices, preprocessed like scanned points, "
+                        "instead of as its sampled surface")
+    p.add_argument("--samples", type=number(int, low=2), metavar="N",
+                   help=f"a mesh's surface gets N samples (default: {default(SurfaceOptions, 'spacing_px'):g} px "
+                        "apart in the image, at most 2,000,000)")
+    p.add_argument("--sharp-angle", type=sharp_angle_or_auto, default="auto", metavar="DEG",
+                   help="edges sharper than DEG degrees (0 < DEG < 180) get clip lines and crisp shading; auto "
+                        "(default): 30 for meshes with creases (CAD parts), none for smooth scans and for raw "
+                        "points; none: no sharp edges")
+
+
+def surface_options(args) -> SurfaceOptions:
+    """The SurfaceOptions of :func:`add_surface_options`."""
+    angle = {"auto": AUTO, "none": None}.get(args.sharp_angle, args.sharp_angle)
+    return SurfaceOptions(vertices=args.vertices, samples=args.samples, sharp_angle=angle)
 
 
 def add_k_option(p: argparse.ArgumentParser) -> None:

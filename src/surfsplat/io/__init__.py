@@ -1,13 +1,21 @@
 """Reading point clouds and meshes, writing PLY.
 
-- :func:`load`: ``.ply`` (point cloud, surfel model or triangle mesh), ``.obj``
-  (triangle mesh), ``.las`` / ``.laz`` (LiDAR, needs ``surfsplat[las]``) ->
-  validated :class:`~surfsplat.cloud.SplatCloud`.
+- :func:`load_input`: the one entry point that tells a mesh from a point
+  cloud: a file with faces (PLY with a non-empty ``face`` element, OBJ with
+  faces, STL, OFF, GLB, glTF) -> welded :class:`Mesh` (its surface is what
+  should be drawn, see ``surfsplat.geometry.sampling.surface_splats``); any
+  other file -> validated :class:`~surfsplat.cloud.SplatCloud`.
+- :func:`load`: ``.ply`` (point cloud, surfel model or triangle mesh), ``.obj``,
+  ``.stl``, ``.off``, ``.glb``, ``.gltf`` (triangle meshes: their vertices),
+  ``.las`` / ``.laz`` (LiDAR, needs ``surfsplat[las]``) -> validated
+  :class:`~surfsplat.cloud.SplatCloud`.
 - :func:`save_ply`: a SplatCloud -> PLY with every array it holds; ``load``
   reads it back identically.
-- :func:`load_mesh`: ``.ply`` with faces or ``.obj`` -> :class:`Mesh` (the
-  ground truth that splats are sampled from, see
-  ``surfsplat.geometry.sampling.sample_mesh``).
+- :func:`load_mesh`: ``.ply`` with faces, ``.obj``, ``.stl``, ``.off``,
+  ``.glb``, ``.gltf`` -> :class:`Mesh` (the ground truth that splats are
+  sampled from).
+- :mod:`.surface`: welding (:func:`weld`), edge adjacency, dihedral angles and
+  crease-aware normals of meshes.
 
 Every failure raises :class:`~surfsplat.errors.InputError` naming the file.
 These functions print no progress themselves (callers such as the CLI wrap
@@ -21,14 +29,16 @@ from pathlib import Path
 
 from ..cloud import SplatCloud
 from ..errors import InputError
-from .mesh import Mesh, area_weighted_normals, check_face_indices, read_obj
+from .mesh import TRIMESH_TYPES, Mesh, area_weighted_normals, check_face_indices, read_trimesh
 from .las import read_las
-from .ply import read_ply, read_ply_mesh, write_ply
+from .ply import read_ply, read_ply_input, read_ply_mesh, write_ply
+from .surface import (AUTO, DEFAULT_SHARP_ANGLE, WELD_TOLERANCE, auto_sharp_angle, crease_normals, dihedral_angles,
+                      shading_normals, weld)
 
-#: File extensions :func:`load` understands (lower case).
-CLOUD_EXTENSIONS = (".ply", ".obj", ".las", ".laz")
 #: File extensions :func:`load_mesh` understands (lower case).
-MESH_EXTENSIONS = (".ply", ".obj")
+MESH_EXTENSIONS = (".ply", ".obj", ".stl", ".off", ".glb", ".gltf")
+#: File extensions :func:`load` and :func:`load_input` understand (lower case).
+CLOUD_EXTENSIONS = MESH_EXTENSIONS + (".las", ".laz")
 
 
 def load(path: str | os.PathLike) -> SplatCloud:
@@ -41,9 +51,11 @@ def load(path: str | os.PathLike) -> SplatCloud:
       lines). With a ``face`` element the vertices become the points; stored
       normals are kept, else vertices get area-weighted face normals and
       vertices used by no face are dropped (counted in the warning).
-    - ``.obj``: triangle mesh read with trimesh: vertices become points with
-      the file's normals (or area-weighted ones) and vertex colors if any; an
-      OBJ with vertices and no faces is read as a point cloud (no normals).
+    - ``.obj``, ``.stl``, ``.off``, ``.glb``, ``.gltf``: triangle mesh read
+      with trimesh: vertices become points with the file's normals (or
+      area-weighted ones) and vertex colors if any; an OBJ with vertices and
+      no faces is read as a point cloud (no normals). (:func:`load_input`
+      gives the mesh itself, whose surface is what should be drawn.)
     - ``.las`` / ``.laz``: positions and RGB (optional dependency laspy).
 
     Returns a SplatCloud: positions (N, 3) float32 model space (the file's
@@ -61,28 +73,70 @@ def load(path: str | os.PathLike) -> SplatCloud:
     suffix = path.suffix.lower()
     if suffix == ".ply":
         cloud = read_ply(path)
-    elif suffix == ".obj":
-        cloud = _mesh_to_cloud(read_obj(path), str(path))
+    elif suffix in TRIMESH_TYPES:
+        cloud = _mesh_to_cloud(read_trimesh(path, TRIMESH_TYPES[suffix]), str(path))
     else:
         cloud = read_las(path)
     return cloud.validated(source=str(path))
 
 
-def load_mesh(path: str | os.PathLike) -> Mesh:
-    """Read a triangle mesh (``.ply`` with a face element, or ``.obj``).
+def load_mesh(path: str | os.PathLike, *, welded: bool = False) -> Mesh:
+    """Read a triangle mesh: ``.ply`` with a face element, ``.obj``, ``.stl``, ``.off``, ``.glb``, ``.gltf``.
+
+    Args:
+        path: the file. OBJ, STL, OFF, GLB and glTF are read with trimesh as
+            stored (no merging): an STL file is a triangle soup (see
+            :func:`surfsplat.io.mesh.read_trimesh`).
+        welded: merge coincident vertices (:func:`weld`, tolerance
+            :data:`WELD_TOLERANCE` (1e-6) times the bounding-box diagonal;
+            ``merged_vertices`` and ``collapsed_faces`` count the changes).
 
     Returns a validated :class:`Mesh`: vertices (V, 3) float32 model space,
     faces (F, 3) int64 (polygons fan-triangulated), vertex_normals (V, 3)
     float32 or None (None when the file stores none), vertex_colors (V, 3)
-    float32 in [0, 1] or None.
+    float32 in [0, 1] or None; after welding, possibly corner_normals.
 
     Raises:
         InputError naming the file: missing file, unknown extension, malformed
         file, no faces, non-finite vertices, face indices out of range.
     """
     path = _existing(path, MESH_EXTENSIONS)
-    mesh = read_ply_mesh(path) if path.suffix.lower() == ".ply" else read_obj(path)
-    return mesh.validated(str(path))
+    suffix = path.suffix.lower()
+    mesh = read_ply_mesh(path) if suffix == ".ply" else read_trimesh(path, TRIMESH_TYPES[suffix])
+    mesh = mesh.validated(str(path))
+    return weld(mesh) if welded else mesh
+
+
+def load_input(path: str | os.PathLike) -> Mesh | SplatCloud:
+    """Read any supported file as what it is: a surface (:class:`Mesh`) or points (SplatCloud).
+
+    A file with faces is a mesh: PLY with a non-empty ``face`` element, OBJ
+    with faces, and STL, OFF, GLB, glTF. It is returned validated and welded
+    (:func:`weld`: coincident vertices within :data:`WELD_TOLERANCE` (1e-6)
+    of the bounding-box diagonal merged, so triangle soups and crease-split
+    CAD meshes are connected surfaces; the count is ``Mesh.merged_vertices``,
+    faces that collapsed ``Mesh.collapsed_faces``). Stored normals survive
+    welding (per corner where merged vertices disagree). Every other file (PLY
+    without faces, OBJ without faces, LAS/LAZ) is read as by :func:`load`: a
+    validated SplatCloud.
+
+    Raises:
+        InputError naming the file: missing file, unknown extension, malformed
+        file, a mesh with non-finite vertices or bad face indices, no valid point.
+    """
+    path = _existing(path, CLOUD_EXTENSIONS)
+    suffix = path.suffix.lower()
+    if suffix == ".ply":
+        data = read_ply_input(path)
+    elif suffix in TRIMESH_TYPES:
+        data = read_trimesh(path, TRIMESH_TYPES[suffix])
+        if len(data.faces) == 0:  # an OBJ with vertices only
+            data = _mesh_to_cloud(data, str(path))
+    else:
+        data = read_las(path)
+    if isinstance(data, Mesh):
+        return weld(data.validated(str(path)))
+    return data.validated(source=str(path))
 
 
 def save_ply(cloud: SplatCloud, path: str | os.PathLike, *, binary: bool = True,
@@ -136,4 +190,6 @@ def _mesh_to_cloud(mesh: Mesh, source: str) -> SplatCloud:
     return SplatCloud(positions=mesh.vertices, normals=normals, colors=mesh.vertex_colors)
 
 
-__all__ = ["load", "load_mesh", "save_ply", "Mesh", "CLOUD_EXTENSIONS", "MESH_EXTENSIONS"]
+__all__ = ["load", "load_input", "load_mesh", "save_ply", "Mesh", "CLOUD_EXTENSIONS", "MESH_EXTENSIONS",
+           "weld", "crease_normals", "shading_normals", "dihedral_angles", "auto_sharp_angle", "AUTO",
+           "DEFAULT_SHARP_ANGLE", "WELD_TOLERANCE"]

@@ -1,15 +1,17 @@
 """Triangle meshes: the ground-truth surfaces that splats are sampled from.
 
 A :class:`Mesh` is a plain indexed triangle list (float32 vertices, int64
-faces) with optional per-vertex normals and colors. It is read from PLY files
-with a ``face`` element (:mod:`surfsplat.io.ply`) or from OBJ files (trimesh,
-here). :func:`area_weighted_normals` gives vertex normals to meshes that store
-none.
+faces) with optional per-vertex normals and colors (and per-corner normals,
+which welding produces from stored normals that differ at a crease). It is read
+from PLY files with a ``face`` element (:mod:`surfsplat.io.ply`) or from OBJ,
+STL, OFF, GLB and glTF files (trimesh, here: :func:`read_trimesh`).
+:func:`area_weighted_normals` gives vertex normals to meshes that store none;
+:mod:`surfsplat.io.surface` welds meshes and gives them crease-aware normals.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +30,15 @@ class Mesh:
             outside gives the outward normal (right-hand rule).
         vertex_normals: (V, 3) float32 unit normals, or None.
         vertex_colors: (V, 3) float32 linear RGB in [0, 1], or None.
+        corner_normals: (F, 3, 3) float32 unit normals of each face's three
+            corners (in the order of ``faces``), or None. They take precedence
+            over ``vertex_normals``: :func:`surfsplat.io.surface.weld` keeps a
+            file's stored normals this way where it merges vertices whose
+            normals differ (a crease that the file split).
+        merged_vertices: how many vertices welding removed (0 for a mesh as
+            read; see :func:`surfsplat.io.surface.weld`).
+        collapsed_faces: how many faces welding removed because two of their
+            corners became one vertex.
 
     The constructor checks shapes and converts dtypes; :meth:`validated`
     checks the contents (faces present, finite vertices, indices in range).
@@ -37,6 +48,9 @@ class Mesh:
     faces: np.ndarray
     vertex_normals: np.ndarray | None = None
     vertex_colors: np.ndarray | None = None
+    corner_normals: np.ndarray | None = None
+    merged_vertices: int = field(default=0, compare=False)
+    collapsed_faces: int = field(default=0, compare=False)
 
     def __post_init__(self) -> None:
         self.vertices = _as_rows(self.vertices, np.float32, "vertices")
@@ -50,11 +64,27 @@ class Mesh:
             if len(value) != n:
                 raise InputError(f"{name} has {len(value)} rows but vertices has {n}")
             setattr(self, name, value)
+        if self.corner_normals is not None:
+            corners = np.ascontiguousarray(self.corner_normals, dtype=np.float32)
+            if corners.shape != (len(self.faces), 3, 3):
+                raise InputError(f"corner_normals must have shape (F, 3, 3) = {(len(self.faces), 3, 3)}, "
+                                 f"got {corners.shape}")
+            self.corner_normals = corners
 
     def __repr__(self) -> str:
-        extra = [name for name in ("vertex_normals", "vertex_colors") if getattr(self, name) is not None]
-        return f"Mesh({len(self.vertices)} vertices, {len(self.faces)} faces" + \
-            (f", with {', '.join(extra)})" if extra else ")")
+        extra = [name for name in ("vertex_normals", "vertex_colors", "corner_normals")
+                 if getattr(self, name) is not None]
+        text = f"Mesh({len(self.vertices)} vertices, {len(self.faces)} faces"
+        if extra:
+            text += f", with {', '.join(extra)}"
+        if self.merged_vertices or self.collapsed_faces:
+            text += f"; welded: {self.merged_vertices} vertices merged, {self.collapsed_faces} faces collapsed"
+        return text + ")"
+
+    @property
+    def has_normals(self) -> bool:
+        """True when the mesh stores normals (per vertex or per corner)."""
+        return self.vertex_normals is not None or self.corner_normals is not None
 
     # -- derived quantities -------------------------------------------------
 
@@ -153,62 +183,122 @@ def area_weighted_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray
     return unit.astype(np.float32)
 
 
-def read_obj(path: Path) -> Mesh:
-    """Read a Wavefront OBJ file as a :class:`Mesh` with trimesh (unvalidated).
+#: File types read with trimesh, by lower-case extension: trimesh's ``file_type`` names.
+TRIMESH_TYPES = {".obj": "obj", ".stl": "stl", ".off": "off", ".glb": "glb", ".gltf": "gltf"}
 
-    Polygons are triangulated by trimesh; several objects in one file are
-    concatenated. Vertex normals are kept when the file has them (``vn`` lines),
-    else ``vertex_normals`` is None. Per-vertex colors (``v x y z r g b``) are
-    kept; texture-mapped colors are ignored. trimesh drops vertices that no
-    face uses; an OBJ with vertices but no faces gives a Mesh with (0, 3)
-    faces (a point cloud for ``load``, an error for ``load_mesh``). Any parse
-    failure, and a file without vertices, raises InputError naming the file.
+
+def read_obj(path: Path) -> Mesh:
+    """Read a Wavefront OBJ file as a :class:`Mesh` (unvalidated); see :func:`read_trimesh`."""
+    return read_trimesh(path, "obj")
+
+
+def read_trimesh(path: Path, file_type: str | None = None) -> Mesh:
+    """Read an OBJ, STL, OFF, GLB or glTF file as a :class:`Mesh` with trimesh (unvalidated).
+
+    ``file_type`` is trimesh's name for the format (default: from the
+    extension, :data:`TRIMESH_TYPES`). The mesh is taken as the file stores it
+    (trimesh's ``process=False``: no merging or reordering): an STL file is a
+    triangle soup, three vertices per face, which :func:`surfsplat.io.surface.weld`
+    connects. Polygons are triangulated by trimesh. Scenes (glTF, GLB, OBJ
+    with several objects) are flattened: every mesh instance is placed by its
+    node's transform (normals by its inverse transpose) and the instances are
+    concatenated. Vertex normals are kept when the file has them (OBJ ``vn``,
+    glTF ``NORMAL``) in every part, else ``vertex_normals`` is None (STL and
+    OFF store none; STL's facet normals are not used, the faces' winding
+    gives them). Per-vertex colors are kept when every part has them
+    (texture-mapped colors are not read). An OBJ with vertices but no faces
+    gives a Mesh with (0, 3) faces (a point cloud for ``load``, an error for
+    ``load_mesh``). Any parse failure, and a file without vertices, raises
+    InputError naming the file.
     """
     source = str(path)
+    file_type = file_type or TRIMESH_TYPES.get(Path(path).suffix.lower(), Path(path).suffix.lower().lstrip("."))
+    name = file_type.upper()
     try:
-        loaded = trimesh.load(source, file_type="obj", process=False)
-        if isinstance(loaded, trimesh.Scene):
-            parts = [g for g in loaded.dump() if isinstance(g, (trimesh.Trimesh, trimesh.PointCloud))]
-            meshes = [g for g in parts if isinstance(g, trimesh.Trimesh)]
-            if meshes:
-                loaded = trimesh.util.concatenate(meshes) if len(meshes) > 1 else meshes[0]
-            elif parts:
-                loaded = parts[0] if len(parts) == 1 else trimesh.PointCloud(
-                    np.concatenate([p.vertices for p in parts]))
-            else:
-                loaded = trimesh.Trimesh()
-        colors = normals = None
-        if isinstance(loaded, trimesh.PointCloud):  # vertices only
-            vertices = np.asarray(loaded.vertices, dtype=np.float64)
+        loaded = trimesh.load(source, file_type=file_type, process=False)
+        parts = _trimesh_parts(loaded)
+        meshes = [p for p in parts if isinstance(p[0], trimesh.Trimesh)]
+        if meshes:
+            vertices, faces, normals, colors = _concatenate([_trimesh_arrays(g, m) for g, m in meshes])
+        elif parts:  # vertices only (an OBJ point cloud)
+            clouds = [_trimesh_arrays(g, m) for g, m in parts]
+            vertices = np.concatenate([c[0] for c in clouds])
             faces = np.zeros((0, 3), dtype=np.int64)
-            rgba = np.asarray(loaded.colors) if len(getattr(loaded, "colors", ())) else None
-            if rgba is not None and rgba.shape[0] == len(vertices):
-                colors = rgba[:, :3].astype(np.float64) / 255.0
-        elif isinstance(loaded, trimesh.Trimesh):
-            vertices = np.asarray(loaded.vertices, dtype=np.float64)
-            faces = np.asarray(loaded.faces, dtype=np.int64).reshape(-1, 3)
-            # trimesh keeps normals read from the file in its cache; asking for
-            # ``vertex_normals`` otherwise computes them (angle-weighted), so look first.
-            cache = getattr(getattr(loaded, "_cache", None), "cache", {})
-            normals = cache.get("vertex_normals") if hasattr(cache, "get") else None
-            if normals is not None:
-                normals = np.asarray(normals, dtype=np.float64)
-                if normals.shape != vertices.shape:
-                    normals = None
-            visual = getattr(loaded, "visual", None)
-            if getattr(visual, "kind", None) == "vertex":
-                rgba = np.asarray(visual.vertex_colors)
-                if rgba.shape[0] == len(vertices):
-                    colors = rgba[:, :3].astype(np.float64) / 255.0
+            normals = None
+            colors = np.concatenate([c[3] for c in clouds]) if all(c[3] is not None for c in clouds) else None
+        elif isinstance(loaded, (trimesh.Trimesh, trimesh.Scene, trimesh.PointCloud)):
+            vertices = np.zeros((0, 3))
+            faces, normals, colors = np.zeros((0, 3), dtype=np.int64), None, None
         else:
-            raise InputError(f"{source}: OBJ file holds no triangle mesh ({type(loaded).__name__})")
+            raise InputError(f"{source}: {name} file holds no triangle mesh ({type(loaded).__name__})")
     except InputError:
         raise
-    except Exception as exc:  # trimesh raises many types (IndexError, ValueError, ...)
-        raise InputError(f"{source}: cannot read OBJ file: {type(exc).__name__}: {exc}") from exc
+    except Exception as exc:  # trimesh raises many types (IndexError, ValueError, KeyError, ...)
+        raise InputError(f"{source}: cannot read {name} file: {type(exc).__name__}: {exc}") from exc
     if len(vertices) == 0:
-        raise InputError(f"{source}: OBJ file has no vertices")
+        raise InputError(f"{source}: {name} file has no vertices")
     return Mesh(vertices, faces, normals, colors)
+
+
+def _trimesh_parts(loaded) -> list[tuple[object, np.ndarray]]:
+    """``[(Trimesh or PointCloud, 4x4 transform)]``: a single geometry with the identity, or
+    every geometry instance of a Scene with its node's world transform."""
+    if isinstance(loaded, (trimesh.Trimesh, trimesh.PointCloud)):
+        return [(loaded, np.eye(4))]
+    if not isinstance(loaded, trimesh.Scene):
+        return []
+    parts = []
+    for node in loaded.graph.nodes_geometry:
+        transform, geometry_name = loaded.graph[node]
+        geometry = loaded.geometry.get(geometry_name)
+        if isinstance(geometry, (trimesh.Trimesh, trimesh.PointCloud)) and len(geometry.vertices):
+            parts.append((geometry, np.asarray(transform, dtype=np.float64)))
+    return parts
+
+
+def _trimesh_arrays(geometry, transform: np.ndarray):
+    """``(vertices, faces, normals or None, colors or None)`` of one trimesh geometry placed by
+    ``transform`` (float64; normals by the inverse transpose, renormalized; colors in [0, 1])."""
+    vertices = np.asarray(geometry.vertices, dtype=np.float64)
+    vertices = vertices @ transform[:3, :3].T + transform[:3, 3]
+    faces = np.asarray(getattr(geometry, "faces", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)
+    normals = colors = None
+    if isinstance(geometry, trimesh.Trimesh):
+        # trimesh keeps normals read from the file in its cache; asking for
+        # ``vertex_normals`` otherwise computes them (angle-weighted), so look first.
+        cache = getattr(getattr(geometry, "_cache", None), "cache", {})
+        normals = cache.get("vertex_normals") if hasattr(cache, "get") else None
+        if normals is not None:
+            normals = np.asarray(normals, dtype=np.float64)
+            if normals.shape != vertices.shape:
+                normals = None
+            else:
+                normals = normals @ np.linalg.inv(transform[:3, :3])  # rows times the inverse transpose
+                length = np.linalg.norm(normals, axis=1, keepdims=True)
+                normals = np.where(length > 0, normals / np.where(length > 0, length, 1.0), 0.0)
+        visual = getattr(geometry, "visual", None)
+        if getattr(visual, "kind", None) == "vertex":
+            rgba = np.asarray(visual.vertex_colors)
+            if rgba.shape[0] == len(vertices):
+                colors = rgba[:, :3].astype(np.float64) / 255.0
+    else:
+        rgba = np.asarray(getattr(geometry, "colors", ()))
+        if rgba.ndim == 2 and rgba.shape[0] == len(vertices):
+            colors = rgba[:, :3].astype(np.float64) / 255.0
+    return vertices, faces, normals, colors
+
+
+def _concatenate(parts):
+    """One ``(vertices, faces, normals, colors)`` from several: faces re-indexed; normals and colors
+    only when every part has them."""
+    if len(parts) == 1:
+        return parts[0]
+    offsets = np.cumsum([0] + [len(p[0]) for p in parts[:-1]])
+    vertices = np.concatenate([p[0] for p in parts])
+    faces = np.concatenate([p[1] + o for p, o in zip(parts, offsets)])
+    normals = np.concatenate([p[2] for p in parts]) if all(p[2] is not None for p in parts) else None
+    colors = np.concatenate([p[3] for p in parts]) if all(p[3] is not None for p in parts) else None
+    return vertices, faces, normals, colors
 
 
 def _as_rows(value, dtype, name: str) -> np.ndarray:

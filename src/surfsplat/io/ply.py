@@ -201,8 +201,21 @@ def read_ply(path: Path) -> SplatCloud:
     colors (N, 3) in [0, 1], u, v (N, 3) model units, normal_field (N, 2),
     clip_lines (N, 2, 3). The caller runs ``validated``.
     """
+    return cloud_from_elements(read_elements(path), str(path))
+
+
+def read_ply_input(path: Path) -> Mesh | SplatCloud:
+    """Read a PLY file, parsed once, as a :class:`Mesh` when it has a non-empty ``face``
+    element, else as a SplatCloud (:func:`read_ply`); both unvalidated."""
     source = str(path)
     elements = read_elements(path)
+    if "face" in elements and len(elements["face"]):
+        return mesh_from_elements(elements, source)
+    return cloud_from_elements(elements, source)
+
+
+def cloud_from_elements(elements: dict[str, np.ndarray], source: str) -> SplatCloud:
+    """The SplatCloud of parsed PLY elements (:func:`read_elements`); see :func:`read_ply`."""
     data = _vertex_element(elements, source)
     names = set(data.dtype.names or ())
 
@@ -223,7 +236,7 @@ def read_ply(path: Path) -> SplatCloud:
     if u is None and "radius" in names:
         if normals is None:
             warnings.warn(f"{source}: 'radius' ignored because the points have no normals "
-                          "(a circular splat needs a normal to orient it)", UserWarning, stacklevel=3)
+                          "(a circular splat needs a normal to orient it)", UserWarning, stacklevel=4)
         else:
             u, v = circular_axes(normals, _column(data, "radius"))
 
@@ -250,8 +263,11 @@ def read_ply_mesh(path: Path) -> Mesh:
     from ``red green blue`` (None if absent), faces fan-triangulated. Raises
     InputError naming the file when it has no faces.
     """
-    source = str(path)
-    elements = read_elements(path)
+    return mesh_from_elements(read_elements(path), str(path))
+
+
+def mesh_from_elements(elements: dict[str, np.ndarray], source: str) -> Mesh:
+    """The Mesh of parsed PLY elements (:func:`read_elements`); see :func:`read_ply_mesh`."""
     data = _vertex_element(elements, source)
     names = set(data.dtype.names or ())
     vertices = _group(data, names, ("x", "y", "z"), source, required=True)

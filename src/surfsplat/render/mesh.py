@@ -8,8 +8,10 @@ comparison depends on matches the splat pipeline (renderer.py):
   half-integers, window y up; ``Frame`` rows run top to bottom); near/far from
   the mesh's bounds where the camera has none (``Camera.with_clip_from_bounds``);
 - shading: ``lighting.glsl``'s two-sided Blinn-Phong per pixel, of the
-  perspective-correctly interpolated vertex normal (``smooth``) or the face
-  normal, with the vertex colors or the splats' default albedo;
+  perspective-correctly interpolated normals of the face's corners (``smooth``:
+  the file's normals, or crease-aware ones where it stores none,
+  :func:`surfsplat.io.surface.shading_normals`, as surface sampling uses) or
+  the face normal, with the vertex colors or the splats' default albedo;
 - depth: the splat shaders' linear depth in the z-buffer, and camera-space
   depth (model units along the view axis) in ``Frame.depth``.
 
@@ -25,7 +27,8 @@ import numpy as np
 from ..camera import Camera
 from ..cloud import DEFAULT_ALBEDO
 from ..errors import InputError, RenderError
-from ..io.mesh import Mesh, area_weighted_normals
+from ..io.mesh import Mesh
+from ..io.surface import AUTO, resolve_sharp_angle, shading_normals
 from ..lighting import Lights
 from .frame import Frame
 from .renderer import OPTIONAL_FRAME_UNIFORMS, Renderer, default_renderer
@@ -43,18 +46,21 @@ def _check_background(background) -> tuple[float, float, float]:
     return tuple(map(float, bg))
 
 
-def _vertex_data(mesh: Mesh, smooth: bool) -> tuple[np.ndarray, np.ndarray | None, bool]:
+def _vertex_data(mesh: Mesh, smooth: bool, sharp_angle) -> tuple[np.ndarray, np.ndarray | None, bool]:
     """Interleaved float32 rows ``(position, normal[, color])`` and the uint32 index
-    array (None when ``smooth`` is False: three vertices per face, face normals)."""
+    array: indexed vertices with the stored vertex normals; else three vertices per
+    face (None for the indices) with per-corner normals (:func:`shading_normals`), or
+    with face normals when ``smooth`` is False."""
     colored = mesh.vertex_colors is not None
-    if smooth:
-        normals = mesh.vertex_normals
-        if normals is None:
-            normals = area_weighted_normals(mesh.vertices, mesh.faces)
-        columns = [mesh.vertices, normals] + ([mesh.vertex_colors] if colored else [])
+    if smooth and mesh.vertex_normals is not None and mesh.corner_normals is None:
+        columns = [mesh.vertices, mesh.vertex_normals] + ([mesh.vertex_colors] if colored else [])
         return np.hstack(columns).astype("f4"), mesh.faces.astype("u4"), colored
     corners = mesh.faces.reshape(-1)
-    columns = [mesh.vertices[corners], np.repeat(mesh.face_normals(), 3, axis=0)]
+    if smooth:
+        normals = shading_normals(mesh, sharp_angle).reshape(-1, 3)
+    else:
+        normals = np.repeat(mesh.face_normals(), 3, axis=0)
+    columns = [mesh.vertices[corners], normals]
     if colored:
         columns.append(mesh.vertex_colors[corners])
     return np.hstack(columns).astype("f4"), None, colored
@@ -69,14 +75,18 @@ def _tile_size(ctx: moderngl.Context, supersample: int) -> tuple[int, int]:
 
 
 def render_mesh(mesh: Mesh, camera: Camera, lights: Lights = Lights(), *, background=(1.0, 1.0, 1.0),
-                supersample: int = 4, smooth: bool = True, renderer: Renderer | None = None) -> Frame:
+                supersample: int = 4, smooth: bool = True, sharp_angle: float | str | None = AUTO,
+                renderer: Renderer | None = None) -> Frame:
     """Render a triangle mesh as the ground-truth image for splat renderings of it.
 
     Args:
         mesh: the surface (validated here: faces present, finite vertices,
-            indices in range). Vertex normals are the mesh's, or area-weighted
-            face normals where it has none; vertex colors (linear RGB in
-            [0, 1]) where present, else ``cloud.DEFAULT_ALBEDO`` gray.
+            indices in range). Normals are the mesh's (per vertex, or per
+            corner after welding), or crease-aware normals where it has none
+            (:func:`surfsplat.io.surface.crease_normals` on the welded
+            vertices: angle-weighted face normals, split at edges sharper than
+            ``sharp_angle``); vertex colors (linear RGB in [0, 1]) where
+            present, else ``cloud.DEFAULT_ALBEDO`` gray.
         camera: the view; near/far None are set from the mesh's bounds.
         lights: lights and material, as for splats (``enabled=False``: unlit colors).
         background: linear RGB in [0, 1] behind the mesh.
@@ -84,6 +94,11 @@ def render_mesh(mesh: Mesh, camera: Camera, lights: Lights = Lights(), *, backgr
             samples per pixel on a regular grid, box-filtered.
         smooth: shade with interpolated vertex normals (True) or with each
             face's geometric normal (False, flat shading).
+        sharp_angle: the crease-aware normals' sharp angle (a mesh without
+            stored normals only): degrees in (0, 180); ``"auto"`` (default):
+            :func:`surfsplat.io.surface.auto_sharp_angle`, 30 degrees for a mesh
+            with creases (CAD parts), None for one without (scans); None:
+            smooth everywhere (one angle-weighted normal per vertex).
         renderer: the :class:`~surfsplat.render.renderer.Renderer` whose
             OpenGL context draws (default:
             :func:`~surfsplat.render.renderer.default_renderer`).
@@ -108,6 +123,8 @@ def render_mesh(mesh: Mesh, camera: Camera, lights: Lights = Lights(), *, backgr
             or not 1 <= supersample <= MAX_SUPERSAMPLE:
         raise InputError(f"render_mesh: supersample must be an integer in 1..{MAX_SUPERSAMPLE}, got {supersample!r}")
     bg = _check_background(background)
+    if smooth and not mesh.has_normals:
+        sharp_angle = resolve_sharp_angle(mesh, sharp_angle, "render_mesh: sharp_angle")
     if renderer is None:
         renderer = default_renderer()
     if camera.near is None or camera.far is None:
@@ -123,7 +140,7 @@ def render_mesh(mesh: Mesh, camera: Camera, lights: Lights = Lights(), *, backgr
     uniforms = renderer.frame_uniforms(camera, lights)
     uniforms |= {"u_viewport": (float(big_w), float(big_h)), "u_focal": float(camera.focal_px * s),
                  "u_albedo": (DEFAULT_ALBEDO,) * 3}
-    rows, indices, colored = _vertex_data(mesh, smooth)
+    rows, indices, colored = _vertex_data(mesh, smooth, sharp_angle)
     uniforms["u_vertex_colors"] = colored
 
     # accumulated per output pixel, window orientation (row 0 at the bottom)

@@ -36,7 +36,7 @@ import moderngl
 import numpy as np
 
 from .. import progress
-from ..api import (DEFAULT_BACKGROUND, DEFAULT_K, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec,
+from ..api import (DEFAULT_BACKGROUND, DEFAULT_K, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec, SurfaceOptions,
                    as_hierarchy, check_background, check_source, load_model, lod_splats, natural_up,
                    resolve_camera)
 from ..camera import Camera
@@ -263,7 +263,7 @@ class Viewer:
     def __init__(self, glfw, window, ctx, model, camera: Camera | CameraSpec | None, *, technique: TechniqueName,
                  lights: Lights, options: RenderOptions, background, lod_tolerance: float,
                  lod_shading: LodShading = DEFAULT_LOD_SHADING, motion: MotionOptions = MotionOptions(),
-                 hud: bool = True):
+                 hud: bool = True, surface: SurfaceOptions | None = None):
         self.glfw, self.window, self.ctx = glfw, window, ctx
         self.renderer = Renderer(ctx)
         self.techniques = technique_names()
@@ -272,7 +272,8 @@ class Viewer:
         self.lod_tolerance = float(lod_tolerance)
         self.motion, self.motion_scale = motion.mode, float(motion.scale)
 
-        hierarchy = as_hierarchy(model)  # built on loading when the model is a cloud
+        # built on loading when the model is a cloud (a mesh's surface sampled for the window's width)
+        hierarchy = as_hierarchy(model, surface, image_size=max(glfw.get_framebuffer_size(window)))
         cloud = hierarchy.points
         self.lod = LevelOfDetail(self.renderer, hierarchy, lod_shading)
         self.model_splats = len(cloud)
@@ -703,7 +704,7 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
          options: RenderOptions | None = None, lod_tolerance: float = DEFAULT_LOD_TOLERANCE,
          lod_shading: LodShading = DEFAULT_LOD_SHADING, motion: MotionOptions | None = None, hud: bool = True,
          frames: int | None = None, orbit: float = 0.0, screenshot=None, k: int = DEFAULT_K,
-         title: str | None = None) -> ViewStats:
+         title: str | None = None, surface: SurfaceOptions | None = None) -> ViewStats:
     """Open an interactive window on a splat model (press H in it for the keys).
 
     Args:
@@ -729,6 +730,8 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
             without the HUD to ``screenshot`` (if given), close. ``screenshot`` alone means
             one frame.
         title: window title (default: the input's name).
+        surface: how a mesh becomes splats (:class:`~surfsplat.api.SurfaceOptions`; sampled
+            once on loading, for the window's size).
 
     Returns:
         :class:`ViewStats` (frames, seconds, frame rate, ...).
@@ -773,10 +776,10 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
         ctx.clear(*background)
         glfw.swap_buffers(window)
         glfw.poll_events()
-        model = load_model(source, k=k)
+        model = load_model(source, k=k, surface=surface)
         viewer = Viewer(glfw, window, ctx, model, camera, technique=technique, lights=lights or Lights(),
                         options=options, background=background, lod_tolerance=lod_tolerance,
-                        lod_shading=lod_shading, motion=motion, hud=hud)
+                        lod_shading=lod_shading, motion=motion, hud=hud, surface=surface)
         if frames is None:
             stats = viewer.run_interactive()
         else:

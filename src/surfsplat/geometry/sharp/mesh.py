@@ -8,7 +8,14 @@ intersected with B's plane; the kept side is the side of B's plane where A
 lies. At a convex edge that is the inside of B's plane, at a concave edge the
 outside, so the part of the splat that pokes out of the solid (convex) or
 through face B (concave) is cut. Used by
-:func:`surfsplat.geometry.sampling.sample_mesh`.
+:func:`surfsplat.geometry.sampling.sample_mesh` and
+:func:`surfsplat.geometry.sampling.surface_splats`.
+
+Open boundaries (edges of only one face: the rim of a scan, a hole in it) are
+treated the same way on request (``boundaries=True``): the plane across them is
+the plane through the edge perpendicular to its face, moved out by
+:data:`BOUNDARY_MARGIN` of the splat's radius, so a splat next to the boundary
+is cut there instead of reaching past the surface's outline.
 """
 
 from __future__ import annotations
@@ -16,33 +23,44 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import trimesh
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ...cloud import NO_CLIP
+from ...io.surface import DEGENERATE_AREA, boundary_edges, face_adjacency, weld_map
 from ..common import dot, first_of_runs
 from .lines import check_sharp_angle, lines_from_halfspaces
 
+#: Open boundaries cut splats this fraction of their radius outside the boundary edge. Measured
+#: on frag_115.ply (scan, 1,493 boundary edges; 512 and 1024 px, 1 and 0.75 px spacing): cutting
+#: exactly at the edge left up to 7 hole pixels in 1-3 px wide slivers of its jagged rim; 0.1 up
+#: to 2, 0.15 and 0.25 none; leaks past the rim grow with the margin (1024 px, 1 px spacing:
+#: 412, 476, 518, 614 pixels; 2,609 without boundary lines).
+BOUNDARY_MARGIN = 0.25
 #: Edge points per edge-sample query: candidates of the nearest edges.
 _EDGE_CANDIDATES = 24
 
 
 @dataclass
 class MeshFeatures:
-    """The sharp edges of a triangle mesh and the planes on either side.
+    """The sharp edges (and, on request, open boundary edges) of a triangle mesh and the planes on either side.
 
     Attributes:
         vertices: (V', 3) float64 positions after merging duplicates.
         faces: (F, 3) int64 faces on the merged vertices (same order as the mesh's).
-        normals: (F, 3) float64 unit face normals (zero for degenerate faces).
-        offsets: (F,) float64 ``normals . x`` on each face's plane.
-        patch: (F,) int64 label of the smooth patch (faces connected across
-            edges that are not sharp) each face belongs to.
-        edges: (E, 2) int64 merged vertex ids of the sharp edges.
-        edge_faces: (E, 2) int64 the two faces at each sharp edge.
-        angles: (E,) float64 dihedral angles between those faces' normals, degrees.
+        normals: (F + B, 3) float64 unit face normals (zero for degenerate faces), then
+            the normals of the B virtual planes at the open boundary edges (through
+            the edge, perpendicular to its face, pointing out of the surface).
+        offsets: (F + B,) float64 ``normals . x`` on each face's (virtual) plane.
+        patch: (F + B,) int64 label of the smooth patch (faces connected across
+            edges that are not sharp) each face belongs to; a label of its own for
+            each virtual plane.
+        edges: (E, 2) int64 merged vertex ids of the sharp edges (then the boundary edges).
+        edge_faces: (E, 2) int64 the two faces at each edge (a face and its virtual
+            plane ``F + b`` at a boundary edge).
+        angles: (E,) float64 dihedral angles between those faces' normals, degrees
+            (90 at boundary edges).
         keep_sign: (E, 2) float64 +-1: for the splats on face ``edge_faces[e, i]``
             the kept side of the *other* face's plane is
             ``keep_sign[e, i] * (offset - normal . x) >= 0`` (+1 at convex edges).
@@ -59,41 +77,42 @@ class MeshFeatures:
     keep_sign: np.ndarray
 
 
-def mesh_features(mesh, sharp_angle: float) -> MeshFeatures:
+def mesh_features(mesh, sharp_angle: float | None, *, boundaries: bool = False) -> MeshFeatures:
     """Find the edges of ``mesh`` whose dihedral angle exceeds ``sharp_angle`` degrees.
 
     Duplicated vertices (CAD meshes split them along creases so that each face
-    keeps its own normal) are merged first, at a tolerance of 1e-9 of the
-    bounding-box diagonal, so that the faces on either side of a crease become
-    neighbours. Edge adjacency (manifold edges shared by two faces) comes from
-    ``trimesh``; the angle is the one between the faces' normals as wound
-    (consistently wound meshes: 0 for coplanar faces). Zero-area faces take
-    part in no sharp edge.
+    keeps its own normal; triangle soups) are merged first
+    (:func:`surfsplat.io.surface.weld_map`, within 1e-6 of the bounding-box
+    diagonal), so that the faces on either side of a crease become
+    neighbours. Edge adjacency: manifold edges shared by exactly two faces
+    (:func:`surfsplat.io.surface.face_adjacency`); the angle is the one
+    between the faces' normals as wound (consistently wound meshes: 0 for
+    coplanar faces). Zero-area faces take part in no sharp edge.
 
     Args:
         mesh: a :class:`surfsplat.io.Mesh` (validated).
-        sharp_angle: degrees in (0, 180).
+        sharp_angle: degrees in (0, 180), or None (no sharp edges; only
+            boundaries, when asked for).
+        boundaries: also list the open boundary edges (used by one face only),
+            each with a virtual plane through it, perpendicular to its face.
 
     Returns:
         :class:`MeshFeatures`.
     """
-    sharp_angle = check_sharp_angle(sharp_angle)
+    if sharp_angle is not None:
+        sharp_angle = check_sharp_angle(sharp_angle)
     verts = mesh.vertices.astype(np.float64)
-    lo, hi = verts.min(axis=0), verts.max(axis=0)
-    diagonal = max(float(np.linalg.norm(hi - lo)), 1e-300)
-    tol = diagonal * 1e-9
-    _, first, inverse = np.unique(np.round((verts - lo) / tol).astype(np.int64), axis=0,
-                                  return_index=True, return_inverse=True)
+    ids = weld_map(verts)
+    first = np.zeros(int(ids.max()) + 1, dtype=np.int64)
+    first[ids[::-1]] = np.arange(len(ids))[::-1]                       # first vertex of each group
     merged = verts[first]
-    faces = inverse.reshape(-1)[mesh.faces]
-    tri = trimesh.Trimesh(merged, faces, process=False, validate=False)
-    adjacency = np.asarray(tri.face_adjacency, dtype=np.int64).reshape(-1, 2)
-    shared = np.asarray(tri.face_adjacency_edges, dtype=np.int64).reshape(-1, 2)
-
+    faces = ids[mesh.faces]
+    adjacency, _, shared = face_adjacency(faces, len(merged))
     a, b, c = merged[faces[:, 0]], merged[faces[:, 1]], merged[faces[:, 2]]
     cross = np.cross(b - a, c - a)
     length = np.linalg.norm(cross, axis=1)
-    proper = length > 1e-12 * diagonal * diagonal  # twice the area, relative to the model's size
+    diagonal = max(float(np.linalg.norm(merged.max(axis=0) - merged.min(axis=0))), 1e-300)
+    proper = length > DEGENERATE_AREA * diagonal * diagonal  # twice the area, relative to the model's size
     normals = np.where(proper[:, None], cross / np.where(proper, length, 1.0)[:, None], 0.0)
     offsets = np.einsum("ij,ij->i", normals, a)
 
@@ -101,7 +120,7 @@ def mesh_features(mesh, sharp_angle: float) -> MeshFeatures:
     cos = np.clip(np.einsum("ij,ij->i", normals[f1], normals[f2]), -1.0, 1.0)
     angles = np.degrees(np.arccos(cos))
     usable = proper[f1] & proper[f2]
-    sharp = usable & (angles > sharp_angle)
+    sharp = usable & (angles > sharp_angle) if sharp_angle is not None else np.zeros(len(f1), dtype=bool)
     # smooth patches: faces connected across the edges that are not sharp
     smooth = ~sharp
     graph = coo_matrix((np.ones(int(smooth.sum())), (f1[smooth], f2[smooth])), shape=(len(faces),) * 2)
@@ -114,8 +133,34 @@ def mesh_features(mesh, sharp_angle: float) -> MeshFeatures:
     side1 = offsets[f2] - np.einsum("ij,ij->i", normals[f2], centroid[f1])  # own f1, other f2
     side2 = offsets[f1] - np.einsum("ij,ij->i", normals[f1], centroid[f2])  # own f2, other f1
     keep_sign = np.stack([np.where(side1 >= 0, 1.0, -1.0), np.where(side2 >= 0, 1.0, -1.0)], axis=1)
-    return MeshFeatures(merged, faces, normals, offsets, patch.astype(np.int64), shared,
-                        np.stack([f1, f2], axis=1), angles, keep_sign)
+    features = MeshFeatures(merged, faces, normals, offsets, patch.astype(np.int64), shared,
+                            np.stack([f1, f2], axis=1), angles, keep_sign)
+    return _with_boundaries(features, centroid, proper) if boundaries else features
+
+
+def _with_boundaries(feat: MeshFeatures, centroid: np.ndarray, proper: np.ndarray) -> MeshFeatures:
+    """``feat`` with the open boundary edges of its (proper) faces appended, each with a virtual plane
+    through the edge, perpendicular to its face, its outer side cut (see :class:`MeshFeatures`)."""
+    face, _, edges = boundary_edges(feat.faces, len(feat.vertices))
+    keep = proper[face]
+    face, edges = face[keep], edges[keep]
+    n_faces, count = len(feat.faces), len(face)
+    if count == 0:
+        return feat
+    p0, p1 = feat.vertices[edges[:, 0]], feat.vertices[edges[:, 1]]
+    along = p1 - p0
+    normal = np.cross(along, feat.normals[face])                        # in the face's plane, across the edge
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    outward = np.einsum("ij,ij->i", normal, p0 - centroid[face]) >= 0
+    normal = np.where(outward[:, None], normal, -normal)
+    offset = np.einsum("ij,ij->i", normal, p0)
+    virtual = n_faces + np.arange(count)
+    return MeshFeatures(
+        feat.vertices, feat.faces, np.concatenate([feat.normals, normal]), np.concatenate([feat.offsets, offset]),
+        np.concatenate([feat.patch, feat.patch.max() + 1 + np.arange(count)]),
+        np.concatenate([feat.edges, edges]), np.concatenate([feat.edge_faces, np.stack([face, virtual], axis=1)]),
+        np.concatenate([feat.angles, np.full(count, 90.0)]),
+        np.concatenate([feat.keep_sign, np.ones((count, 2))]))
 
 
 def _edge_points(vertices: np.ndarray, edges: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
@@ -129,8 +174,8 @@ def _edge_points(vertices: np.ndarray, edges: np.ndarray, spacing: float) -> tup
     return p0[edge] + t[:, None] * (p1 - p0)[edge], edge
 
 
-def mesh_clip_lines(mesh, face, positions, u, v, sharp_angle: float, *,
-                    features: MeshFeatures | None = None) -> np.ndarray:
+def mesh_clip_lines(mesh, face, positions, u, v, sharp_angle: float | None, *,
+                    features: MeshFeatures | None = None, boundaries: bool = False) -> np.ndarray:
     """Exact clip lines for splats sampled on a mesh, from the faces across its sharp edges.
 
     Zwicker 2004, section 5: the line is the intersection of the splat's plane
@@ -163,15 +208,17 @@ def mesh_clip_lines(mesh, face, positions, u, v, sharp_angle: float, *,
         face: (N,) int face index of each splat's sample.
         positions: (N, 3) float splat centers (on their faces), model units.
         u, v: (N, 3) float scaled splat axes in the face planes, model units.
-        sharp_angle: degrees in (0, 180).
+        sharp_angle: degrees in (0, 180), or None (no sharp edges: boundaries only).
         features: precomputed :func:`mesh_features` of the mesh (optional).
+        boundaries: also cut splats at the mesh's open boundary edges (the
+            plane through the edge, perpendicular to its face; see the module
+            docstring), so they do not reach past the surface's outline.
 
     Returns:
         (N, 2, 3) float32 clip lines in normalized ``(s, t)``; ``(0, 0, 1)``
         for unused slots.
     """
-    sharp_angle = check_sharp_angle(sharp_angle)
-    feat = features if features is not None else mesh_features(mesh, sharp_angle)
+    feat = features if features is not None else mesh_features(mesh, sharp_angle, boundaries=boundaries)
     pts = np.asarray(positions, dtype=np.float64)
     u = np.asarray(u, dtype=np.float64)
     v = np.asarray(v, dtype=np.float64)
@@ -192,6 +239,8 @@ def mesh_clip_lines(mesh, face, positions, u, v, sharp_angle: float, *,
     t = np.clip(dot(p - a0, seg) / np.maximum(dot(seg, seg), 1e-300), 0.0, 1.0)
     seg_dist = np.linalg.norm(a0 + t[:, None] * seg - p, axis=1)
     own_side, other, normal, offset = _across(feat, face[row], e, p)
+    boundary = other >= len(feat.faces)                     # virtual planes of open boundary edges
+    offset = offset + np.where(boundary, BOUNDARY_MARGIN * radius[row], 0.0)
     cand, crossing = lines_from_halfspaces(normal, offset, u[row], v[row])
     valid = np.flatnonzero(own_side & (seg_dist < radius[row]) & crossing)
     # first line: the nearest edge; second: the nearest one across to another patch
