@@ -11,12 +11,12 @@ The package is layered (``docs/architecture.md``): ``io``, ``geometry``, ``hiera
 (``surfsplat.cli``) and the viewer (``surfsplat.viewer``) above it.
 """
 
-from .api import CameraSpec, RenderResult, as_splats, auto_camera, load_model, render, render_mesh
+from .api import CameraSpec, RenderResult, SourceOptions, as_splats, auto_camera, load_model, render, render_mesh
 from .camera import Camera
 from .cloud import SplatCloud
 from .errors import InputError, RenderError, SurfsplatError
 from .geometry.phong import phong_splats
-from .geometry.preprocess import preprocess
+from .geometry.preprocess import PreprocessReport, preprocess
 from .hierarchy import build_hierarchy, load_hierarchy
 from .io import load
 from .lighting import Lights
@@ -28,7 +28,7 @@ from .version import __version__
 from .viewer import MotionOptions, view
 
 __all__ = ["Camera", "CameraSpec", "FilterOptions", "Frame", "InputError", "KernelOptions", "Lights",
-           "MotionOptions", "RenderError", "RenderOptions", "RenderResult", "SplatCloud", "SurfsplatError",
+           "MotionOptions", "PreprocessReport", "RenderError", "RenderOptions", "RenderResult", "SourceOptions", "SplatCloud", "SurfsplatError",
            "VisibilityOptions", "as_splats", "auto_camera", "build_hierarchy", "default_renderer", "demo_scene",
            "load", "load_hierarchy", "load_model", "phong_splats", "preprocess", "render", "render_mesh",
            "reset_default_renderer", "view", "__version__"]

@@ -22,6 +22,7 @@ from .camera import Camera, camera_flags, fit_points
 from .cloud import SplatCloud
 from .errors import EmptyFrameWarning, InputError
 from .geometry.preprocess import preprocess
+from .geometry.robust import OUTLIER_ACTIONS, OutlierAction
 from .geometry.sampling import DEFAULT_SPACING_PX, samples_for_pixels, surface_splats
 from .hierarchy import Hierarchy, LodShading, Selection, build_hierarchy, load_hierarchy, select
 from .io import Mesh, load, load_input, load_mesh
@@ -88,41 +89,29 @@ def load_cloud(path: str | Path, noun: str = "points") -> SplatCloud:
     return cloud
 
 
-def raw_sharp_angle(surface: SurfaceOptions | None) -> float | None:
-    """The sharp-feature angle for raw points: a number given in ``surface.sharp_angle``, else none
-    ("auto" decides for meshes only)."""
-    angle = surface.sharp_angle if surface is not None else None
-    return float(angle) if isinstance(angle, (int, float)) and not isinstance(angle, bool) else None
-
-
-def as_splats(source: SplatCloud | str | Path, *, k: int = DEFAULT_K, sharp_angle: float | None = None) -> SplatCloud:
-    """A render-ready SplatCloud from a cloud or a file, preprocessed (k neighbours; sharp features
-    above ``sharp_angle`` degrees) if needed."""
-    if isinstance(source, (str, Path)):
-        source = load_cloud(source)
-    if not isinstance(source, SplatCloud):
-        raise InputError(f"expected a SplatCloud or a file path, got {type(source).__name__}")
-    if not source.has_splats:
-        source = preprocess(source, k=k, sharp_angle=sharp_angle)
-    return source
-
-
 @dataclass(frozen=True)
-class SurfaceOptions:
-    """How a mesh (a file or object with faces) becomes splats.
+class SourceOptions:
+    """How a source becomes splats: raw points (preprocessed) and meshes (sampled).
 
     Attributes:
-        vertices: draw the mesh's vertices as points (preprocessed like a scan) instead of
+        k: neighbours for preprocessing raw points (>= 3).
+        outliers: raw points with no surface neighbourhood of their own (stray points,
+            isolated clusters): "drop" (default: the best picture), "cap" their splats, or
+            "keep" (:func:`surfsplat.geometry.preprocess.preprocess`).
+        vertices: draw a mesh's vertices as points (preprocessed like a scan) instead of
             sampling its surface (the default).
-        samples: number of surface samples; None: from the view, ``spacing_px`` apart on
-            screen (:func:`surfsplat.geometry.sampling.samples_for_pixels`, capped at 2M).
+        samples: number of surface samples of a mesh; None: from the view, ``spacing_px``
+            apart on screen (:func:`surfsplat.geometry.sampling.samples_for_pixels`, capped at 2M).
         spacing_px: mean on-screen sample spacing, pixels, when ``samples`` is None.
-        sharp_angle: dihedral angle (degrees) above which mesh edges are sharp (crease
-            normals, clip lines); "auto": 30 for meshes with creases (CAD), none for smooth
-            scans (:func:`surfsplat.io.surface.auto_sharp_angle`); None: no sharp edges.
+        sharp_angle: dihedral angle (degrees) above which edges are sharp (crease normals, clip
+            lines); "auto": 30 for meshes with creases (CAD), none for smooth scans and raw
+            points (:func:`surfsplat.io.surface.auto_sharp_angle`); None: no sharp edges. A
+            number also detects sharp features in raw points.
         seed: random seed of the samples.
     """
 
+    k: int = DEFAULT_K
+    outliers: OutlierAction = "drop"
     vertices: bool = False
     samples: int | None = None
     spacing_px: float = DEFAULT_SPACING_PX
@@ -130,19 +119,42 @@ class SurfaceOptions:
     seed: int = 0
 
     def __post_init__(self) -> None:
+        if not (isinstance(self.k, (int, np.integer)) and self.k >= 3):
+            raise InputError(f"k must be an integer >= 3 (neighbours), got {self.k!r}")
+        if self.outliers not in OUTLIER_ACTIONS:
+            raise InputError(f"outliers must be one of {', '.join(OUTLIER_ACTIONS)}, got {self.outliers!r}")
         if self.samples is not None and not (isinstance(self.samples, (int, np.integer)) and self.samples >= 2):
             raise InputError(f"samples must be an integer >= 2, got {self.samples!r}")
         if not (np.isfinite(self.spacing_px) and self.spacing_px > 0):
             raise InputError(f"sample spacing must be a positive number of pixels, got {self.spacing_px!r}")
 
+    @property
+    def raw_sharp_angle(self) -> float | None:
+        """The sharp-feature angle for raw points: a number given, else none ("auto" decides for meshes)."""
+        angle = self.sharp_angle
+        return float(angle) if isinstance(angle, (int, float)) and not isinstance(angle, bool) else None
 
-def surface_model(model: Model, camera: Camera | None = None, surface: SurfaceOptions | None = None, *,
+
+def as_splats(source: SplatCloud | str | Path, options: SourceOptions | None = None) -> SplatCloud:
+    """A render-ready SplatCloud from a cloud or a point file, preprocessed if needed (``options``:
+    k neighbours, outliers, sharp features)."""
+    options = options or SourceOptions()
+    if isinstance(source, (str, Path)):
+        source = load_cloud(source)
+    if not isinstance(source, SplatCloud):
+        raise InputError(f"expected a SplatCloud or a file path, got {type(source).__name__}")
+    if not source.has_splats:
+        source = preprocess(source, k=options.k, sharp_angle=options.raw_sharp_angle, outliers=options.outliers)
+    return source
+
+
+def surface_model(model: Model, camera: Camera | None = None, source_options: SourceOptions | None = None, *,
                   image_size: int = DEFAULT_WIDTH) -> SplatCloud | Hierarchy:
     """A mesh's surface as splats (others as they are): sampled for ``camera`` (the spacing on
     screen), or with the model's diagonal spanning ``image_size`` pixels when no view is known."""
     if not isinstance(model, Mesh):
         return model
-    surface = surface or SurfaceOptions()
+    surface = source_options or SourceOptions()
     n = surface.samples
     if n is None:
         n = samples_for_pixels(model, surface.spacing_px, camera=camera, image_size=image_size)
@@ -156,22 +168,22 @@ def surface_model(model: Model, camera: Camera | None = None, surface: SurfaceOp
     return cloud
 
 
-def load_model(source, *, k: int = DEFAULT_K, surface: SurfaceOptions | None = None) -> Model:
+def load_model(source, source_options: SourceOptions | None = None) -> Model:
     """The model a source names, ready to draw.
 
     A :class:`~surfsplat.hierarchy.Hierarchy` for a hierarchy (object or ``.npz`` file from
     ``surfsplat build``); for ``"demo:NAME"`` the built-in scene; a :class:`~surfsplat.io.Mesh`
     for a mesh (a file with faces: PLY, OBJ, STL, OFF, GLB/glTF; welded; its surface is sampled
     for the view by :func:`render_model`), or its vertices as points with
-    ``surface.vertices``; else a render-ready SplatCloud from a SplatCloud or a point file
-    (see :func:`as_splats`).
+    ``source_options.vertices``; else a render-ready SplatCloud from a SplatCloud or a point
+    file (see :func:`as_splats`).
     """
-    surface = surface or SurfaceOptions()
+    surface = source_options or SourceOptions()
     if isinstance(source, Hierarchy):
         return source
     if isinstance(source, Mesh):
-        return as_splats(SplatCloud(source.vertices, source.vertex_normals, source.vertex_colors), k=k,
-                         sharp_angle=raw_sharp_angle(surface)) if surface.vertices else source
+        return as_splats(SplatCloud(source.vertices, source.vertex_normals, source.vertex_colors),
+                         surface) if surface.vertices else source
     if is_demo_source(source):
         check_source(source)
         with progress.stage(f"building scene {source[len(DEMO_PREFIX):]}"):
@@ -190,16 +202,16 @@ def load_model(source, *, k: int = DEFAULT_K, surface: SurfaceOptions | None = N
                              f"(its surface is sampled; --vertices draws the vertices instead)")
             return data
         progress.message(f"{len(data):,} points")
-        return as_splats(data, k=k, sharp_angle=raw_sharp_angle(surface))
-    return as_splats(source, k=k, sharp_angle=raw_sharp_angle(surface))
+        return as_splats(data, surface)
+    return as_splats(source, surface)
 
 
-def as_hierarchy(model: Model, surface: SurfaceOptions | None = None, *, image_size: int = DEFAULT_WIDTH) -> Hierarchy:
+def as_hierarchy(model: Model, source_options: SourceOptions | None = None, *, image_size: int = DEFAULT_WIDTH) -> Hierarchy:
     """A Hierarchy as it is, or the point-octree built over a render-ready SplatCloud (a mesh's
     surface is sampled first, see :func:`surface_model`)."""
     if isinstance(model, Hierarchy):
         return model
-    model = surface_model(model, None, surface, image_size=image_size)
+    model = surface_model(model, None, source_options, image_size=image_size)
     with progress.stage(f"building the point-octree of {len(model):,} splats"):
         return build_hierarchy(model)
 
@@ -432,7 +444,7 @@ def check_coverage(frame: Frame, model: Model, what: str = "the model") -> None:
 def render_model(model: Model, camera: Camera, *, technique: TechniqueName = "ewa", lights: Lights | None = None,
                  background=DEFAULT_BACKGROUND, options: RenderOptions | None = None,
                  lod_tolerance: float | None = None, lod_shading: LodShading = DEFAULT_LOD_SHADING,
-                 supersample: int = 1, surface: SurfaceOptions | None = None) -> RenderResult:
+                 supersample: int = 1, source_options: SourceOptions | None = None) -> RenderResult:
     """Draw a loaded model (:func:`load_model`) with a resolved camera.
 
     A mesh's surface is sampled for this camera (:func:`surface_model`); a SplatCloud given
@@ -441,7 +453,7 @@ def render_model(model: Model, camera: Camera, *, technique: TechniqueName = "ew
     """
     options = options or RenderOptions()
     background = check_background(background)
-    drawn = surface_model(model, camera, surface)
+    drawn = surface_model(model, camera, source_options)
     if lod_tolerance is not None:
         drawn = as_hierarchy(drawn)
     start = time.perf_counter()
@@ -460,15 +472,15 @@ def render_model(model: Model, camera: Camera, *, technique: TechniqueName = "ew
 def render(source, camera: Camera | CameraSpec | None = None, *, technique: TechniqueName = "ewa",
            width: int = DEFAULT_WIDTH, height: int = DEFAULT_HEIGHT, lights: Lights | None = None,
            background=DEFAULT_BACKGROUND, options: RenderOptions | None = None, lod_tolerance: float | None = None,
-           lod_shading: LodShading = DEFAULT_LOD_SHADING, k: int = DEFAULT_K, supersample: int = 1,
-           surface: SurfaceOptions | None = None) -> Frame:
+           lod_shading: LodShading = DEFAULT_LOD_SHADING, supersample: int = 1,
+           source_options: SourceOptions | None = None) -> Frame:
     """Render a SplatCloud, a hierarchy, a file or a built-in scene to a :class:`Frame`.
 
     Args:
         source: a SplatCloud (preprocessed if it lacks normals or splat axes), a
             :class:`~surfsplat.hierarchy.Hierarchy`, a :class:`~surfsplat.io.Mesh`,
             ``"demo:NAME"``, or a path: a point/splat file, a mesh file (its surface is
-            sampled for the view, see ``surface``) or a hierarchy file (``.npz`` from
+            sampled for the view, see ``source_options``) or a hierarchy file (``.npz`` from
             ``surfsplat build``).
         camera: a :class:`Camera`; or a :class:`CameraSpec` (eye, target, up, fov) or None
             (automatic framing), resolved at ``width`` x ``height`` pixels.
@@ -483,20 +495,20 @@ def render(source, camera: Camera | CameraSpec | None = None, *, technique: Tech
             Hierarchies default to :data:`DEFAULT_LOD_TOLERANCE`; a cloud given a
             tolerance is turned into a hierarchy first (``surfsplat build`` saves one).
         lod_shading: normal field of coarse LOD splats: "fit", "cone" or "flat".
-        k: neighbours for preprocessing when needed.
         supersample: K in 1..8: draw K x K sub-pixels per pixel and average them (antialiased
             edges and an antialiased ``Frame.alpha``; any size is drawn in tiles). The LOD cut
             is chosen for the output pixel, the EWA prefilter acts on the sub-pixels.
-        surface: how a mesh becomes splats (:class:`SurfaceOptions`: the surface sampled
-            0.75 px apart for the view, crease-aware normals, clip lines at sharp and open
-            edges; or the vertices).
+        source_options: how the source becomes splats (:class:`SourceOptions`): raw points
+            preprocessed (k neighbours, outliers dropped); a mesh's surface sampled 0.75 px
+            apart for the view, with crease-aware normals and clip lines at sharp and open
+            edges (or its vertices).
     """
     background = check_background(background)
-    model = load_model(source, k=k, surface=surface)
+    model = load_model(source, source_options)
     camera = resolve_camera(model, camera, width, height, default_up=natural_up(source))
     return render_model(model, camera, technique=technique, lights=lights, background=background, options=options,
                         lod_tolerance=lod_tolerance, lod_shading=lod_shading, supersample=supersample,
-                        surface=surface).frame
+                        source_options=source_options).frame
 
 
 def render_mesh(source, camera: Camera | CameraSpec | None = None, *, width: int = DEFAULT_WIDTH,

@@ -38,7 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("render", help="render a point cloud, splat model or LOD hierarchy to an image")
     p.add_argument("input", help="PLY, OBJ or LAS file, or a hierarchy MODEL.npz (surfsplat build)")
     p.add_argument("-o", "--output", required=True, help="output image (.png)")
-    opt.add_surface_options(p)
+    opt.add_source_options(p)
     p.add_argument("--depth", metavar="OUT.npy", help="also save the depth map (camera-space, inf = empty)")
     opt.add_lod_options(p)
     p.add_argument("--mesh", action="store_true",
@@ -61,7 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, help="output hierarchy MODEL.npz")
     p.add_argument("--leaf-capacity", type=opt.number(int, low=1), default=8, metavar="N",
                    help="at most N points in a leaf node (default %(default)s)")
-    opt.add_surface_options(p)
+    opt.add_source_options(p)
     opt.add_force_option(p)
     p.set_defaults(func=commands.cmd_build)
 
@@ -73,7 +73,7 @@ def build_parser() -> argparse.ArgumentParser:
                                           "write a splat PLY")
     p.add_argument("input")
     p.add_argument("-o", "--output", required=True, help="output .ply")
-    opt.add_surface_options(p)
+    opt.add_source_options(p)
     p.add_argument("--shape", choices=("ellipse", "circle"), default="ellipse",
                    help="splat shape of raw points (default ellipse)")
     opt.add_force_option(p)

@@ -67,13 +67,13 @@ def render_and_save(source, args, inputs: tuple[Path, ...] = ()) -> None:
     api.check_source(source)
     render_options, lights, camera = opt.render_options(args), opt.lights(args), opt.camera_spec(args)
     width, height = opt.image_size(args, camera)
-    surface = opt.surface_options(args) if hasattr(args, "vertices") else None
-    model = api.load_model(source, k=getattr(args, "k", api.DEFAULT_K), surface=surface)
+    source_options = opt.source_options(args) if hasattr(args, "vertices") else None
+    model = api.load_model(source, source_options)
     camera = api.resolve_camera(model, camera, width, height, default_up=api.natural_up(source))
     progress.message(f"camera: {camera_flags(camera)}")
     result = api.render_model(model, camera, technique=args.technique, lights=lights, background=args.background,
                               options=render_options, lod_tolerance=args.lod_tolerance, lod_shading=args.lod_shading,
-                              supersample=args.supersample, surface=surface)
+                              supersample=args.supersample, source_options=source_options)
     result.frame.save(out, overwrite=args.force, transparent=args.transparent, bit_depth=args.bit_depth)
     progress.message(f"rendered {result.describe()} with {args.technique} at {camera.width}x{camera.height} "
                      f"in {result.seconds:.2f} s -> {out}")
@@ -157,15 +157,16 @@ def surface_splats_of(args) -> SplatCloud:
     """The splats of ``args.input`` with no view known: a mesh's surface sampled with the model
     :data:`~surfsplat.cli.options.IMAGE_SIZE` pixels wide (or ``--samples``), raw points
     preprocessed (``--k``, ``--sharp-angle``, ``--shape``), splat files as they are."""
-    surface = opt.surface_options(args)
+    options = opt.source_options(args)
     shape = getattr(args, "shape", "ellipse")
     if shape != "ellipse":
         cloud = api.load_cloud(args.input)
-        return preprocess(cloud, k=args.k, shape=shape, sharp_angle=api.raw_sharp_angle(surface))
-    model = api.load_model(args.input, k=args.k, surface=surface)
+        return preprocess(cloud, k=options.k, shape=shape, sharp_angle=options.raw_sharp_angle,
+                          outliers=options.outliers)
+    model = api.load_model(args.input, options)
     if isinstance(model, Hierarchy):
         raise InputError(f"{args.input}: is a hierarchy already (surfsplat build writes them)")
-    return api.surface_model(model, None, surface, image_size=opt.IMAGE_SIZE)
+    return api.surface_model(model, None, options, image_size=opt.IMAGE_SIZE)
 
 
 def cmd_build(args) -> None:

@@ -13,12 +13,12 @@ import argparse
 import dataclasses
 import math
 
-from ..api import (DEFAULT_BACKGROUND, DEFAULT_K, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec,
-                   SurfaceOptions)
+from ..api import DEFAULT_BACKGROUND, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec, SourceOptions
 from ..camera import MAX_IMAGE_SIDE, Camera
 from ..errors import InputError
 from ..hierarchy import SHADINGS
 from ..io.camera_file import load_camera
+from ..geometry.robust import OUTLIER_ACTIONS
 from ..io.surface import AUTO
 from ..lighting import MAX_LIGHTS, Lights
 from ..render.frame import BIT_DEPTHS
@@ -92,30 +92,35 @@ def sharp_angle_or_auto(text: str):
     return SHARP_ANGLE(text)
 
 
-def add_surface_options(p: argparse.ArgumentParser) -> None:
-    """How inputs become splats: meshes (``--vertices``, ``--samples``, ``--sharp-angle``), raw points (``--k``)."""
+def add_source_options(p: argparse.ArgumentParser) -> None:
+    """How inputs become splats: raw points (``--k``, ``--outliers``), meshes (``--vertices``,
+    ``--samples``), both (``--sharp-angle``)."""
     add_k_option(p)
+    p.add_argument("--outliers", choices=OUTLIER_ACTIONS, default=default(SourceOptions, "outliers"),
+                   help="raw points with no surface of their own (stray points, isolated clusters): drop them "
+                        "(default), cap their splats to the local size, or keep them")
     p.add_argument("--vertices", action="store_true",
                    help="a mesh (a file with faces) is drawn as its vertices, preprocessed like scanned points, "
                         "instead of as its sampled surface")
     p.add_argument("--samples", type=number(int, low=2), metavar="N",
-                   help=f"a mesh's surface gets N samples (default: {default(SurfaceOptions, 'spacing_px'):g} px "
+                   help=f"a mesh's surface gets N samples (default: {default(SourceOptions, 'spacing_px'):g} px "
                         "apart in the image, at most 2,000,000)")
     p.add_argument("--sharp-angle", type=sharp_angle_or_auto, default="auto", metavar="DEG",
                    help="edges sharper than DEG degrees (0 < DEG < 180) get clip lines and crisp shading; auto "
                         "(default): 30 for meshes with creases (CAD parts), none for smooth scans and for raw "
-                        "points; none: no sharp edges")
+                        "points; none: no sharp edges; a number also detects sharp features in raw points)")
 
 
-def surface_options(args) -> SurfaceOptions:
-    """The SurfaceOptions of :func:`add_surface_options`."""
+def source_options(args) -> SourceOptions:
+    """The SourceOptions of :func:`add_source_options`."""
     angle = {"auto": AUTO, "none": None}.get(args.sharp_angle, args.sharp_angle)
-    return SurfaceOptions(vertices=args.vertices, samples=args.samples, sharp_angle=angle)
+    return SourceOptions(k=args.k, outliers=args.outliers, vertices=args.vertices, samples=args.samples,
+                         sharp_angle=angle)
 
 
 def add_k_option(p: argparse.ArgumentParser) -> None:
     """``--k``: neighbours for preprocessing raw points."""
-    p.add_argument("--k", type=number(int, low=3, what="neighbours"), default=DEFAULT_K,
+    p.add_argument("--k", type=number(int, low=3, what="neighbours"), default=default(SourceOptions, "k"),
                    help="neighbours for preprocessing raw points (default %(default)s)")
 
 

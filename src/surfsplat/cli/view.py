@@ -28,7 +28,7 @@ def add_view_command(subparsers) -> argparse.ArgumentParser:
         epilog=VIEW_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("input", help="PLY, OBJ or LAS file, a hierarchy MODEL.npz (surfsplat build), or demo:NAME "
                                  "for a built-in scene (e.g. demo:torus)")
-    opt.add_surface_options(p)
+    opt.add_source_options(p)
     opt.add_render_options(p, window=True)
     p.add_argument("--size", type=opt.number(int, low=1, high=opt.MAX_IMAGE_SIDE, what="pixels"), nargs=2,
                    metavar=("W", "H"), default=WINDOW_SIZE,
@@ -68,5 +68,5 @@ def cmd_view(args) -> None:
          background=tuple(args.background), options=opt.render_options(args), lod_tolerance=args.lod_tolerance,
          lod_shading=args.lod_shading,
          motion=MotionOptions(mode=args.motion, budget=args.motion_budget, scale=args.motion_scale),
-         hud=not args.no_hud, frames=args.frames, orbit=args.orbit, screenshot=args.screenshot, k=args.k,
-         surface=opt.surface_options(args))
+         hud=not args.no_hud, frames=args.frames, orbit=args.orbit, screenshot=args.screenshot,
+         source_options=opt.source_options(args))

@@ -2,8 +2,9 @@
 and Phong splat generation.
 
 Modules: :mod:`.neighbors` (k-d trees, kNN), :mod:`.normals` (PCA normals, MST orientation),
-:mod:`.splats` (circles and ellipses), :mod:`.preprocess` (points to splats), :mod:`.sampling`
-(mesh samples), :mod:`.sharp` (clip lines at sharp features), :mod:`.phong` (Phong splats,
+:mod:`.splats` (circles and ellipses), :mod:`.cells` (Voronoi-cell splats for scan lines),
+:mod:`.robust` (duplicates, outliers, size bounds of raw points), :mod:`.preprocess` (points to
+splats), :mod:`.sampling` (mesh samples), :mod:`.sharp` (clip lines at sharp features), :mod:`.phong` (Phong splats,
 Botsch et al. 2004) and :mod:`.common` (the blocked, threaded loops and small helpers they share).
 """
 
@@ -12,6 +13,7 @@ from .neighbors import knn, spatial_order
 from .normals import estimate_normals, orient_normals, orient_towards
 from .phong import phong_splats
 from .preprocess import neighbour_spacing, preprocess
+from .robust import PreprocessReport
 from .sampling import sample_mesh
 from .splats import circular_splats, elliptical_splats, fallback_radius
 
@@ -26,6 +28,7 @@ __all__ = [
     "elliptical_splats",
     "fallback_radius",
     "preprocess",
+    "PreprocessReport",
     "neighbour_spacing",
     "sample_mesh",
     "phong_splats",

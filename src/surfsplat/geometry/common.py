@@ -142,6 +142,35 @@ def block_covariance(d: list[np.ndarray]) -> tuple[np.ndarray, ...]:
     return tuple(out)
 
 
+def neighbour_median(values: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """(N,) float32 median of ``values`` over each point's neighbours (the two middle ones
+    averaged for even k): ``median_j values[idx[i, j]]``, in the units of ``values``.
+
+    ``values``: (M,) float array; ``idx``: (N, k) neighbour indices. Blocked and threaded
+    (a partition of (BLOCK, k) gathers per block).
+    """
+    vals = np.ascontiguousarray(values, dtype=np.float32)
+    n, k = idx.shape
+    lo, hi = (k - 1) // 2, k // 2
+    out = np.empty(n, dtype=np.float32)
+
+    def block(sl):
+        part = np.partition(vals[idx[sl]], [lo, hi] if hi != lo else [lo], axis=1)
+        out[sl] = 0.5 * (part[:, lo] + part[:, hi])
+
+    for_blocks(block, n)
+    return out
+
+
+def row_norms(vectors: np.ndarray) -> np.ndarray:
+    """(N,) float32 lengths of the rows of (N, 3) ``vectors`` (their units)."""
+    v = np.asarray(vectors)
+    out = v[:, 0] * v[:, 0]
+    out += v[:, 1] * v[:, 1]
+    out += v[:, 2] * v[:, 2]
+    return np.sqrt(out, out=out).astype(np.float32, copy=False)
+
+
 # -- vector algebra ---------------------------------------------------------------------------------
 
 

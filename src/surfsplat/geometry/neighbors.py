@@ -83,7 +83,7 @@ def _part1by2(x: np.ndarray) -> np.ndarray:
     return x
 
 
-def knn(positions, k: int, *, presorted: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def knn(positions, k: int, *, presorted: bool = False, return_tree: bool = False, tree: cKDTree | None = None):
     """The k nearest neighbours of every point, the point itself excluded.
 
     Uses a SciPy ``cKDTree`` queried with ``workers=-1`` (all cores). Queries
@@ -96,12 +96,17 @@ def knn(positions, k: int, *, presorted: bool = False) -> tuple[np.ndarray, np.n
         presorted: the points are already in a spatially coherent order
             (e.g. permuted by :func:`spatial_order`): query them in the given
             order, skipping the reordering (same result, a little faster).
+        return_tree: also return the k-d tree (for later queries with
+            :func:`knn_rows`).
+        tree: the k-d tree of these positions (from :func:`kdtree`), if built
+            already.
 
     Returns:
         ``(distances, indices)``: (N, k) float32 Euclidean distances in model
         units, ascending along each row, and (N, k) int64 indices into
         ``positions``. Row ``i`` never contains ``i``; coincident duplicates of
-        ``i`` are ordinary neighbours at distance 0.
+        ``i`` are ordinary neighbours at distance 0. With ``return_tree``,
+        ``(distances, indices, tree)``.
 
     Raises:
         InputError: malformed or non-finite positions, ``k < 1``, or fewer
@@ -115,8 +120,60 @@ def knn(positions, k: int, *, presorted: bool = False) -> tuple[np.ndarray, np.n
     k = int(k)
     if n < k + 1:
         raise InputError(f"knn: need at least k + 1 = {k + 1} points for k = {k} neighbours, got {n}")
-    tree = kdtree(points)
+    if tree is None:
+        tree = kdtree(points)
+    elif tree.n != n:
+        raise InputError(f"knn: the tree holds {tree.n} points, the positions {n}")
     order = None if presorted else np.asarray(tree.indices, dtype=np.int64)
+    out_d, out_i = _query(tree, points, k, order)
+    return (out_d, out_i, tree) if return_tree else (out_d, out_i)
+
+
+def knn_rows(tree: cKDTree, rows: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The k nearest neighbours of some of the points of a k-d tree, the point itself excluded.
+
+    Args:
+        tree: the k-d tree of the points (e.g. from ``knn(..., return_tree=True)``).
+        rows: (R,) int indices (into the tree's points) of the query points.
+        k: neighbours per query, ``1 <= k <= N - 1``.
+
+    Returns:
+        ``(distances, indices)``: (R, k) float32 distances (model units,
+        ascending) and (R, k) int64 indices into the tree's points, as :func:`knn`.
+    """
+    n = tree.n
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k <= n - 1:
+        raise InputError(f"knn_rows: need 1 <= k <= {n - 1}, got {k!r}")
+    rows = np.asarray(rows, dtype=np.int64)
+    out_d = np.empty((len(rows), int(k)), dtype=np.float32)
+    out_i = np.empty((len(rows), int(k)), dtype=np.int64)
+    for start in range(0, len(rows), QUERY_CHUNK):
+        sel = rows[start:start + QUERY_CHUNK]
+        out_d[start:start + len(sel)], out_i[start:start + len(sel)] = _drop_self(
+            *tree.query(tree.data[sel], k=int(k) + 1, workers=-1), sel, int(k))
+    return out_d, out_i
+
+
+def _drop_self(dist: np.ndarray, idx: np.ndarray, rows: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """(M, k) results of a (k + 1)-query of the points ``rows`` without the point itself.
+
+    Coincident duplicates may come before the point itself, or push it out of
+    the k + 1 results altogether: drop the point where it is, else the last
+    (farthest) result. Rows stay sorted.
+    """
+    if (idx[:, 0] == rows).all():
+        # usual case: the point itself comes first (distance 0, no duplicates)
+        return dist[:, 1:], idx[:, 1:]
+    is_self = idx == rows[:, None]
+    missing = ~is_self.any(axis=1)
+    is_self[missing, -1] = True
+    keep = ~is_self
+    return dist[keep].reshape(-1, k), idx[keep].reshape(-1, k)
+
+
+def _query(tree: cKDTree, points: np.ndarray, k: int, order: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """(N, k) distances and indices of all points (self excluded), queried in ``order`` (None: as stored)."""
+    n = len(points)
     out_d = np.empty((n, k), dtype=np.float32)
     out_i = np.empty((n, k), dtype=np.int64)
     # query in chunks: the (chunk, k + 1) float64/int64 results are reused
@@ -126,23 +183,10 @@ def knn(positions, k: int, *, presorted: bool = False) -> tuple[np.ndarray, np.n
         stop = min(n, start + QUERY_CHUNK)
         rows = np.arange(start, stop) if order is None else order[start:stop]
         queries = points[start:stop] if order is None else points[rows]
-        dist, idx = tree.query(queries, k=k + 1, workers=-1)
-        if (idx[:, 0] == rows).all():
-            # usual case: the point itself comes first (distance 0, no duplicates)
-            dist, idx = dist[:, 1:], idx[:, 1:]
-        else:
-            # coincident duplicates may come before the point itself, or push
-            # it out of the k + 1 results altogether: drop the point where it
-            # is, else the last (farthest) result. Rows stay sorted.
-            is_self = idx == rows[:, None]
-            missing = ~is_self.any(axis=1)
-            is_self[missing, -1] = True
-            keep = ~is_self
-            dist = dist[keep].reshape(-1, k)
-            idx = idx[keep].reshape(-1, k)
+        dist, idx = _drop_self(*tree.query(queries, k=k + 1, workers=-1), rows, k)
         if order is None:
-            out_d[start:stop] = dist
-            out_i[start:stop] = idx
+            out_d[start:start + len(rows)] = dist
+            out_i[start:start + len(rows)] = idx
         else:
             out_d[rows] = dist
             out_i[rows] = idx

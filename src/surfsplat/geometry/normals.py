@@ -66,7 +66,33 @@ def neighbourhood_covariance(positions, indices) -> tuple[np.ndarray, ...]:
     return tuple(out)
 
 
-def smallest_eigenvectors(cxx, cxy, cxz, cyy, cyz, czz) -> np.ndarray:
+def neighbourhood_pca(positions, indices) -> tuple[np.ndarray, np.ndarray]:
+    """PCA of each neighbourhood: unit normals and the covariance eigenvalues.
+
+    Args:
+        positions: (N, 3) float array, model units.
+        indices: (N, k) integer neighbour indices (e.g. from :func:`knn`).
+
+    Returns:
+        ``(normals, eigenvalues)``: (N, 3) float32 unit normals as :func:`estimate_normals`
+        (not oriented) and (N, 3) float64 eigenvalues of :func:`neighbourhood_covariance`,
+        descending, model units squared (closed form of :func:`smallest_eigenvectors`).
+    """
+    pts = check_vectors(positions, "positions")
+    idx = check_indices(indices, len(pts))
+    cols = columns(pts)
+    nrm = np.empty((len(pts), 3), dtype=np.float32)
+    lam = np.empty((len(pts), 3), dtype=np.float64)
+
+    def block(sl):
+        nrm[sl], lam[sl] = smallest_eigenvectors(*block_covariance(block_offsets(cols, idx, sl)),
+                                                 with_eigenvalues=True)
+
+    for_blocks(block, len(pts))
+    return nrm, lam
+
+
+def smallest_eigenvectors(cxx, cxy, cxz, cyy, cyz, czz, *, with_eigenvalues: bool = False):
     """Unit eigenvector of the smallest eigenvalue of many symmetric 3x3 matrices.
 
     Closed form, vectorized (about 10x faster than ``np.linalg.eigh`` on
@@ -79,9 +105,12 @@ def smallest_eigenvectors(cxx, cxy, cxz, cyy, cyz, czz) -> np.ndarray:
 
     Args:
         cxx ... czz: (N,) float arrays, the six distinct matrix entries.
+        with_eigenvalues: also return the three eigenvalues.
 
     Returns:
-        (N, 3) float32 unit vectors (sign arbitrary).
+        (N, 3) float32 unit vectors (sign arbitrary); with ``with_eigenvalues``,
+        ``(vectors, eigenvalues)`` with (N, 3) float64 eigenvalues in descending
+        order (the matrix entries' units; for a covariance, model units squared).
     """
     a00, a01, a02, a11, a12, a22 = (np.asarray(a, dtype=np.float64) for a in (cxx, cxy, cxz, cyy, cyz, czz))
     q = (a00 + a11 + a22) / 3.0
@@ -126,7 +155,11 @@ def smallest_eigenvectors(cxx, cxy, cxz, cyy, cyz, czz) -> np.ndarray:
             fallback[has_line] = np.cross(line, axis)
         vec[dsel] = fallback
     vec /= np.linalg.norm(vec, axis=1, keepdims=True)
-    return vec.astype(np.float32)
+    if not with_eigenvalues:
+        return vec.astype(np.float32)
+    lam_max = q + 2.0 * p * np.cos(phi)  # Smith 1961: the other two roots of the same cubic
+    lam = np.stack([lam_max, 3.0 * q - lam_max - lam_min, lam_min], axis=1)
+    return vec.astype(np.float32), np.maximum(lam, 0.0)
 
 
 def estimate_normals(positions, indices) -> np.ndarray:
@@ -203,7 +236,8 @@ def _pointer_jump(parent: np.ndarray, value: np.ndarray, nodes: np.ndarray | Non
 LIGHT_EDGES_PER_POINT = 2.0
 
 
-def _edge_keys(pts: np.ndarray, nrm: np.ndarray, idx: np.ndarray, dist: np.ndarray | None = None):
+def _edge_keys(pts: np.ndarray, nrm: np.ndarray, idx: np.ndarray, dist: np.ndarray | None = None,
+               irregular: np.ndarray | None = None):
     """Edges of the Riemannian graph as sortable uint64 keys, split into light and heavy ones.
 
     One blocked, threaded pass over the kNN entries ``(i, j = idx[i, s])``,
@@ -222,6 +256,10 @@ def _edge_keys(pts: np.ndarray, nrm: np.ndarray, idx: np.ndarray, dist: np.ndarr
       same cost and a smaller position, so the graph and its MST are unchanged;
     * keys with a cost at most the ``LIGHT_EDGES_PER_POINT / k``-quantile
       (estimated on a sample of rows) go to ``light``, the others to ``heavy``.
+
+    ``irregular``: (N,) bool, rows that are not the k *nearest* neighbours
+    (e.g. the rows :mod:`~surfsplat.geometry.cells` chose): no entry into
+    such a row is skipped as a twin.
 
     Returns ``(light, heavy, sign)``: two uint64 key arrays and the (N, k)
     int8 ``sign(n_i . n_j)`` of every entry.
@@ -250,6 +288,8 @@ def _edge_keys(pts: np.ndarray, nrm: np.ndarray, idx: np.ndarray, dist: np.ndarr
         far[sl] = d.max(axis=1)
 
     for_blocks(far_block, n)
+    if irregular is not None:
+        far[irregular] = -1.0  # never "certainly among its neighbours"
     margin = np.float32(1.0) if dist is not None else np.float32(1.0 - 1e-5)
 
     def entries(rows, first):
@@ -528,15 +568,17 @@ def orient_normals(positions, normals, indices, distances=None, *, method: str =
 
 
 def orientation_signs(pts: np.ndarray, nrm: np.ndarray, idx: np.ndarray, dist: np.ndarray | None = None,
-                      method: str = "boruvka") -> np.ndarray:
+                      method: str = "boruvka", irregular: np.ndarray | None = None) -> np.ndarray:
     """(N,) int8 signs that orient unit normals ``nrm`` consistently (see :func:`orient_normals`).
 
     Arguments already validated: float32 (N, 3) ``pts`` and unit ``nrm``,
-    intp (N, k) ``idx``, optional float32 (N, k) ``dist`` from :func:`knn`.
+    intp (N, k) ``idx``, optional float32 (N, k) ``dist`` from :func:`knn`
+    (the distances of the entries of ``idx``); ``irregular`` (N,) bool marks
+    rows of ``idx`` that are not the k nearest neighbours (see :func:`_edge_keys`).
     """
     n = len(pts)
     if method == "boruvka":
-        light, heavy, sign = _edge_keys(pts, nrm, idx, dist)
+        light, heavy, sign = _edge_keys(pts, nrm, idx, dist, irregular)
         comp, rel, _ = _boruvka(n, idx, sign, light, heavy)
         del light, heavy, sign
     else:

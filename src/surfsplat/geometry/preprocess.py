@@ -1,25 +1,34 @@
 """Preprocessing: from points (optional normals, colors) to renderable splats.
 
-Stages, each reported through :func:`surfsplat.progress.stage`:
+Stages, each reported through :func:`surfsplat.progress.stage` (counts through
+:func:`surfsplat.progress.message`, and in the :class:`PreprocessReport`):
 
-1. spatial sort (Morton order; internal only, the result keeps the input order),
-2. k-nearest neighbours (:func:`knn`),
-3. normals by PCA (:func:`estimate_normals`) when the cloud has none,
-4. consistent orientation (:func:`orient_normals`, Hoppe et al. 1992) when
-   the normals were estimated here,
-5. with ``sharp_angle``: sharp features (:func:`~surfsplat.geometry.sharp.detect_sharp_features`,
-   Zwicker 2004 sec. 5): normals re-fitted to one side of the feature and
-   the planes of the other side(s),
-6. splat axes (:func:`elliptical_splats`, Pajarola 2003, or
-   :func:`circular_splats`, Guennebaud 2003 eq. 7) unless the cloud has
-   ``u`` and ``v`` already,
-7. with ``sharp_angle``: clip lines where those planes cross the splats
-   (:func:`~surfsplat.geometry.sharp.feature_clip_lines`).
+1. duplicates merged (:mod:`.robust`: exactly coincident points, then points closer than
+   1e-5 of the spacing, found from the kNN graph),
+2. spatial sort (Morton order; internal only, the result keeps the input order),
+3. k-nearest neighbours (:func:`knn`),
+4. isolated clusters (:func:`~surfsplat.geometry.robust.isolated_clusters`: stray points and
+   floaters; dropped, given small splats or kept as ``outliers`` says),
+5. normals by PCA (:func:`estimate_normals`) when the cloud has none, and splat axes
+   (:func:`elliptical_splats`, Pajarola 2003, or :func:`circular_splats`, Guennebaud 2003
+   eq. 7) unless the cloud has ``u`` and ``v`` already,
+6. scan lines: neighbourhoods along a line get the tangent plane of a larger neighbourhood and
+   splats that cover their Voronoi cells (:mod:`.cells`),
+7. consistent orientation (:func:`orient_normals`, Hoppe et al. 1992) when the normals were
+   estimated here,
+8. with ``sharp_angle``: sharp features (:func:`~surfsplat.geometry.sharp.detect_sharp_features`,
+   Zwicker 2004 sec. 5): normals re-fitted to one side of the feature and the planes of the
+   other side(s),
+9. non-planar neighbourhoods (vegetation, noise) get small round splats, and every splat is
+   held under a local and a global size bound (:mod:`.robust`),
+10. with ``sharp_angle``: clip lines where those planes cross the splats
+    (:func:`~surfsplat.geometry.sharp.feature_clip_lines`).
 """
 
 from __future__ import annotations
 
 import warnings
+from dataclasses import replace
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -27,24 +36,35 @@ from scipy.spatial import cKDTree
 from .. import progress
 from ..cloud import SplatCloud
 from ..errors import InputError
-from .neighbors import LEAFSIZE, as_points, knn, spatial_order
-from .normals import estimate_normals, orient_normals, orientation_signs
+from ..frames import tangent_frame
+from .cells import PREDICT_SHARE, linear_share, linear_splats
+from .common import row_norms
+from .neighbors import LEAFSIZE, as_points, kdtree, knn, spatial_order
+from .normals import estimate_normals, neighbourhood_pca, orient_normals, orientation_signs
+from .robust import (DUPLICATE_FRACTION, OutlierAction, PreprocessReport, bound_sizes, check_outliers,
+                     exact_duplicates, linear, merge_points, near_duplicates, outlier_points, outlier_radius,
+                     round_radius, volumetric)
 from .sharp import check_sharp_angle, detect_sharp_features, feature_clip_lines
 from .splats import (CIRCLE_COVERAGE, ELLIPSE_COVERAGE, MAX_ANISOTROPY, check_ellipse_options, circular_splats,
-                     elliptical_splats, normals_and_ellipses)
+                     elliptical_splats, pca_splats)
 
 SHAPES = ("ellipse", "circle")
+
+#: Rounds of near-duplicate merging (each needs a new kNN query; one is almost always enough).
+_MERGE_ROUNDS = 3
 
 
 def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True,
                coverage: float | None = None, max_anisotropy: float = MAX_ANISOTROPY,
-               source: str = "input", sharp_angle: float | None = None) -> SplatCloud:
+               source: str = "input", sharp_angle: float | None = None, outliers: OutlierAction = "drop",
+               merge_duplicates: bool = True, return_report: bool = False):
     """Turn a point cloud into renderable splats.
 
     Args:
         cloud: a :class:`SplatCloud` (or an (N, 3) array of positions).
             Existing normals, colors, ``u``/``v``, normal fields and clip lines
-            are kept as they are.
+            are kept as they are; a cloud with ``u`` and ``v`` is not resized
+            (none of the robust rules below apply to it).
         k: neighbours per point (>= 1). Clouds with at most k points use
             ``k = N - 1`` and warn.
         shape: ``"ellipse"`` (Pajarola 2003 covariance ellipses, default) or
@@ -66,17 +86,39 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
             (PCA normals average the two faces). Normals that came with the
             cloud are kept as they are. A cloud that has clip lines already
             keeps them (this option is then ignored, with a warning).
+        outliers: what to do with the points that have no surface neighbourhood
+            of their own: isolated clusters (components of at most k points of
+            the neighbour graph cut at edges much longer than the local or
+            global spacing: floaters) and stray points (spacing 3 times their
+            neighbours' or 10 times the cloud's median); see
+            :mod:`surfsplat.geometry.robust`. ``"drop"`` (default: the best
+            picture, measured in ``benchmarks/results/robust_splats.md``) removes
+            them, ``"cap"`` keeps them as small round splats (one sample of the
+            surface next to them), ``"keep"`` treats them like all other points
+            (still under the size bound).
+        merge_duplicates: merge points at the same position (exactly, or closer
+            than 1e-5 times the median distance to the k-th neighbour) into the
+            first of them, averaging colors and given normals (default True).
+        return_report: also return a :class:`~surfsplat.geometry.robust.PreprocessReport`
+            (the counts of duplicates, outliers, scan-line, non-planar and capped splats).
 
     Returns:
         A validated :class:`SplatCloud` in the input order (invalid input rows
-        dropped with a warning) with unit ``normals`` and splat axes ``u``,
-        ``v`` (float32, model units). If the cloud has ``u`` and ``v`` but no
-        normals, the normals are ``u x v`` normalized. With ``sharp_angle``,
-        ``clip_lines`` (N, 2, 3) float32 too (``(0, 0, 1)`` where unused).
+        dropped with a warning; merged duplicates and dropped outliers removed,
+        the first of each duplicate group kept: ``report.kept`` maps the rows)
+        with unit ``normals`` and splat axes ``u``, ``v`` (float32, model
+        units). Neighbourhoods along scan lines get splats covering their
+        Voronoi cells (:mod:`surfsplat.geometry.cells`), non-planar ones (raw
+        points only) small round splats, and every splat's major semi-axis is
+        at most 4 times its neighbours' median and 4 times the cloud's median
+        (:mod:`surfsplat.geometry.robust`). If the cloud has ``u`` and
+        ``v`` but no normals, the normals are ``u x v`` normalized. With
+        ``sharp_angle``, ``clip_lines`` (N, 2, 3) float32 too (``(0, 0, 1)``
+        where unused). With ``return_report``, ``(cloud, report)``.
 
     Raises:
-        InputError: bad arguments, no valid points, or a single point without
-            splat axes (its size cannot be derived).
+        InputError: bad arguments, no valid points, or a single (distinct)
+            point without splat axes (its size cannot be derived).
     """
     if not isinstance(cloud, SplatCloud):
         cloud = SplatCloud(positions=cloud)
@@ -87,6 +129,7 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
     if coverage is None:
         coverage = ELLIPSE_COVERAGE if shape == "ellipse" else CIRCLE_COVERAGE
     check_ellipse_options(coverage, max_anisotropy)
+    check_outliers(outliers)
     if sharp_angle is not None:
         sharp_angle = check_sharp_angle(sharp_angle)
     cloud = cloud.validated(source)
@@ -101,54 +144,208 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
             cloud = cloud.replace(normals=np.cross(cloud.u, cloud.v)).validated(source)
         if sharp_angle is not None and n > 1:
             cloud = _add_clip_lines(cloud, sharp_angle).validated(source)
-        return cloud
+        report = PreprocessReport(n, len(cloud), outlier_action=outliers, kept=np.arange(len(cloud)))
+        return (cloud, report) if return_report else cloud
     if n < 2:
         raise InputError(f"{source}: preprocessing needs at least 2 points to size the splats, got {n}")
     k = int(k)
-    if k > n - 1:
-        warnings.warn(f"{source}: only {n} points, using k = {n - 1} neighbours instead of {k}", stacklevel=2)
-        k = n - 1
 
-    with progress.stage("spatial sort", n):
-        perm = spatial_order(cloud.positions)
-        pts = np.take(cloud.positions, perm, axis=0)
+    cloud, report, (perm, pts, dist, idx, tree, wide), k = _merged_neighbours(cloud, k, merge_duplicates, source,
+                                                                              max_anisotropy)
+    m = len(cloud)
+    with progress.stage("outliers (isolated clusters, stray points)", m):
+        isolated, clusters, stray = outlier_points(dist, idx)
+        outlier = isolated | stray
+    if outlier.any():
+        verb = {"drop": "dropped", "cap": "given small splats", "keep": "kept"}[outliers]
+        progress.message(f"  outliers ({verb}): {int(isolated.sum()):,} points in {clusters:,} isolated clusters, "
+                         f"{int(stray.sum()):,} stray points")
     sharp = sharp_angle is not None
-    with progress.stage(f"{k}-nearest neighbours", n):
-        dist, idx = knn(pts, k, presorted=True)
-    if need_normals and shape == "ellipse" and not sharp:
-        # one pass over the neighbourhoods for both (shares the offset gathers)
-        with progress.stage("normals (PCA) and splat ellipses", n):
-            normals, u, v = normals_and_ellipses(pts, idx, dist, coverage=coverage, max_anisotropy=max_anisotropy)
-        if orient:
-            with progress.stage("orientation (MST)", n):
-                sigma = orientation_signs(pts, normals, idx, dist)[:, None]
-                normals *= sigma
-                v *= sigma  # keep u x v along the normal
+    if need_normals and not sharp:
+        # one pass over the neighbourhoods for all three (shares the offset gathers)
+        with progress.stage(f"normals (PCA) and splat {shape}s", m):
+            normals, lam, u, v = pca_splats(pts, idx, dist, shape=shape, coverage=coverage,
+                                            max_anisotropy=max_anisotropy)
     else:
-        normals = estimated_normals(pts, idx, dist, orient) if need_normals else np.take(cloud.normals, perm, axis=0)
-        if sharp:
-            with progress.stage("sharp features", n):
-                features = detect_sharp_features(pts, normals, idx, sharp_angle,
-                                                 oriented=orient or not need_normals, refine_normals=need_normals)
-            normals = features.normals
-            progress.message(f"  {int(features.feature.sum()):,} points at sharp features "
-                             f"({features.candidates:,} examined)")
-        with progress.stage(f"splat {shape}s", n):
-            if shape == "ellipse":
-                u, v = elliptical_splats(pts, normals, idx, dist, coverage=coverage, max_anisotropy=max_anisotropy)
-            else:
-                u, v = circular_splats(normals, dist, coverage=coverage)
+        with progress.stage("normals (PCA)" if need_normals else "neighbourhood shapes (PCA)", m):
+            normals, lam = neighbourhood_pca(pts, idx)
+        if not need_normals:
+            normals = np.take(cloud.normals, perm, axis=0)
+        u = v = None
+    special = outlier if outliers != "keep" else np.zeros(m, dtype=bool)  # "keep": ordinary points
+    lin = linear(lam, max_anisotropy) & ~special
+    rows = np.flatnonzero(lin)
+    cells = None
+    if len(rows):
+        with progress.stage("scan lines: Voronoi-cell splats", len(rows)):
+            cells = linear_splats(tree, pts, rows, k, dist[rows, -1], None if need_normals else normals[rows],
+                                  shape=shape, coverage=coverage, max_anisotropy=max_anisotropy,
+                                  neighbours=wide)
+        progress.message(f"  {len(rows):,} neighbourhoods along scan lines, sized from their Voronoi cells")
+        lam[rows] = cells[1]
+        if need_normals:
+            normals[rows] = cells[0]
+        idx, dist = idx.copy(), dist.copy()
+        idx[rows], dist[rows] = cells[4], cells[5]
+        if u is not None:
+            u[rows], v[rows] = cells[2], cells[3]
+    cell_axes = None if cells is None else (cells[2], cells[3])
+    if need_normals and orient:
+        with progress.stage("orientation (MST)", m):
+            sigma = orientation_signs(pts, normals, idx, dist, irregular=lin if len(rows) else None)
+            normals *= sigma[:, None]
+            if u is not None:
+                v *= sigma[:, None]  # keep u x v along the normal
+            elif cell_axes is not None:
+                cell_axes = (cell_axes[0], cell_axes[1] * sigma[rows, None])
+    features = None
+    if u is None:
+        u, v, features = _sized(pts, normals, idx, dist, rows, cell_axes, shape, coverage, max_anisotropy,
+                                sharp_angle, oriented=orient or not need_normals, refine=need_normals)
+        normals = features.normals if features is not None else normals
+    # given normals say there is a surface (mesh samples, scanner normals): only raw points are judged
+    vol = volumetric(lam) & ~special if need_normals else np.zeros(m, dtype=bool)
+    if features is not None:  # two planes meeting at an edge are not a volume
+        vol &= ~features.feature & ~features.feature[idx].any(axis=1)
+    if vol.any():
+        surface = ~vol & ~special
+        minor = row_norms(v[surface] if surface.any() else v)
+        radius = round_radius(dist[vol], coverage, float(np.median(minor)))[:, None]
+        t1, t2 = tangent_frame(normals[vol])
+        u[vol], v[vol] = t1 * radius, t2 * radius
+        progress.message(f"  {int(vol.sum()):,} non-planar neighbourhoods given small round splats")
+    with progress.stage("splat size bound", m):
+        capped, bound = bound_sizes(u, v, idx, exclude=special)
+    if capped:
+        progress.message(f"  {capped:,} splats shrunk to the local/global size bound")
+    if outliers == "cap" and outlier.any():
+        radius = outlier_radius(np.minimum(row_norms(u), row_norms(v)), idx, outlier)
+        t1, t2 = tangent_frame(normals[outlier])
+        u[outlier], v[outlier] = t1 * radius[:, None], t2 * radius[:, None]
 
     changes = {"u": _unsort(u, perm), "v": _unsort(v, perm)}
     if need_normals:
         changes["normals"] = _unsort(normals, perm)
     if sharp:
-        with progress.stage("clip lines", n):
+        with progress.stage("clip lines", m):
             lines = feature_clip_lines(features, pts, u, v)
         out = np.empty_like(lines)
         out[perm] = lines
         changes["clip_lines"] = out
-    return cloud.replace(**changes).validated(source)
+    result = cloud.replace(**changes)
+    if outliers == "drop" and outlier.any():
+        keep = np.ones(m, dtype=bool)
+        keep[perm[outlier]] = False
+        result = result.subset(keep)
+        report = replace(report, kept=report.kept[keep])
+    result = result.validated(source)
+    report = replace(report, output_points=len(result), outliers=int(outlier.sum()), outlier_clusters=clusters,
+                     strays=int(stray.sum()),
+                     outlier_action=outliers, linear=len(rows), volumetric=int(vol.sum()), capped=capped,
+                     size_bound=bound)
+    return (result, report) if return_report else result
+
+
+def _merged_neighbours(cloud: SplatCloud, k: int, merge: bool, source: str, max_anisotropy: float):
+    """Merge duplicates (see :mod:`.robust`) and compute the kNN graph of what is left.
+
+    Duplicates show in the kNN graph as edges no longer than the tolerance; groups of more
+    than k + 1 coincident points may not be joined by it, so where a point has k coincident
+    neighbours the exact duplicates are first merged by :func:`exact_duplicates` (a hash
+    sort), then the graph is computed again. Clean clouds pay one check of the kNN distances.
+
+    Returns ``(cloud, report, (perm, pts, dist, idx, tree, wide), k)``: the merged cloud, a
+    first report (input points, duplicate counts, spacing, kept rows), the Morton order
+    ``perm`` of the merged cloud, its sorted positions, their kNN distances and indices, k-d
+    tree, and ``wide``: None, or the 2k nearest neighbours ``(dist, idx)`` where most
+    neighbourhoods lie on lines (see :func:`~surfsplat.geometry.cells.linear_share`); and k
+    clamped to the points left.
+    """
+    n = len(cloud)
+    origin = np.arange(n, dtype=np.int64)
+    exact = 0
+    tolerance = 0.0
+    warned = hashed = False
+    for _ in range(_MERGE_ROUNDS):
+        m = len(cloud)
+        if m < 2:
+            raise InputError(f"{source}: preprocessing needs at least 2 distinct points to size the splats, got {m}")
+        if k > m - 1:
+            if not warned:
+                warnings.warn(f"{source}: only {m} points, using k = {m - 1} neighbours instead of {k}", stacklevel=3)
+                warned = True
+            k = m - 1
+        with progress.stage("spatial sort", m):
+            perm = spatial_order(cloud.positions)
+            pts = np.take(cloud.positions, perm, axis=0)
+        with progress.stage("k-d tree", m):
+            tree = kdtree(as_points(pts))
+            # scan lines: the neighbourhoods along a line need 2k neighbours (cells.py): one query
+            lines = linear_share(tree, pts, k, max_anisotropy) > PREDICT_SHARE and m > 2 * k
+        wide = None
+        with progress.stage(f"{2 * k if lines else k}-nearest neighbours", m):
+            if lines:
+                wide = knn(pts, 2 * k, presorted=True, tree=tree)
+                dist, idx = np.ascontiguousarray(wide[0][:, :k]), np.ascontiguousarray(wide[1][:, :k])
+            else:
+                dist, idx = knn(pts, k, presorted=True, tree=tree)
+        spacing = float(np.median(dist[:, -1]))
+        if not merge:
+            break
+        tolerance = DUPLICATE_FRACTION * spacing
+        with progress.stage("duplicates", m):
+            rep_sorted = near_duplicates(dist, idx, tolerance)
+            if rep_sorted is None:
+                break
+            if not hashed and (dist[:, -1] == 0).any():
+                rep = exact_duplicates(cloud.positions)  # k + 1 or more copies of a point: all at once
+                hashed = True
+            else:
+                # the group's first point in input order represents it
+                first = np.full(m, m, dtype=np.int64)
+                np.minimum.at(first, rep_sorted, perm)
+                rep = np.empty(m, dtype=np.int64)
+                rep[perm] = first[rep_sorted]
+            merged = rep != np.arange(m)
+            exact += int((cloud.positions[merged] == cloud.positions[rep[merged]]).all(axis=1).sum())
+            cloud = merge_points(cloud, rep)
+            origin = origin[~merged]
+    duplicates = n - len(cloud)
+    if duplicates:
+        progress.message(f"  {duplicates:,} duplicate points merged ({exact:,} at the same position, the others "
+                         f"closer than {tolerance:.3g})")
+    report = PreprocessReport(n, len(cloud), duplicates=duplicates, exact_duplicates=exact,
+                              duplicate_tolerance=tolerance, spacing=spacing, kept=origin)
+    return cloud, report, (perm, pts, dist, idx, tree, wide), k
+
+
+def _sized(pts, normals, idx, dist, rows, cell_axes, shape, coverage, max_anisotropy, sharp_angle, oriented,
+           refine):
+    """Splat axes (and sharp features) when they were not computed with the normals.
+
+    Sharp features re-fit ``normals`` where ``refine``; the rows ``rows`` take the (oriented)
+    Voronoi-cell axes ``cell_axes = (u, v)`` unless their normal changed. Returns
+    ``(u, v, features or None)``.
+    """
+    n = len(pts)
+    features = None
+    new_normals = normals
+    if sharp_angle is not None:
+        with progress.stage("sharp features", n):
+            features = detect_sharp_features(pts, normals, idx, sharp_angle, oriented=oriented, refine_normals=refine)
+        progress.message(f"  {int(features.feature.sum()):,} points at sharp features "
+                         f"({features.candidates:,} examined)")
+        new_normals = features.normals
+    with progress.stage(f"splat {shape}s", n):
+        if shape == "ellipse":
+            u, v = elliptical_splats(pts, new_normals, idx, dist, coverage=coverage, max_anisotropy=max_anisotropy)
+        else:
+            u, v = circular_splats(new_normals, dist, coverage=coverage)
+    if cell_axes is not None:
+        same = (new_normals[rows] == normals[rows]).all(axis=1)
+        u[rows[same]] = cell_axes[0][same]
+        v[rows[same]] = cell_axes[1][same]
+    return u, v, features
 
 
 def estimated_normals(pts: np.ndarray, idx: np.ndarray, dist: np.ndarray, orient: bool = True) -> np.ndarray:

@@ -191,7 +191,9 @@ def _splats_with_clip_lines(mesh: Mesh, cloud: SplatCloud, face: np.ndarray, sha
     if shape is None:
         splats = _circles(cloud, k, name)
     else:
-        splats = preprocess(cloud, k=k, shape=shape, coverage=coverage, source=name)
+        # samples of a surface: no duplicates to merge or outliers to drop (one splat per sample)
+        splats = preprocess(cloud, k=k, shape=shape, coverage=coverage, source=name, outliers="keep",
+                            merge_duplicates=False)
     if len(splats) != n:  # samples of a valid mesh are finite, their normals unit
         raise InputError(f"{name}: preprocessing dropped {n - len(splats)} samples")
     if sharp_angle is None and not boundaries:

@@ -245,9 +245,9 @@ def normals_and_ellipses(positions, indices, distances, *, coverage: float = ELL
 
     Same results as :func:`~surfsplat.geometry.normals.estimate_normals`
     followed by :func:`elliptical_splats`, but the neighbour offsets are
-    gathered once (used by :func:`surfsplat.geometry.preprocess`). The normals
-    are not oriented: after flipping some normals, negate ``v`` of the same
-    splats to keep ``u x v`` along the normal.
+    gathered once (see :func:`pca_splats`). The normals are not oriented:
+    after flipping some normals, negate ``v`` of the same splats to keep
+    ``u x v`` along the normal.
 
     Args:
         positions: (N, 3) float array, model units.
@@ -258,20 +258,58 @@ def normals_and_ellipses(positions, indices, distances, *, coverage: float = ELL
     Returns:
         ``(normals, u, v)``: three (N, 3) float32 arrays.
     """
+    nrm, _, u, v = pca_splats(positions, indices, distances, coverage=coverage, max_anisotropy=max_anisotropy)
+    return nrm, u, v
+
+
+def pca_splats(positions, indices, distances, *, shape: str = "ellipse", coverage: float | None = None,
+               max_anisotropy: float = MAX_ANISOTROPY) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """PCA normals, covariance eigenvalues and splats in one pass over the neighbourhoods.
+
+    The normal is the eigenvector of the smallest eigenvalue of the neighbourhood covariance
+    (Hoppe et al. 1992, sec. 3.2); the splats are Pajarola's covering ellipses
+    (:func:`elliptical_splats`) or Guennebaud's circles (:func:`circular_splats`). The
+    offsets are gathered once (used by :func:`surfsplat.geometry.preprocess`).
+
+    Args:
+        positions: (N, 3) float array, model units.
+        indices: (N, k) integer neighbour indices (e.g. from :func:`knn`).
+        distances: (N, k) float neighbour distances, model units.
+        shape: ``"ellipse"`` or ``"circle"``.
+        coverage: factor on the axes; default ``ELLIPSE_COVERAGE`` or ``CIRCLE_COVERAGE``.
+        max_anisotropy: as in :func:`elliptical_splats`.
+
+    Returns:
+        ``(normals, eigenvalues, u, v)``: (N, 3) float32 unit normals (not oriented), (N, 3)
+        float64 covariance eigenvalues in descending order (model units squared), and (N, 3)
+        float32 axes (model units).
+    """
+    if coverage is None:
+        coverage = ELLIPSE_COVERAGE if shape == "ellipse" else CIRCLE_COVERAGE
     check_ellipse_options(coverage, max_anisotropy)
+    if shape not in ("ellipse", "circle"):
+        raise InputError(f"shape must be 'ellipse' or 'circle', got {shape!r}")
     pts = check_vectors(positions, "positions")
     n = len(pts)
     idx = check_indices(indices, n)
     dist = _check_distances(distances, n)
     cols = columns(pts)
     nrm = np.empty((n, 3), dtype=np.float32)
+    lam = np.empty((n, 3), dtype=np.float64)
     u = np.empty((n, 3), dtype=np.float32)
     v = np.empty((n, 3), dtype=np.float32)
 
     def block(sl):
         d = block_offsets(cols, idx, sl)
-        nrm[sl] = smallest_eigenvectors(*block_covariance(d))
-        u[sl], v[sl] = _block_ellipses(d, nrm[sl], dist[sl], coverage, max_anisotropy, lambda: fallback_radius(dist))
+        nrm[sl], lam[sl] = smallest_eigenvectors(*block_covariance(d), with_eigenvalues=True)
+        if shape == "ellipse":
+            u[sl], v[sl] = _block_ellipses(d, nrm[sl], dist[sl], coverage, max_anisotropy,
+                                           lambda: fallback_radius(dist))
+        else:
+            radius = _row_max(dist[sl])  # Guennebaud 2003, eq. 7: h_k
+            radius = np.where(radius > 0, radius, np.float32(fallback_radius(dist))) * np.float32(coverage)
+            t1, t2 = tangent_frame(nrm[sl])
+            u[sl], v[sl] = t1 * radius[:, None], t2 * radius[:, None]
 
     for_blocks(block, n)
-    return nrm, u, v
+    return nrm, lam, u, v

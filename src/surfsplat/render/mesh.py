@@ -209,4 +209,5 @@ def render_mesh(mesh: Mesh, camera: Camera, lights: Lights = Lights(), *, backgr
     with np.errstate(divide="ignore", invalid="ignore"):
         depth = np.where(covered > 0, depth_sum / covered, np.inf)
     return Frame(np.ascontiguousarray(color[::-1], dtype="f4"), np.ascontiguousarray(depth[::-1], dtype="f4"),
-                 np.ascontiguousarray(weight[::-1], dtype="f4"), camera)
+                 np.ascontiguousarray(weight[::-1], dtype="f4"), camera,
+                 alpha=np.ascontiguousarray(weight[::-1], dtype="f4"), background=bg)

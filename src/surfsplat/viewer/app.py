@@ -36,7 +36,7 @@ import moderngl
 import numpy as np
 
 from .. import progress
-from ..api import (DEFAULT_BACKGROUND, DEFAULT_K, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec, SurfaceOptions,
+from ..api import (DEFAULT_BACKGROUND, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec, SourceOptions,
                    as_hierarchy, check_background, check_source, load_model, lod_splats, natural_up,
                    resolve_camera)
 from ..camera import Camera
@@ -263,7 +263,7 @@ class Viewer:
     def __init__(self, glfw, window, ctx, model, camera: Camera | CameraSpec | None, *, technique: TechniqueName,
                  lights: Lights, options: RenderOptions, background, lod_tolerance: float,
                  lod_shading: LodShading = DEFAULT_LOD_SHADING, motion: MotionOptions = MotionOptions(),
-                 hud: bool = True, surface: SurfaceOptions | None = None):
+                 hud: bool = True, source_options: SourceOptions | None = None):
         self.glfw, self.window, self.ctx = glfw, window, ctx
         self.renderer = Renderer(ctx)
         self.techniques = technique_names()
@@ -273,7 +273,7 @@ class Viewer:
         self.motion, self.motion_scale = motion.mode, float(motion.scale)
 
         # built on loading when the model is a cloud (a mesh's surface sampled for the window's width)
-        hierarchy = as_hierarchy(model, surface, image_size=max(glfw.get_framebuffer_size(window)))
+        hierarchy = as_hierarchy(model, source_options, image_size=max(glfw.get_framebuffer_size(window)))
         cloud = hierarchy.points
         self.lod = LevelOfDetail(self.renderer, hierarchy, lod_shading)
         self.model_splats = len(cloud)
@@ -703,13 +703,13 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
          size: tuple[int, int] = (1280, 720), lights: Lights | None = None, background=DEFAULT_BACKGROUND,
          options: RenderOptions | None = None, lod_tolerance: float = DEFAULT_LOD_TOLERANCE,
          lod_shading: LodShading = DEFAULT_LOD_SHADING, motion: MotionOptions | None = None, hud: bool = True,
-         frames: int | None = None, orbit: float = 0.0, screenshot=None, k: int = DEFAULT_K,
-         title: str | None = None, surface: SurfaceOptions | None = None) -> ViewStats:
+         frames: int | None = None, orbit: float = 0.0, screenshot=None, title: str | None = None,
+         source_options: SourceOptions | None = None) -> ViewStats:
     """Open an interactive window on a splat model (press H in it for the keys).
 
     Args:
         source: anything :func:`surfsplat.api.load_model` takes: a SplatCloud, a hierarchy, a
-            point/splat/mesh file (preprocessed with ``k`` neighbours if needed), a hierarchy file
+            point/splat/mesh file (made into splats as ``source_options`` say), a hierarchy file
             or ``"demo:NAME"`` for a built-in scene (``demo:torus``, ...).
         camera: the first view: a Camera (its size is replaced by the window's) or a
             :class:`~surfsplat.api.CameraSpec` (eye, target, up, fov); None or a spec without an
@@ -730,8 +730,8 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
             without the HUD to ``screenshot`` (if given), close. ``screenshot`` alone means
             one frame.
         title: window title (default: the input's name).
-        surface: how a mesh becomes splats (:class:`~surfsplat.api.SurfaceOptions`; sampled
-            once on loading, for the window's size).
+        source_options: how the source becomes splats (:class:`~surfsplat.api.SourceOptions`:
+            raw points preprocessed, a mesh's surface sampled once on loading for the window's size).
 
     Returns:
         :class:`ViewStats` (frames, seconds, frame rate, ...).
@@ -776,10 +776,10 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
         ctx.clear(*background)
         glfw.swap_buffers(window)
         glfw.poll_events()
-        model = load_model(source, k=k, surface=surface)
+        model = load_model(source, source_options)
         viewer = Viewer(glfw, window, ctx, model, camera, technique=technique, lights=lights or Lights(),
                         options=options, background=background, lod_tolerance=lod_tolerance,
-                        lod_shading=lod_shading, motion=motion, hud=hud, surface=surface)
+                        lod_shading=lod_shading, motion=motion, hud=hud, source_options=source_options)
         if frames is None:
             stats = viewer.run_interactive()
         else:
