@@ -491,9 +491,9 @@ def test_binary_face_index_out_of_range(tmp_path):
 def test_missing_and_unknown_files(tmp_path):
     with pytest.raises(InputError, match=r"nothing\.ply: no such file"):
         load(tmp_path / "nothing.ply")
-    (tmp_path / "cloud.xyz").write_text("0 0 0\n")
-    with pytest.raises(InputError, match=r"cloud\.xyz: unknown file type '\.xyz'"):
-        load(tmp_path / "cloud.xyz")
+    (tmp_path / "cloud.e58").write_text("0 0 0\n")  # .xyz is read now (tests/test_formats.py)
+    with pytest.raises(InputError, match=r"cloud\.e58: unknown file type '\.e58'"):
+        load(tmp_path / "cloud.e58")
     with pytest.raises(InputError, match=r"noext.*unknown file type"):
         load(tmp_path / "noext")
 

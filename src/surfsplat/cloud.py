@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import InputError
+from .frames import tangent_frame64
 
 #: Albedo used where the input carries no colors (linear RGB in [0, 1]).
 DEFAULT_ALBEDO = 0.8
@@ -124,6 +125,114 @@ class SplatCloud:
         """A copy with some arrays replaced (validated like the constructor)."""
         return dataclasses.replace(self, **changes)
 
+    # -- conversions -------------------------------------------------------
+
+    @classmethod
+    def from_arrays(cls, positions, normals=None, colors=None, *, radius=None, u=None, v=None,
+                    normal_field=None, clip_lines=None) -> "SplatCloud":
+        """A SplatCloud from plain arrays (anything ``numpy.asarray`` accepts), unvalidated.
+
+        ``colors`` may be uint8 / uint16 (divided by 255 / 65535), other integers or floats
+        (see :func:`unit_colors`: floats above 1 are read as 0..255). ``radius`` ((N,) model
+        units) gives circular splats; it needs ``normals`` and is ignored when ``u``, ``v`` are
+        given.
+        """
+        if colors is not None:
+            colors = unit_colors(colors)
+        if radius is not None and u is None and v is None:
+            if normals is None:
+                raise InputError("radius needs normals (a circular splat needs a normal to orient it)")
+            u, v = circle_axes(normals, radius)
+        return cls(positions=positions, normals=normals, colors=colors, u=u, v=v,
+                   normal_field=normal_field, clip_lines=clip_lines)
+
+    @classmethod
+    def from_dict(cls, columns, *, extras: dict | None = None) -> "SplatCloud":
+        """A SplatCloud from named columns: a mapping of name -> array, or a structured / record array.
+
+        Names (case-insensitive; a leading ``//`` or ``#`` as CloudCompare writes is ignored):
+        ``positions`` (N, 3) or ``x y z``; ``normals`` (N, 3) or ``nx ny nz`` (also
+        ``normal_x ...``); ``colors`` (N, 3) or ``red green blue`` / ``r g b`` (uint8 or float,
+        see :func:`unit_colors`); ``radius``; ``u``, ``v`` (N, 3) or ``ux uy uz vx vy vz``;
+        ``normal_field`` (N, 2); ``clip_lines`` (N, 2, 3). Every other column is put in
+        ``extras`` (when given) under its original name. Unvalidated.
+        """
+        if isinstance(columns, np.ndarray) and columns.dtype.names:
+            columns = {name: columns[name] for name in columns.dtype.names}
+        if not hasattr(columns, "items"):
+            raise InputError(f"from_dict needs a mapping of column names to arrays, got {type(columns).__name__}")
+        table = {}
+        for name, value in columns.items():
+            key = str(name).strip().lstrip("/#").strip().lower()
+            table[key] = (name, value)
+        used: set[str] = set()
+
+        def take(*names):
+            for key in names:
+                if key in table:
+                    used.add(key)
+                    return np.asarray(table[key][1])
+            return None
+
+        def group(whole, *alternatives):
+            value = take(whole) if whole else None
+            if value is not None:
+                return value
+            for names in alternatives:
+                present = [key for key in names if key in table]
+                if present and len(present) < len(names):
+                    missing = [key for key in names if key not in table]
+                    raise InputError(f"columns {' '.join(present)} present but {' '.join(missing)} missing")
+                if present:
+                    return np.column_stack([take(key).reshape(-1) for key in names])
+            return None
+
+        positions = group("positions", ("x", "y", "z"))
+        if positions is None:
+            positions = take("points", "xyz", "vertices")
+        if positions is None:
+            raise InputError(f"no positions: expected a 'positions' column or x, y, z columns "
+                             f"(columns: {', '.join(str(table[k][0]) for k in table) or 'none'})")
+        normals = group("normals", ("nx", "ny", "nz"), ("normal_x", "normal_y", "normal_z"))
+        colors = group("colors", ("red", "green", "blue"), ("r", "g", "b"))
+        if colors is None:
+            colors = take("rgb")
+        u = group("u", ("ux", "uy", "uz"))
+        v = group("v", ("vx", "vy", "vz"))
+        radius = take("radius")
+        normal_field = group("normal_field", ("alpha", "beta")) if ("beta" in table or "normal_field" in table) \
+            else None
+        clip_lines = take("clip_lines")
+        if extras is not None:
+            extras.update({table[key][0]: np.asarray(table[key][1]) for key in table if key not in used})
+        if colors is not None and colors.ndim == 2 and colors.shape[1] == 4:
+            colors = colors[:, :3]  # RGBA: alpha ignored
+        return cls.from_arrays(positions, normals, colors, radius=radius, u=u, v=v,
+                               normal_field=normal_field, clip_lines=clip_lines)
+
+    def to_dict(self, *, columns: bool = False) -> dict[str, np.ndarray]:
+        """The arrays present, by name: ``{"positions": (N, 3), "normals": ..., ...}`` (copies).
+
+        With ``columns=True``: one (N,) float32 array per scalar column, named as in PLY files
+        (``x y z nx ny nz red green blue ux uy uz vx vy vz alpha beta clip0_a ... clip1_c``;
+        colors in [0, 1]), ready for ``pandas.DataFrame``; :meth:`from_dict` reads both forms.
+        """
+        arrays = {name: getattr(self, name).copy() for name in ("positions",) + self._OPTIONAL
+                  if getattr(self, name) is not None}
+        if not columns:
+            return arrays
+        names = {"positions": ("x", "y", "z"), "normals": ("nx", "ny", "nz"), "colors": ("red", "green", "blue"),
+                 "u": ("ux", "uy", "uz"), "v": ("vx", "vy", "vz"), "normal_field": ("alpha", "beta"),
+                 "clip_lines": tuple(f"clip{k}_{c}" for k in (0, 1) for c in "abc")}
+        out = {}
+        for name, value in arrays.items():
+            flat = value.reshape(len(self), -1)
+            out.update({column: flat[:, i].copy() for i, column in enumerate(names[name])})
+        if "clip_lines" in arrays:  # from_dict reads clip lines as one (N, 2, 3) column
+            out = {k: val for k, val in out.items() if not k.startswith("clip")}
+            out["clip_lines"] = arrays["clip_lines"]
+        return out
+
     # -- validation --------------------------------------------------------
 
     def validated(self, source: str = "input") -> "SplatCloud":
@@ -179,3 +288,43 @@ class SplatCloud:
 
 class InvalidPointsWarning(UserWarning):
     """Some input points were invalid and dropped; the message gives counts."""
+
+
+def unit_colors(values) -> np.ndarray:
+    """(N, 3) float32 colors in [0, 1] from 8-bit, 16-bit or float colors.
+
+    uint8 / int8-range integers: / 255; uint16: / 65535; other integers: / 255 when the largest
+    value is <= 255, / 65535 when <= 65535; floats: as they are, unless the largest finite value
+    is above 1 (0..255 floats): / 255.
+    """
+    arr = np.asarray(values)
+    if arr.dtype.kind == "b" or arr.dtype.kind not in "uif":
+        raise InputError(f"colors must be numbers, got dtype {arr.dtype}")
+    if arr.dtype.kind in "ui":
+        top = int(arr.max()) if arr.size else 0
+        if arr.dtype == np.uint16 or top > 255:
+            scale = 65535.0 if top <= 65535 else float(np.iinfo(arr.dtype).max)
+        else:
+            scale = 255.0
+    else:
+        finite = arr[np.isfinite(arr)]
+        scale = 255.0 if finite.size and float(finite.max()) > 1.0 else 1.0
+    return (arr.astype(np.float64) / scale).astype(np.float32)
+
+
+def circle_axes(normals, radius) -> tuple[np.ndarray, np.ndarray]:
+    """Tangent axes (u, v), (N, 3) float32, of circular splats of ``radius`` around ``normals``
+    (right-handed: ``u x v`` along n). Zero or non-finite normals give NaN axes, bad radii zero
+    axes: validation drops both."""
+    n = np.asarray(normals, dtype=np.float64)
+    r = np.asarray(radius, dtype=np.float64).reshape(-1)
+    if n.ndim != 2 or n.shape[1] != 3 or len(r) != len(n):
+        raise InputError(f"radius ({r.shape}) and normals ({n.shape}) must have N and (N, 3) entries")
+    length = np.linalg.norm(n, axis=1)
+    ok = np.isfinite(length) & (length > 0)
+    t1 = np.full(n.shape, np.nan)
+    t2 = np.full(n.shape, np.nan)
+    if ok.any():
+        t1[ok], t2[ok] = tangent_frame64(n[ok] / length[ok, None])
+    r = np.where(np.isfinite(r) & (r > 0), r, 0.0)[:, None]
+    return (t1 * r).astype(np.float32), (t2 * r).astype(np.float32)

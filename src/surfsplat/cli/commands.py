@@ -3,6 +3,7 @@ library function that does the work, writes the output and reports what it did."
 
 from __future__ import annotations
 
+import os
 import time
 from pathlib import Path
 
@@ -24,10 +25,15 @@ from . import options as opt
 
 
 def refuse_overwriting_inputs(out: Path, inputs: tuple[Path, ...]) -> None:
-    """InputError when ``out`` is one of the input files."""
+    """InputError when ``out`` is one of the input files: the same file (device and inode), so a
+    symbolic or hard link to an input counts as the input."""
     for path in inputs:
-        if out.exists() and path.exists() and out.resolve() == path.resolve():
-            raise InputError(f"{out}: refusing to overwrite the input file")
+        try:
+            same = os.path.samefile(out, path)
+        except OSError:  # one of them does not exist (yet)
+            same = False
+        if same:
+            raise InputError(f"{out}: refusing to overwrite the input file {path} (the same file)")
 
 
 def check_image_outputs(args, inputs: tuple[Path, ...]) -> tuple[Path, Path | None, Path | None]:

@@ -22,8 +22,6 @@ float32, optional ``point_colors`` (N, 3), ``point_normal_field`` (N, 2),
 
 from __future__ import annotations
 
-import os
-import pickle
 import zipfile
 import zlib
 from pathlib import Path
@@ -32,6 +30,7 @@ import numpy as np
 
 from ..cloud import SplatCloud
 from ..errors import InputError
+from ..io.atomic import atomic_path, check_readable, memory_limit
 from .model import FORMAT_VERSION, Hierarchy
 
 #: Value of the ``format`` member. The layout's version, :data:`FORMAT_VERSION`, is
@@ -74,7 +73,9 @@ def save_hierarchy(hierarchy: Hierarchy, path, *, overwrite: bool = False) -> Pa
 
     The name is used as given (no extension is added; ``.npz`` is the
     convention). An existing file is replaced only with ``overwrite=True``
-    (then atomically: written beside it and renamed).
+    Every write goes to a temporary file beside ``path`` that replaces it on success
+    (:func:`surfsplat.io.atomic.atomic_path`): a failed write (disk full, file size
+    limit) leaves no partial file and an existing file as it was.
 
     Raises:
         InputError: the file exists (without ``overwrite``), is a directory,
@@ -90,23 +91,11 @@ def save_hierarchy(hierarchy: Hierarchy, path, *, overwrite: bool = False) -> Pa
     members["format_version"] = np.array(FORMAT_VERSION, dtype=np.int64)
     members["leaf_capacity"] = np.array(hierarchy.leaf_capacity, dtype=np.int64)
     members["max_depth"] = np.array(hierarchy.max_depth, dtype=np.int64)
-    target = path if not overwrite else path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        handle = open(target, "xb")
-    except FileExistsError:
-        raise InputError(f"{path}: file exists; pass overwrite=True (--overwrite) to replace it") from None
+    try:  # through a temporary file beside ``path``: a failed write leaves no partial file, an old one intact
+        with atomic_path(path, overwrite=overwrite) as temp, open(temp, "wb") as handle:
+            np.savez(handle, **members)
     except OSError as exc:
         raise InputError(f"{path}: cannot write: {exc.strerror or exc}") from None
-    try:
-        with handle:
-            np.savez(handle, **members)
-        if overwrite:
-            os.replace(target, path)
-    except BaseException as exc:
-        target.unlink(missing_ok=True)
-        if isinstance(exc, OSError):
-            raise InputError(f"{path}: cannot write: {exc.strerror or exc}") from None
-        raise
     return path
 
 
@@ -120,26 +109,56 @@ def load_hierarchy(path) -> Hierarchy:
             (dtypes, shapes, counts), non-finite values, or inconsistent
             structure (levels, child or point ranges out of bounds).
     """
-    path = Path(path)
-    if not path.exists():
-        raise InputError(f"{path}: no such file")
-    if path.is_dir():
-        raise InputError(f"{path}: is a directory, not a file")
+    path = check_readable(path)  # a regular file: no FIFO, device or folder
     # np.load guesses the format from the first bytes and reads anything else as a pickle, whose
     # error ("load it unsafely ...") misleads: a hierarchy is a zip (.npz) archive, check that first.
     if not zipfile.is_zipfile(path):
         raise InputError(f"{path}: not a surfsplat hierarchy file (not an .npz archive, or truncated)")
     try:
-        archive = np.load(path, allow_pickle=False)
-        if not isinstance(archive, np.lib.npyio.NpzFile):
-            raise InputError(f"{path}: not a surfsplat hierarchy file (a single NumPy array)")
-        with archive:
-            members = {name: archive[name] for name in archive.files}
+        members = _read_members(path)
     except InputError:
         raise
-    except (zipfile.BadZipFile, zlib.error, ValueError, OSError, EOFError, KeyError, pickle.UnpicklingError) as exc:
+    except (zipfile.BadZipFile, zlib.error, ValueError, OSError, EOFError, KeyError, NotImplementedError,
+            RuntimeError) as exc:
         raise InputError(f"{path}: not a readable surfsplat hierarchy file ({exc})") from None
     return _from_members(members, str(path))
+
+
+def _read_members(path: Path) -> dict[str, np.ndarray]:
+    """The archive's ``.npy`` members, each checked before it is read: the total uncompressed size
+    (from the zip directory) at most :func:`~surfsplat.io.atomic.memory_limit` (the memory available
+    now), no object (pickled) arrays, and every member's declared shape times its item size equal to
+    the bytes it holds. Reading never inflates more than a member's declared size (zipfile stops
+    there and checks the CRC), so a zip bomb or a header declaring a terabyte shape is an InputError."""
+    members = {}
+    with zipfile.ZipFile(path) as archive:
+        infos = [info for info in archive.infolist() if not info.is_dir()]
+        total = sum(info.file_size for info in infos)
+        limit = memory_limit()
+        if total > limit:
+            raise InputError(f"{path}: the archive inflates to {total:,} bytes, more than the "
+                             f"{limit:,} bytes of memory available; refusing to read it")
+        for info in infos:
+            name = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
+            with archive.open(info) as stream:
+                version = np.lib.format.read_magic(stream)
+                if version == (1, 0):
+                    shape, fortran, dtype = np.lib.format.read_array_header_1_0(stream)
+                else:
+                    shape, fortran, dtype = np.lib.format.read_array_header_2_0(stream)
+                if dtype.hasobject:
+                    raise InputError(f"{path}: member '{name}' holds Python objects (pickle); refused")
+                count = int(np.prod(shape, dtype=object))
+                need = count * dtype.itemsize
+                if need != info.file_size - stream.tell():
+                    raise InputError(f"{path}: member '{name}' declares shape {shape} of {dtype} "
+                                     f"({need:,} bytes) but holds {info.file_size - stream.tell():,} bytes")
+                data = stream.read(need)
+                if len(data) != need:
+                    raise InputError(f"{path}: member '{name}' is truncated")
+                array = np.frombuffer(data, dtype=dtype, count=count)
+                members[name] = array.reshape(shape, order="F" if fortran else "C").copy()
+    return members
 
 
 def _scalar(members: dict, name: str, source: str, kind) -> object:

@@ -7,7 +7,9 @@
   other file -> validated :class:`~surfsplat.cloud.SplatCloud`.
 - :func:`load`: ``.ply`` (point cloud, surfel model or triangle mesh), ``.obj``,
   ``.stl``, ``.off``, ``.glb``, ``.gltf`` (triangle meshes: their vertices),
-  ``.las`` / ``.laz`` (LiDAR, needs ``surfsplat[las]``) -> validated
+  ``.las`` / ``.laz`` (LiDAR, needs ``surfsplat[las]``), ``.pcd`` (PCL,
+  :mod:`.pcd`), ``.xyz`` / ``.pts`` / ``.csv`` / ``.txt`` (point text,
+  :mod:`.text`), trained Gaussian-splat ``.ply`` (:mod:`.gaussians`) -> validated
   :class:`~surfsplat.cloud.SplatCloud`.
 - :func:`save_ply`: a SplatCloud -> PLY with every array it holds; ``load``
   reads it back identically.
@@ -29,8 +31,11 @@ from pathlib import Path
 
 from ..cloud import SplatCloud
 from ..errors import InputError
+from .atomic import check_readable
 from .mesh import TRIMESH_TYPES, Mesh, area_weighted_normals, check_face_indices, read_trimesh
 from .las import read_las
+from .pcd import read_pcd
+from .text import TEXT_EXTENSIONS, read_text
 from .ply import read_ply, read_ply_input, read_ply_mesh, write_ply
 from .surface import (AUTO, DEFAULT_SHARP_ANGLE, WELD_TOLERANCE, auto_sharp_angle, crease_normals, dihedral_angles,
                       shading_normals, weld)
@@ -38,7 +43,7 @@ from .surface import (AUTO, DEFAULT_SHARP_ANGLE, WELD_TOLERANCE, auto_sharp_angl
 #: File extensions :func:`load_mesh` understands (lower case).
 MESH_EXTENSIONS = (".ply", ".obj", ".stl", ".off", ".glb", ".gltf")
 #: File extensions :func:`load` and :func:`load_input` understand (lower case).
-CLOUD_EXTENSIONS = MESH_EXTENSIONS + (".las", ".laz")
+CLOUD_EXTENSIONS = MESH_EXTENSIONS + (".las", ".laz", ".pcd") + TEXT_EXTENSIONS
 
 
 def load(path: str | os.PathLike) -> SplatCloud:
@@ -57,6 +62,11 @@ def load(path: str | os.PathLike) -> SplatCloud:
       no faces is read as a point cloud (no normals). (:func:`load_input`
       gives the mesh itself, whose surface is what should be drawn.)
     - ``.las`` / ``.laz``: positions and RGB (optional dependency laspy).
+    - ``.pcd``: PCL point clouds, ascii or binary (:mod:`surfsplat.io.pcd`).
+    - ``.xyz``, ``.pts``, ``.csv``, ``.txt``: point text, with a header row of
+      names or columns ``x y z [nx ny nz] [r g b]`` (:mod:`surfsplat.io.text`).
+    - a ``.ply`` of trained Gaussians (3DGS / 2DGS): splat ellipses
+      (:mod:`surfsplat.io.gaussians`).
 
     Returns a SplatCloud: positions (N, 3) float32 model space (the file's
     units); normals (N, 3) unit, colors (N, 3) in [0, 1], u, v (N, 3) model
@@ -76,7 +86,7 @@ def load(path: str | os.PathLike) -> SplatCloud:
     elif suffix in TRIMESH_TYPES:
         cloud = _mesh_to_cloud(read_trimesh(path, TRIMESH_TYPES[suffix]), str(path))
     else:
-        cloud = read_las(path)
+        cloud = _read_points(path)
     return cloud.validated(source=str(path))
 
 
@@ -133,7 +143,7 @@ def load_input(path: str | os.PathLike) -> Mesh | SplatCloud:
         if len(data.faces) == 0:  # an OBJ with vertices only
             data = _mesh_to_cloud(data, str(path))
     else:
-        data = read_las(path)
+        data = _read_points(path)
     if isinstance(data, Mesh):
         return weld(data.validated(str(path)))
     return data.validated(source=str(path))
@@ -171,11 +181,17 @@ def _existing(path: str | os.PathLike, extensions: tuple[str, ...]) -> Path:
     if suffix not in extensions:
         raise InputError(f"{path}: unknown file type {suffix or '(no extension)'!r}; "
                          f"expected one of {', '.join(extensions)}")
-    if not path.exists():
-        raise InputError(f"{path}: no such file")
-    if path.is_dir():
-        raise InputError(f"{path}: is a directory, not a file")
-    return path
+    return check_readable(path)  # a regular file: no FIFO, device or folder
+
+
+def _read_points(path: Path) -> SplatCloud:
+    """A point-only file (LAS/LAZ, PCD, point text) by its extension, unvalidated."""
+    suffix = path.suffix.lower()
+    if suffix == ".pcd":
+        return read_pcd(path)
+    if suffix in TEXT_EXTENSIONS:
+        return read_text(path)
+    return read_las(path)
 
 
 def _mesh_to_cloud(mesh: Mesh, source: str) -> SplatCloud:

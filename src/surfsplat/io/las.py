@@ -3,12 +3,26 @@
 Positions are the scaled coordinates (``las.x``, ``las.y``, ``las.z``, i.e.
 ``X * scale + offset``) in the file's units, cast to float32. Colors come from
 the ``red green blue`` fields where the point format has them: the fields are
-16-bit, but many files store 8-bit values, so values are divided by 255 when
-the largest is <= 255 and by 65535 otherwise. LAS has no normals.
+16-bit, but many files store 8-bit values; :func:`rgb_scale` decides which. LAS
+has no normals.
+
+Before anything is allocated, the header is checked against the file
+(:func:`check_header`): the point count times the record length must fit in the
+file (``.las``) and in the memory available, the VLR and EVLR counts in the bytes
+that hold them; a FIFO or device is refused before opening (``surfsplat.io``).
+``.laz`` files are decompressed in a child process (``sys.executable``, with
+laspy and lazrs): a corrupt file that makes the decompressor abort or crash
+takes down the child only and is an InputError naming the file.
 """
 
 from __future__ import annotations
 
+import os
+import signal
+import struct
+import subprocess
+import sys
+import tempfile
 import warnings
 from pathlib import Path
 
@@ -16,19 +30,83 @@ import numpy as np
 
 from ..cloud import SplatCloud
 from ..errors import InputError
+from .atomic import memory_limit
 
 
 class CoordinatePrecisionWarning(UserWarning):
     """Coordinates are too large for float32 to keep the file's resolution."""
 
 
+#: The child process that decodes a LAZ file: argv = [file, output .npz]; the same arrays as :func:`_arrays`.
+_LAZ_CHILD = """
+import sys, numpy as np, laspy
+las = laspy.read(sys.argv[1])
+out = {"xyz": np.column_stack([np.asarray(las.x, dtype=np.float64), np.asarray(las.y, dtype=np.float64),
+                               np.asarray(las.z, dtype=np.float64)]),
+       "scales": np.asarray(las.header.scales, dtype=np.float64)}
+if {"red", "green", "blue"} <= set(las.point_format.dimension_names):
+    out["rgb"] = np.column_stack([np.asarray(las.red), np.asarray(las.green), np.asarray(las.blue)])
+np.savez(sys.argv[2], **out)
+"""
+
+
+def rgb_scale(rgb: np.ndarray) -> float:
+    """The divisor of LAS colors: 65535 when more than 1% of the non-zero values exceed 255 (16-bit
+    colors), else 255 (8-bit colors stored in the 16-bit fields; the rare values above 255 are then
+    clipped to 1). A single out-of-range value thus cannot switch a whole 8-bit cloud to the 16-bit
+    scale (and render it black)."""
+    values = np.asarray(rgb).ravel()
+    nonzero = int(np.count_nonzero(values))
+    if nonzero == 0:
+        return 255.0
+    return 65535.0 if int(np.count_nonzero(values > 255)) > 0.01 * nonzero else 255.0
+
+
+def check_header(path: Path, source: str) -> None:
+    """InputError naming ``source`` when the LAS header cannot describe the file: too short, no
+    ``LASF`` signature, header or point offsets outside the file, more VLRs or EVLRs than the bytes
+    reserved for them can hold, or more points (count times record length) than the file (``.las``)
+    or the available memory can hold."""
+    size = os.stat(path).st_size
+    with open(path, "rb") as stream:
+        head = stream.read(375)
+    if len(head) < 227 or head[:4] != b"LASF":
+        raise InputError(f"{source}: cannot read LAS file: not a LAS file (no LASF header of 227 bytes)")
+    minor = head[25]
+    header_size, offset, n_vlr = struct.unpack_from("<HII", head, 94)
+    record = struct.unpack_from("<H", head, 105)[0]
+    count = struct.unpack_from("<I", head, 107)[0]
+    if header_size < 227 or header_size > size or offset < header_size or offset > size:
+        raise InputError(f"{source}: cannot read LAS file: header size {header_size} or point data offset "
+                         f"{offset} outside the file ({size:,} bytes)")
+    if n_vlr * 54 > offset - header_size:
+        raise InputError(f"{source}: cannot read LAS file: the header declares {n_vlr:,} VLRs (at least "
+                         f"{54 * n_vlr:,} bytes) but only {offset - header_size:,} bytes precede the points")
+    if minor >= 4 and len(head) >= 255 and header_size >= 255:
+        start_evlr, n_evlr, count64 = struct.unpack_from("<QIQ", head, 235)
+        count = count64 or count
+        if n_evlr and (start_evlr < offset or n_evlr * 60 > size - min(start_evlr, size)):
+            raise InputError(f"{source}: cannot read LAS file: the header declares {n_evlr:,} EVLRs at "
+                             f"byte {start_evlr:,}, which the file ({size:,} bytes) cannot hold")
+    need = count * record
+    if path.suffix.lower() != ".laz" and need > size - offset:
+        raise InputError(f"{source}: cannot read LAS file: the header declares {count:,} points of {record} "
+                         f"bytes ({need:,} bytes) but the file holds {size - offset:,} bytes of points "
+                         "(truncated file, or a wrong point count)")
+    limit = memory_limit()
+    if need > limit:
+        raise InputError(f"{source}: cannot read LAS file: the header declares {count:,} points "
+                         f"({need:,} bytes), more than the {limit:,} bytes of memory available")
+
+
 def read_las(path: Path) -> SplatCloud:
     """Read a .las or .laz file as an (unvalidated) SplatCloud.
 
     Returns positions (N, 3) float32 in the file's units, and colors (N, 3)
-    float32 in [0, 1] when the point format has RGB. Warns
-    (:class:`CoordinatePrecisionWarning`) when georeferenced coordinates are
-    so large that float32 rounds them more coarsely than the file's scale.
+    float32 in [0, 1] when the point format has RGB (scale: :func:`rgb_scale`).
+    Warns (:class:`CoordinatePrecisionWarning`) when georeferenced coordinates
+    are so large that float32 rounds them more coarsely than the file's scale.
+    ``.laz`` is decoded in a child process (see the module docstring).
     """
     source = str(path)
     try:
@@ -37,24 +115,28 @@ def read_las(path: Path) -> SplatCloud:
         raise InputError(f"{source}: reading LAS/LAZ files needs laspy; install it with "
                          "`pip install surfsplat[las]` (LAZ also needs `pip install lazrs`)") from exc
     try:
-        las = laspy.read(source)
-        xyz = np.column_stack([np.asarray(las.x, dtype=np.float64),
-                               np.asarray(las.y, dtype=np.float64),
-                               np.asarray(las.z, dtype=np.float64)])
-        dims = set(las.point_format.dimension_names)
-        colors = None
-        if {"red", "green", "blue"} <= dims:
-            rgb = np.column_stack([np.asarray(las.red), np.asarray(las.green), np.asarray(las.blue)])
-            top = int(rgb.max()) if rgb.size else 0
-            colors = (rgb.astype(np.float64) / (255.0 if top <= 255 else 65535.0)).astype(np.float32)
-        scales = np.asarray(las.header.scales, dtype=np.float64)
-    except MemoryError:
-        raise
-    except Exception as exc:  # laspy.LaspyException (bad header, no LAZ backend), OSError, ValueError, ...
-        hint = ""
-        if Path(source).suffix.lower() == ".laz" and "laz" in str(exc).lower():
-            hint = " (LAZ needs a backend: `pip install lazrs`)"
-        raise InputError(f"{source}: cannot read LAS file: {type(exc).__name__}: {exc}{hint}") from exc
+        check_header(Path(path), source)
+    except OSError as exc:
+        raise InputError(f"{source}: cannot read LAS file: {exc.strerror or exc}") from exc
+    if Path(path).suffix.lower() == ".laz":
+        xyz, rgb, scales = _decode_laz(Path(path), source)
+    else:
+        try:
+            las = laspy.read(source)
+            xyz = np.column_stack([np.asarray(las.x, dtype=np.float64),
+                                   np.asarray(las.y, dtype=np.float64),
+                                   np.asarray(las.z, dtype=np.float64)])
+            rgb = None
+            if {"red", "green", "blue"} <= set(las.point_format.dimension_names):
+                rgb = np.column_stack([np.asarray(las.red), np.asarray(las.green), np.asarray(las.blue)])
+            scales = np.asarray(las.header.scales, dtype=np.float64)
+        except MemoryError:
+            raise
+        except Exception as exc:  # laspy.LaspyException (bad header), OSError, ValueError, ...
+            raise InputError(f"{source}: cannot read LAS file: {type(exc).__name__}: {exc}") from exc
+    colors = None
+    if rgb is not None:
+        colors = np.clip(rgb.astype(np.float64) / rgb_scale(rgb), 0.0, 1.0).astype(np.float32)
 
     finite = xyz[np.isfinite(xyz).all(axis=1)]
     if len(finite):
@@ -66,3 +148,36 @@ def read_las(path: Path) -> SplatCloud:
                 f"{spacing.max():g} in float32 positions (the file's resolution is {scales.min():g})",
                 CoordinatePrecisionWarning, stacklevel=3)
     return SplatCloud(positions=xyz.astype(np.float32), colors=colors)
+
+
+def _decode_laz(path: Path, source: str) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """``(xyz (N, 3) float64, rgb (N, 3) uint16 or None, scales (3,))`` of a LAZ file, decoded by
+    :data:`_LAZ_CHILD` in a child process; its crash, abort, failure or hang is an InputError."""
+    timeout = 60.0 + os.stat(path).st_size / 1e6  # generous: about a second per megabyte
+    with tempfile.TemporaryDirectory(prefix="surfsplat-laz-") as folder:
+        out = Path(folder) / "points.npz"
+        try:
+            done = subprocess.run([sys.executable, "-c", _LAZ_CHILD, str(path), str(out)],
+                                  capture_output=True, timeout=timeout, stdin=subprocess.DEVNULL)
+        except subprocess.TimeoutExpired:
+            raise InputError(f"{source}: cannot read LAZ file: decompression did not finish in "
+                             f"{timeout:.0f} s") from None
+        except OSError as exc:
+            raise InputError(f"{source}: cannot read LAZ file: cannot start a decoder: {exc}") from exc
+        if done.returncode != 0:
+            if done.returncode < 0:
+                try:
+                    name = signal.Signals(-done.returncode).name
+                except ValueError:
+                    name = f"signal {-done.returncode}"
+                problem = f"the decompressor crashed ({name}); the file is corrupt"
+            else:
+                lines = done.stderr.decode("utf-8", "replace").strip().splitlines()
+                problem = lines[-1] if lines else f"the decoder failed (exit status {done.returncode})"
+            hint = " (LAZ needs a backend: `pip install lazrs`)" if "backend" in problem.lower() else ""
+            raise InputError(f"{source}: cannot read LAZ file: {problem}{hint}")
+        try:
+            with np.load(out, allow_pickle=False) as data:
+                return data["xyz"], (data["rgb"] if "rgb" in data.files else None), data["scales"]
+        except (OSError, ValueError, KeyError) as exc:
+            raise InputError(f"{source}: cannot read LAZ file: {exc}") from exc

@@ -11,6 +11,7 @@ STL, OFF, GLB and glTF files (trimesh, here: :func:`read_trimesh`).
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -214,6 +215,8 @@ def read_trimesh(path: Path, file_type: str | None = None) -> Mesh:
     source = str(path)
     file_type = file_type or TRIMESH_TYPES.get(Path(path).suffix.lower(), Path(path).suffix.lower().lstrip("."))
     name = file_type.upper()
+    if file_type == "obj":
+        check_obj_indices(Path(path), source)
     try:
         loaded = trimesh.load(source, file_type=file_type, process=False)
         parts = _trimesh_parts(loaded)
@@ -238,6 +241,38 @@ def read_trimesh(path: Path, file_type: str | None = None) -> Mesh:
     if len(vertices) == 0:
         raise InputError(f"{source}: {name} file has no vertices")
     return Mesh(vertices, faces, normals, colors)
+
+
+def check_obj_indices(path: Path, source: str) -> None:
+    """InputError naming ``source`` when a face of an OBJ file refers to a vertex that does not exist:
+    index 0 (OBJ indices are 1-based; trimesh would wrap it to the last vertex), an index above the
+    number of ``v`` lines, or a negative (relative) index reaching before the first vertex. Checks the
+    vertex index of each face corner (``f v``, ``f v/t``, ``f v/t/n``, ``f v//n``) against all the
+    file's vertices."""
+    try:
+        text = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{source}: cannot read OBJ file: {exc.strerror or exc}") from exc
+    n_vertices = len(re.findall(rb"(?m)^[ \t]*v[ \t]", text))
+    faces = re.findall(rb"(?m)^[ \t]*f[ \t]+([^\r\n#]*)", text)
+    if not faces:
+        return
+    tokens = re.findall(rb"(?:^|(?<=\s))([+-]?\d+)", b"\n".join(faces))
+    if not tokens:
+        return
+    if max(map(len, tokens)) > 18:
+        raise InputError(f"{source}: cannot read OBJ file: a face index with more than 17 digits; no file has that many vertices")
+    indices = np.array(tokens).astype(np.int64)
+    zero = indices == 0
+    if zero.any():
+        raise InputError(f"{source}: cannot read OBJ file: a face refers to vertex 0, but OBJ vertex indices start at 1 "
+                         f"({int(zero.sum())} such corners)")
+    too_big = (indices > n_vertices) | (indices < -n_vertices)
+    if too_big.any():
+        value = indices[np.argmax(too_big)]
+        raise InputError(f"{source}: cannot read OBJ file: a face refers to vertex {value}, but the file has {n_vertices} vertices "
+                         f"(valid indices 1..{n_vertices} or -1..-{n_vertices}); "
+                         f"{int(too_big.sum())} corners out of range")
 
 
 def _trimesh_parts(loaded) -> list[tuple[object, np.ndarray]]:

@@ -41,7 +41,10 @@ from plyfile import PlyData, PlyElement, PlyElementParseError, PlyParseError
 from ..cloud import NO_CLIP, SplatCloud
 from ..errors import InputError
 from ..frames import tangent_frame
+from .gaussians import cloud_from_gaussians, is_gaussian_ply
 from .mesh import Mesh, area_weighted_normals, check_face_indices
+from .atomic import atomic_path
+from .ply_layout import check_body, check_consumed
 
 #: Names of the face element's list property, in order of preference.
 FACE_LIST_NAMES = ("vertex_indices", "vertex_index")
@@ -63,6 +66,10 @@ def read_elements(path: Path) -> dict[str, np.ndarray]:
     readers do not accept is read by plyfile, which gives the error messages.
     """
     source = str(path)
+    try:
+        layout = check_body(path, source)  # the header's counts against the body's size
+    except OSError as exc:
+        raise InputError(f"{source}: cannot read PLY file: {exc.strerror or exc}") from exc
     try:
         fast = _read_ascii_fast(path)
     except MemoryError:
@@ -87,7 +94,9 @@ def read_elements(path: Path) -> dict[str, np.ndarray]:
         raise InputError(f"{source}: cannot read PLY file: {exc.strerror or exc}") from exc
     except Exception as exc:  # ValueError, EOFError, UnicodeDecodeError, struct errors, ...
         raise InputError(f"{source}: malformed PLY file: {type(exc).__name__}: {exc}") from exc
-    return {element.name: element.data for element in ply.elements}
+    elements = {element.name: element.data for element in ply.elements}
+    check_consumed(layout, elements, source)
+    return elements
 
 
 _PLY_TYPES = {
@@ -218,6 +227,8 @@ def cloud_from_elements(elements: dict[str, np.ndarray], source: str) -> SplatCl
     """The SplatCloud of parsed PLY elements (:func:`read_elements`); see :func:`read_ply`."""
     data = _vertex_element(elements, source)
     names = set(data.dtype.names or ())
+    if is_gaussian_ply(names):  # a trained 3DGS / 2DGS model: see surfsplat.io.gaussians
+        return cloud_from_gaussians(data, source)
 
     positions = _group(data, names, ("x", "y", "z"), source, required=True)
     normals = _group(data, names, ("nx", "ny", "nz"), source)
@@ -450,8 +461,8 @@ def write_ply(cloud: SplatCloud, path: Path, *, binary: bool = True, overwrite: 
                   comments=["written by surfsplat"])
     if path.is_dir():
         raise InputError(f"{path}: is a directory, not a file")
-    try:
-        with open(path, "wb" if overwrite else "xb") as stream:
+    try:  # through a temporary file beside ``path``: a failed write leaves no partial file, an old one intact
+        with atomic_path(path, overwrite=overwrite) as temp, open(temp, "wb") as stream:
             if binary:
                 ply.write(stream)
             else:  # plyfile writes ascii row by row with one savetxt call each: slow
