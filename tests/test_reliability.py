@@ -306,8 +306,11 @@ def test_output_hard_link_of_input_refused(tmp_path, capsys):
     old = source.read_bytes()
     link = tmp_path / "link.ply"
     os.link(source, link)
-    for command in ("preprocess", "phong"):
-        status = main(["-q", command, str(source), "-o", str(link), "--force"])
+    for command in (["preprocess"], ["phong", "--count", "50"], ["build"]):
+        out = link if command[0] != "build" else tmp_path / "link.npz"
+        if command[0] == "build":
+            os.link(source, out)
+        status = main(["-q", *command, str(source), "-o", str(out), "--force"])
         err = capsys.readouterr().err
         assert status != 0 and "refusing to overwrite" in err, (command, err)
     assert source.read_bytes() == old and link.read_bytes() == old
@@ -356,6 +359,7 @@ def mutate(data: bytes, rng: np.random.Generator) -> bytes:
     return bytes(data)
 
 
+@pytest.mark.filterwarnings("ignore")
 def test_fuzz_readers_raise_only_input_error(tmp_path):
     rng = np.random.default_rng(2024)
     files = seeds(tmp_path)
