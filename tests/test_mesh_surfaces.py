@@ -230,8 +230,8 @@ def test_load_input_tells_a_mesh_from_a_point_cloud(tmp_path):
     assert isinstance(load_input(tmp_path / "points.ply"), SplatCloud)
     (tmp_path / "points.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
     assert isinstance(load_input(tmp_path / "points.obj"), SplatCloud)
-    with pytest.raises(InputError, match=r"box\.xyz: unknown file type"):
-        load_input(tmp_path / "box.xyz")
+    with pytest.raises(InputError, match=r"box\.e58: unknown file type"):
+        load_input(tmp_path / "box.e58")
     with pytest.raises(InputError, match=r"nothing\.stl: no such file"):
         load_input(tmp_path / "nothing.stl")
 

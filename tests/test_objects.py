@@ -164,3 +164,20 @@ def test_to_open3d_without_open3d_is_a_clear_error():
     else:
         out = to_open3d(SplatCloud(np.zeros((2, 3))))
         assert len(np.asarray(out.points)) == 2
+
+
+def test_render_takes_arrays_tables_and_trimesh_objects():
+    """The front door: surfsplat.render of an ndarray, a dict of columns and a trimesh mesh."""
+    import trimesh
+
+    import surfsplat
+
+    rng = np.random.default_rng(0)
+    sphere = rng.normal(size=(4000, 3))
+    sphere /= np.linalg.norm(sphere, axis=1, keepdims=True)
+    for source in (sphere, {"x": sphere[:, 0], "y": sphere[:, 1], "z": sphere[:, 2]},
+                   trimesh.creation.icosphere(subdivisions=3)):
+        frame = surfsplat.render(source, width=64, height=64)
+        assert 0.3 < frame.mask.mean() < 0.9, type(source).__name__
+    with pytest.raises(surfsplat.InputError, match="cannot render a int"):
+        surfsplat.render(42)

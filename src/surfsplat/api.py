@@ -26,6 +26,7 @@ from .geometry.robust import OUTLIER_ACTIONS, OutlierAction
 from .geometry.sampling import DEFAULT_SPACING_PX, samples_for_pixels, surface_splats
 from .hierarchy import Hierarchy, LodShading, Selection, build_hierarchy, load_hierarchy, select
 from .io import Mesh, load, load_input, load_mesh
+from .io.objects import from_object
 from .io.surface import AUTO
 from .lighting import Lights
 from .render.frame import Frame
@@ -176,11 +177,15 @@ def load_model(source, source_options: SourceOptions | None = None) -> Model:
     for a mesh (a file with faces: PLY, OBJ, STL, OFF, GLB/glTF; welded; its surface is sampled
     for the view by :func:`render_model`), or its vertices as points with
     ``source_options.vertices``; else a render-ready SplatCloud from a SplatCloud or a point
-    file (see :func:`as_splats`).
+    file (see :func:`as_splats`). Other objects go through :func:`surfsplat.io.objects.from_object`:
+    an (N, 3) array, a dict/record array/DataFrame of named columns, trimesh and Open3D point
+    clouds and meshes.
     """
     surface = source_options or SourceOptions()
     if isinstance(source, Hierarchy):
         return source
+    if not isinstance(source, (str, Path, SplatCloud, Mesh)):
+        source = from_object(source)   # arrays, tables, trimesh and Open3D objects
     if isinstance(source, Mesh):
         return as_splats(SplatCloud(source.vertices, source.vertex_normals, source.vertex_colors),
                          surface) if surface.vertices else source
