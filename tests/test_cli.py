@@ -303,3 +303,51 @@ def test_preprocess_and_build_sample_a_mesh(tmp_path, capsys):
     assert run(capsys, "build", mesh_path, "-o", tmp_path / "box.npz", "--samples", 3000)[0] == 0
     status, out, _ = run(capsys, "info", tmp_path / "box.npz")
     assert "points:     3,000" in out
+
+
+def test_turntable_gif_and_mp4(tmp_path, capsys):
+    from PIL import Image as PILImage
+
+    gif = tmp_path / "spin.gif"
+    status, _, err = run(capsys, "turntable", "demo:sphere", "-o", gif, "--frames", 6, "--width", 48,
+                         "--height", 40, "--elevation", 20)
+    assert status == 0, err
+    with PILImage.open(gif) as image:
+        assert image.n_frames == 6 and image.size == (48, 40)
+        frames = []
+        for i in range(image.n_frames):
+            image.seek(i)
+            frames.append(np.asarray(image.convert("RGB")).astype(int))
+    assert all(((f < 250).any(axis=2).mean() > 0.2) for f in frames)   # the model in every frame
+    assert run(capsys, "turntable", "demo:sphere", "-o", gif, "--frames", 6)[0] == 2   # exists: --force
+    pytest.importorskip("imageio_ffmpeg")
+    mp4 = tmp_path / "spin.mp4"
+    assert run(capsys, "turntable", "demo:sphere", "-o", mp4, "--frames", 8, "--width", 64, "--height", 48)[0] == 0
+    import imageio_ffmpeg
+
+    reader = imageio_ffmpeg.read_frames(str(mp4))
+    meta = next(reader)
+    assert tuple(meta["size"]) == (64, 48) and sum(1 for _ in reader) == 8
+
+
+def test_orbit_cameras_keep_distance_and_loop():
+    from surfsplat.api import orbit_cameras
+    from surfsplat.camera import Camera
+
+    cam = Camera(eye=(0, 1, 3), target=(0, 0, 0), up=(0, 1, 0), width=10, height=10)
+    ring = orbit_cameras(cam, 8)
+    distances = [np.linalg.norm(np.subtract(c.eye, c.target)) for c in ring]
+    assert np.allclose(distances, distances[0]) and ring[0].eye == cam.eye
+    assert np.allclose(ring[4].eye, (0, 1, -3), atol=1e-12)    # half a turn about +y
+    high = orbit_cameras(cam, 1, elevation=45)[0]
+    assert np.isclose(np.degrees(np.arcsin(high.eye[1] / np.linalg.norm(high.eye))), 45)
+
+
+def test_batch_render_with_a_pattern(tmp_path, capsys):
+    a = save_ply(noisy_sphere(800, seed=1), tmp_path / "a.ply")
+    b = save_ply(noisy_sphere(800, seed=2), tmp_path / "b.ply")
+    status, _, err = run(capsys, "render", a, b, "-o", tmp_path / "out_{stem}.png", "--width", 32, "--height", 32)
+    assert status == 0, err
+    assert (tmp_path / "out_a.png").exists() and (tmp_path / "out_b.png").exists()
+    status, _, err = run(capsys, "render", a, b, "-o", tmp_path / "same.png")
+    assert status == 2 and "{stem}" in err and not (tmp_path / "same.png").exists()

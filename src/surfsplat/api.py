@@ -534,3 +534,65 @@ def render_mesh(source, camera: Camera | CameraSpec | None = None, *, width: int
     camera = resolve_camera(SplatCloud(mesh.vertices), camera, width, height, default_up=natural_up(source))
     return rasterize_mesh(mesh, camera, lights or Lights(), background=background, supersample=supersample,
                           smooth=smooth, renderer=default_renderer())
+
+
+# -- animations ------------------------------------------------------------------------------
+
+def orbit_cameras(camera: Camera, frames: int, degrees: float = 360.0, elevation: float | None = None) -> list[Camera]:
+    """``frames`` cameras turning the eye about the line through the target along ``camera.up``,
+    ``degrees / frames`` apart (360: a loop whose last frame leads back to the first). With
+    ``elevation`` (degrees above the plane normal to up) the eye is first moved to that height at
+    the same distance. Image size, field of view and clip planes are kept (near/far widened to
+    hold the whole orbit)."""
+    if not (isinstance(frames, (int, np.integer)) and frames >= 1):
+        raise InputError(f"frames must be an integer >= 1, got {frames!r}")
+    if not np.isfinite(degrees):
+        raise InputError(f"degrees must be finite, got {degrees}")
+    up = np.asarray(camera.up, dtype=np.float64)
+    up /= np.linalg.norm(up)
+    target = np.asarray(camera.target, dtype=np.float64)
+    offset = np.asarray(camera.eye, dtype=np.float64) - target
+    if elevation is not None:
+        if not -89.0 <= elevation <= 89.0:
+            raise InputError(f"elevation must be within -89..89 degrees, got {elevation}")
+        flat = offset - (offset @ up) * up
+        if np.linalg.norm(flat) < 1e-12 * np.linalg.norm(offset):
+            flat = np.cross(up, [1.0, 0.0, 0.0] if abs(up[0]) < 0.9 else [0.0, 1.0, 0.0])
+        flat /= np.linalg.norm(flat)
+        angle = np.radians(elevation)
+        offset = np.linalg.norm(offset) * (np.cos(angle) * flat + np.sin(angle) * up)
+    cameras = []
+    for i in range(int(frames)):
+        a = np.radians(degrees) * i / frames
+        # Rodrigues rotation of the offset about up
+        turned = offset * np.cos(a) + np.cross(up, offset) * np.sin(a) + up * (up @ offset) * (1 - np.cos(a))
+        cameras.append(replace(camera, eye=tuple(target + turned)))
+    if camera.near is not None and camera.far is not None:
+        near, far = camera.near, camera.far
+        cameras = [replace(c, near=near, far=far) for c in cameras]
+    return cameras
+
+
+def turntable_frames(model: Model, cameras: list[Camera], *, technique: TechniqueName = "ewa",
+                     lights: Lights | None = None, background=DEFAULT_BACKGROUND,
+                     options: RenderOptions | None = None, lod_tolerance: float | None = None,
+                     lod_shading: LodShading = DEFAULT_LOD_SHADING, supersample: int = 1,
+                     source_options: SourceOptions | None = None):
+    """Yield the (H, W, 3) uint8 image of each camera (a mesh is sampled once, for the first camera;
+    a hierarchy is cut per frame). Progress every tenth of the frames."""
+    if not cameras:
+        return
+    model = surface_model(model, cameras[0], source_options)
+    if lod_tolerance is not None:
+        model = as_hierarchy(model)
+    start = time.perf_counter()
+    step = max(1, len(cameras) // 10)
+    for i, camera in enumerate(cameras):
+        result = render_model(model, camera, technique=technique, lights=lights, background=background,
+                              options=options, lod_tolerance=lod_tolerance, lod_shading=lod_shading,
+                              supersample=supersample)
+        if (i + 1) % step == 0 or i + 1 == len(cameras):
+            elapsed = time.perf_counter() - start
+            progress.message(f"  frame {i + 1}/{len(cameras)}, {elapsed / (i + 1):.2f} s a frame, "
+                             f"{elapsed / (i + 1) * (len(cameras) - i - 1):.0f} s to go")
+        yield result.frame.image()

@@ -249,14 +249,15 @@ class SplatCloud:
         keep = np.isfinite(self.positions).all(axis=1)
         reasons = {"non-finite coordinates": int(n - keep.sum())}
         if self.normals is not None:
-            length = np.linalg.norm(self.normals, axis=1)
+            length = np.linalg.norm(self.normals.astype(np.float64), axis=1)
             bad = ~np.isfinite(length) | (length < 1e-12)
             reasons["zero-length or non-finite normals"] = int((bad & keep).sum())
             keep &= ~bad
         if self.u is not None and self.v is not None:
-            lu = np.linalg.norm(self.u, axis=1)
-            lv = np.linalg.norm(self.v, axis=1)
-            cross = np.linalg.norm(np.cross(self.u, self.v), axis=1)
+            u, v = self.u.astype(np.float64), self.v.astype(np.float64)   # float32 squares overflow beyond 1e19
+            lu = np.linalg.norm(u, axis=1)
+            lv = np.linalg.norm(v, axis=1)
+            cross = np.linalg.norm(np.cross(u, v), axis=1)
             bad = ~(np.isfinite(lu) & np.isfinite(lv)) | (lu <= 0) | (lv <= 0) | (cross <= 1e-12 * lu * lv)
             reasons["zero, negative or degenerate splat radii"] = int((bad & keep).sum())
             keep &= ~bad

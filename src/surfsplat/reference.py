@@ -479,3 +479,20 @@ def clip_keep(st: np.ndarray, clip_lines: np.ndarray) -> np.ndarray:
     lines = clip_lines.reshape(clip_lines.shape[:1] + (1,) * extra + (2, 3))
     value = lines[..., 0] * st[..., None, 0] + lines[..., 1] * st[..., None, 1] + lines[..., 2]
     return (value >= 0).all(axis=-1)
+
+
+def point_diameter(camera: Camera, p_cam: np.ndarray, radii: np.ndarray, size_range=(1.0, 64.0),
+                   supersample: int = 1) -> np.ndarray:
+    """(N,) diameters in window pixels of the ``points`` technique's points: the splat radius projected
+    at the point's depth, ``2 r f / z``, clamped to ``size_range`` output pixels (Potree's adaptive point
+    size); ``camera`` is the drawn (supersampled) one, K = ``supersample`` sub-pixels per output pixel."""
+    d = 2.0 * np.asarray(radii, np.float64) * camera.focal_px / (-p_cam[:, 2])
+    return np.clip(d, size_range[0] * supersample, size_range[1] * supersample)
+
+
+def point_footprint(center: np.ndarray, diameter: float, pixels: np.ndarray) -> np.ndarray:
+    """Pixels (..., 2 window coordinates of their centers) a ``points`` point covers: centers within
+    ``diameter / 2`` of its projected ``center``, and the pixel holding the center."""
+    d = pixels - np.asarray(center, np.float64)
+    inside = (d ** 2).sum(axis=-1) <= (0.5 * diameter) ** 2
+    return inside | np.all(np.floor(pixels) == np.floor(center), axis=-1)

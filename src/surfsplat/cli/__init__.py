@@ -36,8 +36,10 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("render", help="render a point cloud, splat model or LOD hierarchy to an image")
-    p.add_argument("input", help="PLY, OBJ or LAS file, or a hierarchy MODEL.npz (surfsplat build)")
-    p.add_argument("-o", "--output", required=True, help="output image (.png)")
+    p.add_argument("input", nargs="+", help="point, splat or mesh files or hierarchies MODEL.npz (surfsplat "
+                                            "build); several: -o names each output with {stem} or {name}")
+    p.add_argument("-o", "--output", required=True,
+                   help="output image (.png); with several inputs a pattern such as out/{stem}.png")
     opt.add_source_options(p)
     p.add_argument("--depth", metavar="OUT.npy", help="also save the depth map (camera-space, inf = empty)")
     opt.add_lod_options(p)
@@ -56,10 +58,28 @@ def build_parser() -> argparse.ArgumentParser:
     opt.add_render_options(p)
     p.set_defaults(func=commands.cmd_demo)
 
+    p = sub.add_parser("turntable", help="an animation orbiting the model: GIF, MP4 or WebM")
+    p.add_argument("input", help="a point, splat or mesh file, a hierarchy MODEL.npz, or demo:NAME")
+    p.add_argument("-o", "--output", required=True, help="output animation (.gif; .mp4, .webm with the video extra)")
+    p.add_argument("--frames", type=opt.number(int, low=1, high=100_000), default=72, metavar="N",
+                   help="frames in one turn (default %(default)s)")
+    p.add_argument("--seconds", type=opt.number(float, low=0.0, low_open=True), metavar="S",
+                   help="duration (default: frames / 24)")
+    p.add_argument("--degrees", type=opt.number(float), default=360.0, help="angle of the turn (default 360)")
+    p.add_argument("--elevation", type=opt.number(float, low=-89.0, high=89.0), metavar="DEG",
+                   help="eye height above the plane normal to up, degrees (default: the starting camera's)")
+    opt.add_force_option(p)
+    p.add_argument("--supersample", type=opt.number(int, low=1, high=8), default=1, metavar="K",
+                   help="antialiasing: K x K samples per pixel (default 1)")
+    opt.add_source_options(p)
+    opt.add_lod_options(p)
+    opt.add_render_options(p)
+    p.set_defaults(func=commands.cmd_turntable)
+
     p = sub.add_parser("build", help="build the point-octree LOD hierarchy of a model; save it as one .npz file")
     p.add_argument("input", help="a point, splat or mesh file (raw points are preprocessed, meshes sampled first)")
     p.add_argument("-o", "--output", required=True, help="output hierarchy MODEL.npz")
-    p.add_argument("--leaf-capacity", type=opt.number(int, low=1), default=8, metavar="N",
+    p.add_argument("--leaf-capacity", type=opt.number(int, low=1, high=2**31 - 1), default=8, metavar="N",
                    help="at most N points in a leaf node (default %(default)s)")
     opt.add_source_options(p)
     opt.add_force_option(p)
@@ -88,7 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="instead of --error: about N splats (within 3%%)")
     p.add_argument("--sharp-angle", type=opt.SHARP_ANGLE, metavar="DEG",
                    help="keep splats from growing across edges sharper than DEG degrees and clip them there")
-    p.add_argument("--relax", type=opt.number(int, low=0), default=2, metavar="N",
+    p.add_argument("--relax", type=opt.number(int, low=0, high=1000), default=2, metavar="N",
                    help="relaxation iterations (default %(default)s)")
     p.add_argument("--margin", type=opt.number(float, low=0.0), default=0.75, metavar="F",
                    help="grow each ellipse by F times its samples' spacing so the surface between samples is "
@@ -100,7 +120,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("mesh", help="PLY or OBJ triangle mesh")
     p.add_argument("-n", type=opt.number(int, low=1), required=True, help="number of samples")
     p.add_argument("-o", "--output", required=True, help="output .ply")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--seed", type=opt.number(int, low=0, high=2**63 - 1), default=0, help="random seed (default 0)")
     p.add_argument("--smooth-normals", action="store_true",
                    help="interpolate the vertex normals (as Phong shading of the mesh does) instead of "
                         "giving each sample its face's normal")
@@ -140,5 +160,8 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         except (FileNotFoundError, PermissionError, IsADirectoryError) as exc:
             print(f"{PROG}: error: {exc.filename}: {exc.strerror}", file=sys.stderr)
+            return 2
+        except MemoryError as exc:   # last resort: the commands check sizes against the memory available first
+            print(f"{PROG}: error: out of memory{': ' + str(exc) if str(exc) else ''}", file=sys.stderr)
             return 2
     return 0

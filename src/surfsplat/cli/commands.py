@@ -4,6 +4,7 @@ library function that does the work, writes the output and reports what it did."
 from __future__ import annotations
 
 import os
+import argparse
 import time
 from pathlib import Path
 
@@ -14,6 +15,7 @@ from ..camera import camera_flags
 from ..errors import InputError
 from ..io.atomic import atomic_path, check_writable
 from ..io.camera_file import save_camera
+from ..io.video import check_video_path, write_video
 from ..render.frame import check_image_path
 from ..geometry.phong import phong_splats
 from ..geometry.preprocess import neighbour_spacing, preprocess
@@ -86,13 +88,61 @@ def render_and_save(source, args, inputs: tuple[Path, ...] = ()) -> None:
     save_outputs(result.frame, camera_file, depth, args.force)
 
 
+def output_for(pattern: str, source: str, many: bool) -> str:
+    """The output path of ``source``: ``pattern`` with ``{stem}`` (file name without suffix) and
+    ``{name}`` filled in; with several inputs the pattern must contain one of them."""
+    if many and "{stem}" not in pattern and "{name}" not in pattern:
+        raise InputError(f"{pattern}: several inputs need an output pattern with {{stem}} or {{name}}, "
+                         f"e.g. out/{{stem}}.png")
+    try:
+        return pattern.format(stem=Path(source).stem, name=Path(source).name)
+    except (KeyError, IndexError, ValueError) as exc:
+        raise InputError(f"{pattern}: bad output pattern ({exc}); use {{stem}} or {{name}}") from None
+
+
 def cmd_render(args) -> None:
-    """``surfsplat render``: a point/splat/mesh file or a hierarchy to an image (or ``--mesh``: the triangles)."""
-    inputs = (Path(args.input),)
-    if args.mesh:
-        render_mesh_and_save(args, inputs)
-        return
-    render_and_save(args.input, args, inputs)
+    """``surfsplat render``: point/splat/mesh files or hierarchies to images (or ``--mesh``: the
+    triangles); several inputs render one after another, every output checked before the first."""
+    inputs, many = list(args.input), len(args.input) > 1
+    jobs = []
+    for source in inputs:
+        job = argparse.Namespace(**vars(args))
+        job.input, job.output = source, output_for(args.output, source, many)
+        for name in ("depth", "save_camera"):
+            if getattr(args, name, None):
+                setattr(job, name, output_for(getattr(args, name), source, many))
+        jobs.append(job)
+    outputs = [Path(job.output).resolve() for job in jobs]
+    if len(set(outputs)) < len(outputs):
+        raise InputError(f"{args.output}: several inputs map to the same output; use {{name}} or another pattern")
+    for job in jobs:
+        check_image_outputs(job, tuple(Path(i) for i in inputs))
+    for job in jobs:
+        if job.mesh:
+            render_mesh_and_save(job, (Path(job.input),))
+        else:
+            render_and_save(job.input, job, (Path(job.input),))
+
+
+def cmd_turntable(args) -> None:
+    """``surfsplat turntable``: frames orbiting the model about its up axis, as GIF, MP4 or WebM."""
+    out = check_video_path(args.output)
+    check_new_output(out, (Path(args.input),) if not args.input.startswith(api.DEMO_PREFIX) else (), args.force)
+    api.check_source(args.input)
+    options, lights, camera = opt.render_options(args), opt.lights(args), opt.camera_spec(args)
+    width, height = opt.image_size(args, camera)
+    model = api.load_model(args.input, opt.source_options(args))
+    start = api.resolve_camera(model, camera, width, height, default_up=api.natural_up(args.input))
+    cameras = api.orbit_cameras(start, args.frames, args.degrees, args.elevation)
+    seconds = args.seconds or args.frames / 24.0
+    progress.message(f"{args.frames} frames over {args.degrees:g} degrees, {seconds:g} s; first camera: "
+                     f"{camera_flags(cameras[0])}")
+    frames = api.turntable_frames(model, cameras, technique=args.technique, lights=lights,
+                                  background=args.background, options=options, lod_tolerance=args.lod_tolerance,
+                                  lod_shading=args.lod_shading, supersample=args.supersample,
+                                  source_options=opt.source_options(args))
+    write_video(frames, out, fps=args.frames / seconds, overwrite=args.force)
+    progress.message(f"wrote {args.frames} frames at {width}x{height} -> {out}")
 
 
 def render_mesh_and_save(args, inputs: tuple[Path, ...]) -> None:

@@ -23,7 +23,7 @@ from ..io.surface import AUTO
 from ..lighting import MAX_LIGHTS, Lights
 from ..render.frame import BIT_DEPTHS
 from ..render.tiles import MAX_SUPERSAMPLE
-from ..render.options import KERNELS, FilterOptions, KernelOptions, RenderOptions, VisibilityOptions
+from ..render.options import KERNELS, EdlOptions, FilterOptions, KernelOptions, RenderOptions, VisibilityOptions
 from ..render.techniques import TECHNIQUES
 
 #: Output image size of ``render`` and ``demo`` (pixels).
@@ -45,9 +45,9 @@ def number(kind=float, *, low: float | None = None, high: float | None = None, l
     def parse(text: str):
         try:
             value = kind(text)
-        except ValueError:
-            value = None
-        ok = value is not None and math.isfinite(value)
+            ok = math.isfinite(value)
+        except (ValueError, OverflowError):   # OverflowError: an integer beyond float's range
+            value, ok = None, False
         if ok and low is not None:
             ok = value > low if low_open else value >= low
         if ok and high is not None:
@@ -195,6 +195,14 @@ def add_render_options(p: argparse.ArgumentParser, *, window: bool = False) -> N
                    help="n of the pajarola kernel (default %(default)s)")
     p.add_argument("--kernel-sigma", type=positive, default=default(KernelOptions, "sigma"), metavar="S",
                    help="sigma of the gaussian kernel, units of b (default %(default)s)")
+    p.add_argument("--edl", action="store_true",
+                   help="eye-dome lighting (Boucheny 2009): shade by depth discontinuities alone, for clouds "
+                        "without normals or colors (any technique; rendered images, not the window)")
+    p.add_argument("--edl-strength", type=positive, default=default(EdlOptions, "strength"), metavar="S",
+                   help="EDL strength s in exp(-s sum max(0, log2 z - log2 z_neighbour)) (default %(default)s)")
+    p.add_argument("--edl-radius", type=number(float, low=1.0, high=64.0, what="pixels"),
+                   default=default(EdlOptions, "radius_px"), metavar="PX",
+                   help="EDL neighbour distance in pixels (default %(default)s)")
 
 
 # -- parsed flags -> typed options -------------------------------------------------------
@@ -207,7 +215,8 @@ def render_options(args) -> RenderOptions:
                                      separate_sides=not args.no_separate_sides),
         kernel=KernelOptions(name=args.kernel, a=args.kernel_a, b=args.kernel_b, n=args.kernel_n,
                              sigma=args.kernel_sigma),
-        deferred=args.deferred)
+        deferred=args.deferred,
+        edl=EdlOptions(strength=args.edl_strength, radius_px=args.edl_radius) if args.edl else None)
 
 
 def lights(args) -> Lights:

@@ -33,6 +33,7 @@ from .. import progress
 from ..camera import Camera
 from ..cloud import SplatCloud
 from ..errors import InputError
+from ..io.atomic import memory_limit
 from ..io.mesh import Mesh
 from ..io.surface import AUTO, resolve_sharp_angle, shading_normals, weld, with_shading_normals
 from .neighbors import knn
@@ -54,6 +55,10 @@ DEFAULT_IMAGE_SIZE = 512
 MAX_SAMPLES = 2_000_000
 #: Neighbours that size the splats of sampled surfaces.
 SURFACE_K = 8
+
+
+#: Memory sampling holds per sample (float64 intermediates, the float32 cloud; with margin).
+BYTES_PER_SAMPLE = 256
 
 
 def _check_count(n, name: str) -> int:
@@ -156,6 +161,9 @@ def sample_mesh(mesh: Mesh, n: int, *, seed: int = 0, sharp_angle: float | None 
             whose total area is zero.
     """
     n = _check_count(n, "sample_mesh")
+    if n * BYTES_PER_SAMPLE > memory_limit():
+        raise InputError(f"sample_mesh: {n:,} samples need about {n * BYTES_PER_SAMPLE / 2**20:,.0f} MiB, more than "
+                         f"the {memory_limit() / 2**20:,.0f} MiB of memory available")
     if sharp_angle is not None:
         sharp_angle = check_sharp_angle(sharp_angle, "sample_mesh: sharp_angle")
     mesh = mesh.validated("sample_mesh: mesh")

@@ -232,9 +232,10 @@ def _test(lod: _LodArrays, rows, view: _View, lod_tolerance: float, frustum: boo
     dy = lod.cy[rows] - e[1]
     dz = lod.cz[rows] - e[2]
     radius = lod.radius[rows]
-    d2 = dx * dx
-    d2 += dy * dy
-    d2 += dz * dz
+    with np.errstate(over="ignore"):   # float32: an eye ~1e19 away is at distance inf, farther than any reach
+        d2 = dx * dx
+        d2 += dy * dy
+        d2 += dz * dz
     n = len(d2)
     if frustum:
         out, inside = _frustum(dx, dy, dz, lod.cull_radius[rows], view)

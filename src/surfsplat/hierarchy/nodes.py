@@ -239,7 +239,9 @@ def disk_radius2(dx, dy, dz, ux, uy, uz, vx, vy, vz, e1, e2, inv_ratio):
     xv, yv = frame(vx, vy, vz)
     s = xu * xu + xv * xv + yu * yu + yv * yv
     det = xu * yv - xv * yu
-    sigma = np.sqrt(0.5 * (s + np.sqrt(np.maximum(s * s - 4.0 * det * det, 0.0))))
+    # S^2 - 4 det^2 factored, so large splats (model units ~1e10 and up) do not overflow float32
+    gap = np.sqrt(np.maximum(s - 2.0 * np.abs(det), 0.0)) * np.sqrt(s + 2.0 * np.abs(det))
+    sigma = np.sqrt(0.5 * (s + gap))
     r = np.sqrt(xd * xd + yd * yd) + sigma
     return r * r
 

@@ -8,13 +8,15 @@ Every technique reads the groups it uses (see each technique's module):
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass, field
 from typing import Literal, get_args
 
 from ..errors import InputError
 
 #: Names of the rendering techniques (``render.techniques.TECHNIQUES`` holds one of each).
-TechniqueName = Literal["ewa", "perspective", "phong", "blend", "flat"]
+TechniqueName = Literal["ewa", "perspective", "phong", "blend", "flat", "points"]
 
 #: Names of the ``blend`` technique's kernels (:attr:`KernelOptions.name`).
 KernelName = Literal["pajarola", "gaussian"]
@@ -25,6 +27,18 @@ KERNELS: tuple[str, ...] = get_args(KernelName)
 #: Largest exponent a' of a blend kernel exp(-a' rho^n): its weight at the rim, exp(-80) = 1.8e-35,
 #: is still a normal float32 (the accumulation targets' precision).
 MAX_KERNEL_EXPONENT = 80.0
+#: Smallest EWA cutoff c: below it the kernel is flat across the ellipse (exp(-c) ~ 1) and the
+#: reconstruction variance 1 / (2c) of an image-filling splat nears float32's range.
+MIN_CUTOFF = 1e-3
+#: Largest visibility depth epsilon, in splat radii: far beyond any use, well inside float32.
+MAX_DEPTH_EPSILON = 1e6
+#: Largest exponent n of the pajarola kernel (the paper's 3; beyond ~100 it is a box already).
+MAX_KERNEL_N = 1e3
+
+
+def _is_number(value) -> bool:
+    """A real number (not a bool, not a string), finite."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
 
 
 @dataclass(frozen=True)
@@ -44,8 +58,10 @@ class FilterOptions:
     cutoff: float = 1.0
 
     def __post_init__(self) -> None:
-        if not (self.cutoff > 0):
-            raise InputError(f"cutoff must be positive, got {self.cutoff}")
+        # the weight at the ellipse's rim is exp(-c): above MAX_KERNEL_EXPONENT it underflows float32
+        if not (_is_number(self.cutoff) and MIN_CUTOFF <= self.cutoff <= MAX_KERNEL_EXPONENT):
+            raise InputError(f"cutoff must be a number in [{MIN_CUTOFF:g}, {MAX_KERNEL_EXPONENT:g}], "
+                             f"got {self.cutoff!r}")
 
 
 @dataclass(frozen=True)
@@ -76,8 +92,9 @@ class VisibilityOptions:
     separate_sides: bool = True
 
     def __post_init__(self) -> None:
-        if not (self.depth_epsilon >= 0):
-            raise InputError(f"depth epsilon must be non-negative, got {self.depth_epsilon}")
+        if not (_is_number(self.depth_epsilon) and 0 <= self.depth_epsilon <= MAX_DEPTH_EPSILON):
+            raise InputError(f"depth epsilon must be a number in [0, {MAX_DEPTH_EPSILON:g}] (splat radii), "
+                             f"got {self.depth_epsilon!r}")
 
 
 @dataclass(frozen=True)
@@ -107,6 +124,8 @@ class KernelOptions:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and 0 < value < float("inf")):
                 raise InputError(f"kernel {name} must be a positive number, got {value!r}")
+        if self.n > MAX_KERNEL_N:
+            raise InputError(f"kernel n must be in (0, {MAX_KERNEL_N:g}], got {self.n!r}")
         a, _ = self.exponent()
         if a > MAX_KERNEL_EXPONENT:
             # exp(-a) at the rim would underflow float32: pixels only that splat covers get no weight (holes)
@@ -118,8 +137,30 @@ class KernelOptions:
         """``(a', n')`` with the kernel weight ``exp(-a' rho^n')`` at normalized radius rho = r / b."""
         if self.name == "gaussian":
             # Pajarola 2003, EQ 11 with r = b rho
-            return self.b ** 2 / (2.0 * self.sigma ** 2), 2.0
+            ratio = float(self.b) / float(self.sigma)   # inf for a huge ratio, never OverflowError
+            return (ratio * ratio / 2.0 if ratio < 1e150 else float("inf")), 2.0
         return float(self.a), float(self.n)   # EQ 12
+
+
+@dataclass(frozen=True)
+class EdlOptions:
+    """Eye-dome lighting (Boucheny 2009), a post pass from the depth alone (:mod:`surfsplat.render.edl`).
+
+    Attributes:
+        strength: s in ``shade = exp(-s * sum_n max(0, log2 z_p - log2 z_n))``, unitless (> 0);
+            the default is Potree's (300 x its strength 1 / 8 neighbours).
+        radius_px: r, output pixels (1..64): the 8 neighbours lie at r (cos, sin) of k 45 degrees,
+            rounded to whole pixels (Potree's 1.4 gives the 3 x 3 ring).
+    """
+
+    strength: float = 37.5
+    radius_px: float = 1.4
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.strength, (int, float)) and 0 < self.strength < float("inf")):
+            raise InputError(f"EDL strength must be a positive number, got {self.strength!r}")
+        if not (isinstance(self.radius_px, (int, float)) and 1 <= self.radius_px <= 64):
+            raise InputError(f"EDL radius must be in 1..64 pixels, got {self.radius_px!r}")
 
 
 @dataclass(frozen=True)
@@ -134,14 +175,18 @@ class RenderOptions:
         deferred: blend the splats' albedo and normals and light each pixel
             once from the blended normal (Zwicker et al. 2001; Botsch 2004, fig. 7)
             instead of lighting each splat; any technique.
+        edl: eye-dome lighting (:class:`EdlOptions`) of the rendered image; None: off.
     """
 
     filter: FilterOptions = field(default_factory=FilterOptions)
     visibility: VisibilityOptions = field(default_factory=VisibilityOptions)
     kernel: KernelOptions = field(default_factory=KernelOptions)
     deferred: bool = False
+    edl: EdlOptions | None = None
 
     def __post_init__(self) -> None:
+        if self.edl is not None and not isinstance(self.edl, EdlOptions):
+            raise InputError(f"render option edl must be an EdlOptions or None, got {type(self.edl).__name__}")
         for name, kind in (("filter", FilterOptions), ("visibility", VisibilityOptions), ("kernel", KernelOptions)):
             value = getattr(self, name)
             if not isinstance(value, kind):

@@ -14,6 +14,7 @@ The process-wide renderer of the headless context is :func:`default_renderer`
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Sequence
@@ -24,8 +25,10 @@ import numpy as np
 from ..camera import Camera
 from ..cloud import SplatCloud
 from ..errors import InputError, RenderError
+from ..io.atomic import memory_limit
 from ..lighting import MAX_LIGHTS, Lights
 from .context import headless_context, reset_headless_context
+from .edl import apply_edl
 from .frame import Frame
 from .options import RenderOptions
 from .shaders import PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBILITY, BuiltProgram, build_program, undeclared
@@ -41,9 +44,33 @@ __all__ = ["GpuSplats", "Renderer", "default_renderer", "reset_default_renderer"
 #: them there is no error. This is the one documented optional set of frame-wide uniforms;
 #: a technique lists its own optional ones in ``Technique.optional_uniforms``.
 OPTIONAL_FRAME_UNIFORMS = frozenset({"u_depth_epsilon", "u_cull_backfaces", "u_deferred", "u_separate_sides",
-                                     "u_side"})
+                                     "u_side", "u_supersample"})
 #: Texture unit of the side target during the accumulation pass (units 0 and 1 serve pass 3).
 SIDE_TEXTURE_UNIT = 2
+#: Memory a render holds per splat (host copies and the driver's buffers; measured on llvmpipe: about 93 B per
+#: splat, 145 B per pixel at 1024x1024, 400 MB for 1M splats at 1024x1024; these add margin),
+#: per output pixel (the Frame, its flipped copies, the image written) and per sub-pixel of a tile
+#: (the float targets, their read-back): :func:`render_memory`.
+BYTES_PER_SPLAT = 320
+BYTES_PER_PIXEL = 100
+BYTES_PER_SUBPIXEL = 80
+
+
+def render_memory(splats: int, width: int, height: int, supersample: int = 1, max_tile: int = MAX_TILE) -> int:
+    """Estimated bytes :meth:`Renderer.render` holds for ``splats`` splats and a width x height image."""
+    tile = min(max_tile, width * supersample) * min(max_tile, height * supersample)
+    return splats * BYTES_PER_SPLAT + width * height * BYTES_PER_PIXEL + tile * BYTES_PER_SUBPIXEL
+
+
+def check_render_memory(splats: int, width: int, height: int, supersample: int = 1,
+                        max_tile: int = MAX_TILE) -> None:
+    """InputError, before anything is allocated, when the estimate of :func:`render_memory` exceeds the
+    memory available (:func:`~surfsplat.io.atomic.memory_limit`)."""
+    need, limit = render_memory(splats, width, height, supersample, max_tile), memory_limit()
+    if need > limit:
+        raise InputError(f"rendering {splats:,} splats at {width}x{height} pixels needs about {need / 2**20:,.0f} "
+                         f"MiB, more than the {limit / 2**20:,.0f} MiB of memory available; render a smaller "
+                         f"image, fewer splats (a hierarchy with --lod-tolerance) or free memory")
 
 
 @dataclass
@@ -64,6 +91,28 @@ class GpuSplats:
             buffer.release()
         self._vaos.clear()
         self.buffers.clear()
+
+
+#: Largest magnitude of a splat's coordinates and axes: their squares stay finite in float32.
+MAX_COORDINATE = 1e18
+
+
+def _check_gpu_values(arrays: dict[str, np.ndarray]) -> None:
+    """InputError for splats the GPU cannot draw: non-finite values, zero normals, coordinates or axes
+    beyond :data:`MAX_COORDINATE` (``SplatCloud.validated`` drops the first two kinds)."""
+    for name, values in arrays.items():
+        values = np.asarray(values)
+        with np.errstate(invalid="ignore", over="ignore"):
+            bad = ~np.isfinite(values).all(axis=-1)
+            if name in ("position", "u", "v"):
+                bad |= (np.abs(values) > MAX_COORDINATE).any(axis=-1)
+            if name == "normal":
+                bad |= ~(np.einsum("ij,ij->i", values, values) > 0)
+        if bad.any():
+            limit = f" or beyond +-{MAX_COORDINATE:g}" if name in ("position", "u", "v") else ""
+            raise InputError(f"{int(bad.sum()):,} splats have non-finite{limit} {name} values"
+                             f"{' (or zero normals)' if name == 'normal' else ''}; SplatCloud.validated() drops "
+                             f"invalid splats")
 
 
 def _with_clip_planes(camera: Camera, splats: GpuSplats) -> Camera:
@@ -92,6 +141,7 @@ class Renderer:
         self._built: dict[int, BuiltProgram] = {}   # id(program) -> its BuiltProgram
         self._quad = self.ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], dtype="f4"))
         self._targets: dict | None = None
+        self._non_finite, self._background = 0, np.ones(3, "f4")   # of the render in progress
         self._parking_rb = self.ctx.renderbuffer((1, 1))
         self._parking = self.ctx.framebuffer([self._parking_rb])
         self._fullscreen = self.ctx.vertex_array(self.program("fullscreen.vert", "normalize.frag"), [])
@@ -162,6 +212,8 @@ class Renderer:
             arrays["clip0"], arrays["clip1"] = cloud.clip_lines[:, 0], cloud.clip_lines[:, 1]
         if cloud.normal_field is not None:
             arrays["normal_field"] = cloud.normal_field
+        _check_gpu_values(arrays)
+        arrays["color"] = np.clip(arrays["color"], 0.0, 1.0)
         buffers = {name: self.ctx.buffer(np.ascontiguousarray(a, dtype="f4")) for name, a in arrays.items()}
         return GpuSplats(buffers, len(cloud), cloud.bounds(), float(cloud.radii.max()))
 
@@ -221,7 +273,8 @@ class Renderer:
             if name in program:
                 program[name].value = value
 
-    def frame_uniforms(self, camera: Camera, lights: Lights, options: RenderOptions = RenderOptions()) -> dict:
+    def frame_uniforms(self, camera: Camera, lights: Lights, options: RenderOptions = RenderOptions(),
+                       supersample: int = 1) -> dict:
         """The uniforms every splat program reads, for one frame: camera (``camera.glsl``), lights
         (``lighting.glsl``) and the visibility and deferred options; those of
         :data:`OPTIONAL_FRAME_UNIFORMS` are optional where set. ``camera`` needs near/far."""
@@ -243,25 +296,27 @@ class Renderer:
             "u_separate_sides": bool(options.visibility.separate_sides),
             "u_side": SIDE_TEXTURE_UNIT,
             "u_deferred": bool(options.deferred),
+            "u_supersample": float(supersample),   # sub-pixels per output pixel of ``camera``, per axis
         }
 
     def draw(self, splats: GpuSplats, camera: Camera, technique: Technique | str = "ewa",
              lights: Lights = Lights(), options: RenderOptions = RenderOptions(),
              background=(1.0, 1.0, 1.0), output: moderngl.Framebuffer | None = None,
-             tile: tuple[int, int, int, int] | None = None) -> None:
+             tile: tuple[int, int, int, int] | None = None, supersample: int = 1) -> None:
         """Run the passes of ``technique`` and write the normalized image to ``output``.
 
         ``output`` defaults to the renderer's float color target (read by
         :meth:`render`); a window passes its own framebuffer. ``tile`` ``(x0, y0, w, h)``
         (window pixels of the camera's image, y up) draws only that rectangle, into
-        targets of its size (default: the whole image).
+        targets of its size (default: the whole image). ``supersample``: the sub-pixels per
+        output pixel along each axis that ``camera`` is drawn at (``u_supersample``).
         """
         technique = get_technique(technique) if isinstance(technique, str) else technique
         camera = _with_clip_planes(camera, splats)
         ctx = self.ctx
         tile = tile or (0, 0, camera.width, camera.height)
         targets = self._ensure_targets(tile[2], tile[3])
-        frame = self.frame_uniforms(camera, lights, options) | {"u_tile": tuple(map(float, tile))}
+        frame = self.frame_uniforms(camera, lights, options, supersample) | {"u_tile": tuple(map(float, tile))}
         uniforms = frame | technique.uniforms(options)
         optional = OPTIONAL_FRAME_UNIFORMS | technique.optional_uniforms
         passes = [PASS_VISIBILITY, PASS_ACCUMULATION] if technique.blended else [PASS_OPAQUE]
@@ -314,6 +369,14 @@ class Renderer:
         accum = np.frombuffer(targets["accum"].read(), dtype="f4").reshape(height, width, 4)
         aux = np.frombuffer(targets["aux"].read(), dtype="f4").reshape(height, width, 4)
         weight = accum[..., 3].copy()
+        # non-finite accumulations (degenerate splats): normalize.frag shows the background there;
+        # they count as empty and are reported by render()
+        bad = ~(np.isfinite(accum).all(axis=-1) & np.isfinite(aux).all(axis=-1) & np.isfinite(color).all(axis=-1))
+        if bad.any():
+            self._non_finite += int(bad.sum())
+            weight[bad] = 0.0
+            color = color.copy()
+            color[bad] = self._background
         with np.errstate(divide="ignore", invalid="ignore"):
             depth = np.where(weight > 0, aux[..., 0] / weight, np.inf).astype("f4")
         return SubPixels(color, weight, depth)
@@ -330,9 +393,12 @@ class Renderer:
         k = int(supersample)
         if isinstance(supersample, bool) or not 1 <= k <= MAX_SUPERSAMPLE or k != supersample:
             raise InputError(f"supersample must be an integer in 1..{MAX_SUPERSAMPLE}, got {supersample!r}")
+        check_render_memory(len(splats) if isinstance(splats, SplatCloud) else splats.count, camera.width,
+                            camera.height, k, max_tile)
         uploaded = None
         if isinstance(splats, SplatCloud):
             splats = uploaded = self.upload(splats)
+        self._non_finite, self._background = 0, np.asarray(background, "f4")
         try:
             camera = _with_clip_planes(camera, splats)
             big = camera.resized(camera.width * k, camera.height * k)
@@ -343,12 +409,20 @@ class Renderer:
             depth = np.empty((h, w), "f4")
             alpha = np.empty((h, w), "f4")
             for x0, y0, tw, th in tile_rects(big.width, big.height, side):
-                self.draw(splats, big, technique, lights, options, background, tile=(x0, y0, tw, th))
+                self.draw(splats, big, technique, lights, options, background, tile=(x0, y0, tw, th),
+                          supersample=k)
                 block = np.s_[y0 // k:(y0 + th) // k, x0 // k:(x0 + tw) // k]
                 color[block], weight[block], depth[block], alpha[block] = box_reduce(self._read_tile(tw, th), k)
             error = self.ctx.error
             if error != "GL_NO_ERROR":
                 raise RenderError(f"OpenGL reported {error} while rendering")
+            if self._non_finite:
+                warnings.warn(f"{self._non_finite:,} sub-pixels got a non-finite splat weight, color or depth "
+                              f"(degenerate splats?) and show the background", RuntimeWarning, stacklevel=2)
+            if not (np.isfinite(color).all() and np.isfinite(weight).all() and np.isfinite(alpha).all()):
+                raise RenderError("the rendered image has non-finite pixels")
+            if options.edl is not None:   # after tiling: neighbours across tile borders (edl.py)
+                color = apply_edl(color, depth, alpha, background, options.edl)
             flip = np.s_[::-1]   # window rows run bottom-up, Frame rows top-down
             return Frame(np.ascontiguousarray(color[flip]), np.ascontiguousarray(depth[flip]),
                          np.ascontiguousarray(weight[flip]), camera, alpha=np.ascontiguousarray(alpha[flip]),

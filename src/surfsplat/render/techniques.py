@@ -13,6 +13,7 @@ from .ewa import EWA
 from .flat import FLAT
 from .perspective import PERSPECTIVE
 from .phong import PHONG
+from .points import POINTS
 from .technique import Technique
 
 #: Technique name -> Technique; the keys are exactly ``options.TechniqueName``.
@@ -22,6 +23,7 @@ TECHNIQUES: dict[str, Technique] = {
     "phong": PHONG,
     "blend": BLEND,
     "flat": FLAT,
+    "points": POINTS,
 }
 
 

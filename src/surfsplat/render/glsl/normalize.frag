@@ -19,5 +19,11 @@ void main() {
         vec3 n = texelFetch(u_aux, px, 0).yzw;
         if (dot(n, n) > 0.0) color = shade(color, normalize(n), normalize(-pixel_ray(FRAG_PX)));
     }
+    // last resort: a non-finite accumulation (a degenerate splat) shows the background, never NaN;
+    // the renderer counts these pixels from the targets and warns (Renderer.render)
+    if (any(isnan(a)) || any(isinf(a)) || any(isnan(color)) || any(isinf(color))) {
+        out_color = vec4(u_background, 0.0);
+        return;
+    }
     out_color = vec4(clamp(color, 0.0, 1.0), 1.0);
 }
