@@ -236,7 +236,7 @@ def test_quiet_anywhere_version_and_defaults_written_once(tmp_path, capsys):
 
 @pytest.mark.parametrize("flags, message", [
     (["--width", "0"], "--width: must be an integer >= 1"),
-    (["--fov", "200"], "--fov: must be a number > 0 and < 180"),
+    (["--fov", "200"], "--fov: must be a number >= 0.001 and < 180"),
     (["--lod-tolerance", "-1"], "--lod-tolerance: must be a number >= 0"),
     (["--k", "1"], "--k: must be an integer >= 3"),
     (["--background", "0", "0", "nan"], "--background: must be a number >= 0 and <= 1"),

@@ -352,7 +352,7 @@ CAMERAS = {
     "front": Camera(width=16, height=16),
     "inside": Camera(eye=(0.0, 0.0, 0.2), width=16, height=16),
     "on_surface": Camera(eye=(0.0, 0.0, 1.0), target=(0.0, 0.0, 0.0), width=16, height=16),
-    "grazing_far": Camera(eye=(0.0, 0.0, 1e6), fov=1e-4, width=16, height=16),
+    "grazing_far": Camera(eye=(0.0, 0.0, 1e6), fov=1e-3, width=16, height=16),
 }
 
 OPTIONS = {

@@ -18,7 +18,7 @@ from typing import Union
 import numpy as np
 
 from . import progress
-from .camera import Camera, camera_flags, fit_points
+from .camera import MIN_FOV, Camera, camera_flags, fit_points
 from .cloud import SplatCloud
 from .errors import EmptyFrameWarning, InputError
 from .geometry.preprocess import preprocess
@@ -321,8 +321,8 @@ class CameraSpec:
     def __post_init__(self) -> None:
         if self.target is not None and self.eye is None:
             raise InputError("--target needs --eye (without camera flags the model is framed automatically)")
-        if not (0.0 < float(self.fov) < 180.0):
-            raise InputError(f"--fov must be in (0, 180) degrees, got {self.fov:g}")
+        if not (MIN_FOV <= float(self.fov) < 180.0):
+            raise InputError(f"--fov must be in [{MIN_FOV:g}, 180) degrees, got {self.fov:g}")
 
     def camera_for(self, cloud: SplatCloud, width: int, height: int, default_up=(0.0, 1.0, 0.0)) -> Camera:
         """The camera for a model whose splats (or points) are ``cloud``, at ``width`` x ``height`` pixels;

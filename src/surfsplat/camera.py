@@ -21,6 +21,9 @@ def _vec3(value, name: str) -> np.ndarray:
     return arr
 
 
+#: Smallest vertical field of view, degrees (a telephoto of 0.001 degrees still keeps the focal
+#: length, in pixels, far inside float32).
+MIN_FOV = 1e-3
 #: Largest image side, pixels: rendered in tiles (``render/tiles.py``); the frame's arrays take
 #: about 24 bytes a pixel in memory (a 32768 x 32768 frame: 26 GB).
 MAX_IMAGE_SIDE = 32768
@@ -54,8 +57,8 @@ class Camera:
         forward = (target - eye) / np.linalg.norm(target - eye)
         if np.linalg.norm(np.cross(forward, up)) < 1e-9 * max(np.linalg.norm(up), 1e-30):
             raise InputError("camera up vector must not be parallel to the viewing direction (or zero)")
-        if not (0.0 < float(self.fov) < 180.0):
-            raise InputError(f"field of view must be in (0, 180) degrees, got {self.fov}")
+        if not (MIN_FOV <= float(self.fov) < 180.0):
+            raise InputError(f"field of view must be in [{MIN_FOV:g}, 180) degrees, got {self.fov}")
         if not (1 <= int(self.width) <= MAX_IMAGE_SIDE and 1 <= int(self.height) <= MAX_IMAGE_SIDE):
             raise InputError(f"image size must be within 1..{MAX_IMAGE_SIDE} pixels, got {self.width}x{self.height}")
         if self.near is not None and self.far is not None and not (0 < self.near < self.far):

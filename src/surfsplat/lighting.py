@@ -43,8 +43,11 @@ class Lights:
             d = np.asarray(self.directions, dtype=np.float64).reshape(-1, 3) if np.size(self.directions) else None
             if d is None or not (1 <= len(d) <= MAX_LIGHTS):
                 raise InputError(f"between 1 and {MAX_LIGHTS} light directions are needed")
+            if not np.isfinite(d).all():
+                raise InputError(f"light directions must be finite and non-zero, got {self.directions!r}")
+            d = d / np.maximum(np.abs(d).max(axis=1, keepdims=True), 1e-300)   # no overflow in the norm
             length = np.linalg.norm(d, axis=1)
-            if not np.isfinite(d).all() or (length <= 0).any():
+            if (length <= 0).any():
                 raise InputError(f"light directions must be finite and non-zero, got {self.directions!r}")
             object.__setattr__(self, "directions", tuple(map(tuple, d / length[:, None])))
         for name in ("ambient", "diffuse", "specular", "shininess"):

@@ -110,7 +110,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="keep splats from growing across edges sharper than DEG degrees and clip them there")
     p.add_argument("--relax", type=opt.number(int, low=0, high=1000), default=2, metavar="N",
                    help="relaxation iterations (default %(default)s)")
-    p.add_argument("--margin", type=opt.number(float, low=0.0), default=0.75, metavar="F",
+    p.add_argument("--margin", type=opt.number(float, low=0.0, high=100.0), default=0.75, metavar="F",
                    help="grow each ellipse by F times its samples' spacing so the surface between samples is "
                         "covered too (default %(default)s; 0: the paper's bare smallest enclosing ellipses)")
     opt.add_force_option(p)

@@ -14,7 +14,7 @@ import dataclasses
 import math
 
 from ..api import DEFAULT_BACKGROUND, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec, SourceOptions
-from ..camera import MAX_IMAGE_SIDE, Camera
+from ..camera import MAX_IMAGE_SIDE, MIN_FOV, Camera
 from ..errors import InputError
 from ..hierarchy import SHADINGS
 from ..io.camera_file import load_camera
@@ -147,7 +147,7 @@ def add_camera_options(p: argparse.ArgumentParser) -> None:
                    help="point looked at (default: the model's center)")
     p.add_argument("--up", type=number(float), nargs=3, metavar=("X", "Y", "Z"),
                    help="camera up vector (default: 0 0 1 for LAS/LAZ files, which are z-up, else 0 1 0)")
-    p.add_argument("--fov", type=number(float, low=0.0, high=180.0, low_open=True, high_open=True, what="degrees"),
+    p.add_argument("--fov", type=number(float, low=MIN_FOV, high=180.0, high_open=True, what="degrees"),
                    default=default(CameraSpec, "fov"), help="vertical field of view in degrees (default %(default)s)")
     p.add_argument("--camera", metavar="FILE.json",
                    help="the camera of a file written by --save-camera (instead of the camera flags; its image "

@@ -248,10 +248,11 @@ def _test(lod: _LodArrays, rows, view: _View, lod_tolerance: float, frustum: boo
     # Pajarola 2003, sec. 5.1: refine while the projected size exceeds the tolerance l. The size
     # focal * 2a / max(|c - eye| - R, near) exceeds l iff |c - eye| < R + max(near, focal * 2a / l).
     if lod_tolerance > 0:
-        reach = lod.diameter[rows] * np.float32(view.focal / lod_tolerance)
-        np.maximum(reach, np.float32(view.near), out=reach)
-        reach += radius
-        reach *= reach
+        with np.errstate(over="ignore"):   # a reach beyond float32 is inf: refine (any finite distance is nearer)
+            reach = lod.diameter[rows] * np.float32(view.focal / lod_tolerance)
+            np.maximum(reach, np.float32(view.near), out=reach)
+            reach += radius
+            reach *= reach
         refine = d2 < reach
     else:
         refine = np.ones(n, dtype=bool)
