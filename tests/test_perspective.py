@@ -11,7 +11,7 @@ from surfsplat import reference, scenes
 from surfsplat.camera import Camera, frame_bounds
 from surfsplat.cloud import SplatCloud
 from surfsplat.lighting import Lights
-from surfsplat.render.options import FilterOptions, RenderOptions
+from surfsplat.render.options import FilterOptions, RenderOptions, VisibilityOptions
 from surfsplat.render.techniques import get_technique
 
 UNLIT = Lights(enabled=False)
@@ -86,7 +86,11 @@ def expected_weight(cam: Camera, cloud: SplatCloud, options: RenderOptions):
     return weight, decided, fp
 
 
-def check_against_reference(renderer, cloud: SplatCloud, cam: Camera, options=RenderOptions(),
+#: The papers' full footprints: a lone splat's fringe over the background is not clipped.
+FULL = VisibilityOptions(clip_fringe=False)
+
+
+def check_against_reference(renderer, cloud: SplatCloud, cam: Camera, options=RenderOptions(visibility=FULL),
                             require_center=True, rtol=2e-4):
     """Render one splat; hold its weight against the reference; returns (frame, footprint)."""
     frame = renderer.render(cloud, cam, "perspective", UNLIT, options)
@@ -222,7 +226,7 @@ def test_single_splat_weights_match_reference(renderer, tilt, prefilter):
     cloud = splats((0.1, -0.05, 0.0), (0.0, np.sin(a), np.cos(a)), (0.3, 0.0, 0.0),
                    (0.0, 0.15 * np.cos(a), -0.15 * np.sin(a)))
     cam = Camera(eye=(0.2, 0.1, 3.0), target=(0, 0, 0), width=96, height=80, fov=30, near=0.5, far=10.0)
-    options = RenderOptions(filter=FilterOptions(prefilter=prefilter))
+    options = RenderOptions(filter=FilterOptions(prefilter=prefilter), visibility=FULL)
     frame, fp = check_against_reference(renderer, cloud, cam, options)
     assert fp["mode"][0] == CONIC
     expected, decided, _ = expected_weight(cam, cloud, options)
@@ -243,7 +247,7 @@ def test_close_slanted_splat_differs_from_ewa_as_the_projection_does(renderer):
     a = np.radians(70.0)
     cloud = splats((0.05, 0.0, -0.5), (0.0, np.sin(a), np.cos(a)), (0.15, 0.0, 0.0),
                    (0.0, 0.15 * np.cos(a), -0.15 * np.sin(a)))
-    options = RenderOptions(filter=FilterOptions(prefilter=False))
+    options = RenderOptions(filter=FilterOptions(prefilter=False), visibility=FULL)
     frame, _ = check_against_reference(renderer, cloud, cam, options)
     disk = renderer.render(cloud, cam, "flat", UNLIT).mask
     ewa = renderer.render(cloud, cam, "ewa", UNLIT, options).mask

@@ -137,7 +137,9 @@ def render_mode(renderer, splats, camera: Camera, mode: str, lights: Lights = LI
                 cull_backfaces: bool = False) -> Frame:
     """Render ``splats`` (a SplatCloud or uploaded GpuSplats) in one of :data:`MODES`."""
     technique, deferred = MODES[mode]
-    options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=cull_backfaces), deferred=deferred)
+    # the papers' EWA splatting (full prefiltered footprints), as Botsch 2004 compared against
+    options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=cull_backfaces, clip_fringe=False),
+                            deferred=deferred)
     return renderer.render(splats, camera, technique, lights, options)
 
 

@@ -69,7 +69,8 @@ def test_single_ewa_splat_weights_match_reference(renderer, tilt, prefilter):
     v = (0.0, 0.15 * np.cos(a), -0.15 * np.sin(a))
     cloud = single_splat(normal, u, v, position=(0.1, -0.05, 0.0))
     cam = Camera(eye=(0.2, 0.1, 3.0), target=(0, 0, 0), width=96, height=80, fov=30, near=0.5, far=10.0)
-    options = RenderOptions(filter=FilterOptions(prefilter=prefilter))
+    # the papers' full footprint (over the background the fringe beyond the disk is clipped by default)
+    options = RenderOptions(filter=FilterOptions(prefilter=prefilter), visibility=VisibilityOptions(clip_fringe=False))
     frame = renderer.render(cloud, cam, "ewa", UNLIT, options)
 
     p = reference.to_camera(cam, cloud.positions)
@@ -324,8 +325,11 @@ def test_clipped_cube_has_sharp_edges_and_corners(renderer, technique):
     inside = face >= 0
     uniform = (ndimage.maximum_filter(face, 3) == ndimage.minimum_filter(face, 3)) & inside
     assert np.unique(face[uniform]).size == 3
+    # the control without clip lines draws the papers' full footprints (fringe clipping would hide
+    # most of the blended footprints' overhang beyond the silhouette, not the one over other faces)
+    full = RenderOptions(visibility=VisibilityOptions(cull_backfaces=True, clip_fringe=False))
     for model, sharp in ((cloud, True), (cloud.replace(clip_lines=None), False)):
-        frame = renderer.render(model, cam, technique, UNLIT, options)
+        frame = renderer.render(model, cam, technique, UNLIT, options if sharp else full)
         assert (ndimage.binary_erosion(inside) & ~frame.mask).sum() == 0, "holes"
         leaks = (frame.mask & ~ndimage.binary_dilation(inside)).sum()
         # pixels whose 3x3 neighbourhood lies on one face show exactly that face's color
@@ -484,3 +488,27 @@ def test_transparent_and_16_bit_output(renderer, torus_view, tmp_path):
         frame.save(tmp_path / "t.jpg", transparent=True)
     with pytest.raises(InputError, match="supersample"):
         renderer.render(cloud, cam, "ewa", Lights(), supersample=9)
+
+
+def test_clip_fringe_ends_footprints_at_the_surface(renderer):
+    """With clip_fringe (the default), a lone ewa splat's prefiltered fringe over the background is dropped (no
+    weight outside its disk), while inside a plane of touching splats the fringes still blend."""
+    cloud = single_splat((0.0, 0.0, 1.0), (0.3, 0.0, 0.0), (0.0, 0.2, 0.0))
+    cam = Camera(eye=(0.0, 0.0, 3.0), target=(0, 0, 0), width=80, height=80, fov=30, near=0.5, far=10.0)
+    clipped = RenderOptions(visibility=VisibilityOptions(clip_fringe=True))
+    full = renderer.render(cloud, cam, "ewa", UNLIT, RenderOptions(visibility=VisibilityOptions(clip_fringe=False)))
+    lone = renderer.render(cloud, cam, "ewa", UNLIT, clipped)
+    p = reference.to_camera(cam, cloud.positions)
+    rays = reference.pixel_rays(cam, reference.pixel_centers(cam).reshape(-1, 2))[None]
+    t = reference.ray_plane_distance(rays, p, reference.to_camera_dir(cam, cloud.normals))
+    st = reference.splat_coordinates(rays, t, p, reference.to_camera_dir(cam, cloud.u),
+                                     reference.to_camera_dir(cam, cloud.v))[0]
+    inside_disk = (np.sum(st ** 2, axis=-1) <= 1.0).reshape(cam.height, cam.width)
+    assert (full.mask & ~inside_disk).sum() > 5            # the prefilter's fringe reaches beyond the disk
+    assert not (lone.mask & ~inside_disk).any()              # clipped: nothing beyond it
+    np.testing.assert_array_equal(lone.weight[inside_disk], full.weight[inside_disk])
+    plane = grid_plane(40, 0.0, 1.0, (0.8, 0.5, 0.2))
+    a = renderer.render(plane, cam, "ewa", Lights())
+    b = renderer.render(plane, cam, "ewa", Lights(), clipped)
+    inner = ndimage.binary_erosion(a.mask, iterations=3)
+    np.testing.assert_array_equal(a.color[inner], b.color[inner])

@@ -181,6 +181,10 @@ def add_render_options(p: argparse.ArgumentParser, *, window: bool = False) -> N
                    help="blend splats seen from the back with the front surface within the depth epsilon "
                         "(default: a pixel blends only splats seen from the side of its nearest one, so hidden "
                         "walls never show through)")
+    p.add_argument("--no-clip-fringe", action="store_true",
+                   help="ewa/perspective: draw the papers' full prefiltered footprints, also beyond the surface over the "
+                        "background and farther surfaces (default: they end at the surface: thinner, sharper "
+                        "silhouettes and fold crests)")
     p.add_argument("--deferred", action="store_true",
                    help="deferred shading: blend albedo and normals, light each pixel once (any technique)")
     p.add_argument("--kernel", choices=KERNELS, default=default(KernelOptions, "name"),
@@ -212,7 +216,7 @@ def render_options(args) -> RenderOptions:
     return RenderOptions(
         filter=FilterOptions(prefilter=not args.no_prefilter, cutoff=args.cutoff),
         visibility=VisibilityOptions(depth_epsilon=args.depth_epsilon, cull_backfaces=args.cull_backfaces,
-                                     separate_sides=not args.no_separate_sides),
+                                     separate_sides=not args.no_separate_sides, clip_fringe=not args.no_clip_fringe),
         kernel=KernelOptions(name=args.kernel, a=args.kernel_a, b=args.kernel_b, n=args.kernel_n,
                              sigma=args.kernel_sigma),
         deferred=args.deferred,

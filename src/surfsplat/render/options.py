@@ -85,11 +85,20 @@ class VisibilityOptions:
             silhouettes) blends into it as a dark outline; with it models render
             two-sided and clean, as long as the normals are consistently
             oriented (preprocessing orients estimated normals).
+        clip_fringe: ``ewa`` and ``perspective`` (whose EWA prefilter widens every
+            footprint by about a pixel beyond the splat's disk) drop the fringe where
+            it covers no disk or only a farther surface: silhouettes and the crests
+            of folds end at the surface instead of a pixel beyond it; inside the
+            surface the fringes still blend (texture antialiasing), and a pixel no
+            disk covers keeps them where 3 or 4 of its neighbours are covered (the
+            one-pixel cracks straight clip lines leave at curved sharp edges). Off:
+            the papers' full footprints everywhere.
     """
 
     depth_epsilon: float = 1.0
     cull_backfaces: bool = False
     separate_sides: bool = True
+    clip_fringe: bool = True
 
     def __post_init__(self) -> None:
         if not (_is_number(self.depth_epsilon) and 0 <= self.depth_epsilon <= MAX_DEPTH_EPSILON):

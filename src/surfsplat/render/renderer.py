@@ -44,7 +44,9 @@ __all__ = ["GpuSplats", "Renderer", "default_renderer", "reset_default_renderer"
 #: them there is no error. This is the one documented optional set of frame-wide uniforms;
 #: a technique lists its own optional ones in ``Technique.optional_uniforms``.
 OPTIONAL_FRAME_UNIFORMS = frozenset({"u_depth_epsilon", "u_cull_backfaces", "u_deferred", "u_separate_sides",
-                                     "u_side", "u_supersample"})
+                                     "u_side", "u_supersample", "u_clip_fringe"})
+#: Pixels drawn around each tile and cropped (fringe clipping looks at each pixel's neighbours).
+TILE_MARGIN = 1
 #: Texture unit of the side target during the accumulation pass (units 0 and 1 serve pass 3).
 SIDE_TEXTURE_UNIT = 2
 #: Memory a render holds per splat (host copies and the driver's buffers; measured on llvmpipe: about 93 B per
@@ -245,7 +247,7 @@ class Renderer:
             aux = ctx.texture(size, 4, dtype="f4")
             depth = ctx.depth_texture(size)
             out = ctx.texture(size, 4, dtype="f4")
-            side = ctx.texture(size, 1, dtype="f1")   # the side of each pixel's nearest splat
+            side = ctx.texture(size, 2, dtype="f4")   # side and offset depth of each pixel's nearest disk
             for tex in (accum, aux, out, side):
                 tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
             self._targets = {
@@ -294,6 +296,7 @@ class Renderer:
             "u_depth_epsilon": float(options.visibility.depth_epsilon),
             "u_cull_backfaces": bool(options.visibility.cull_backfaces),
             "u_separate_sides": bool(options.visibility.separate_sides),
+            "u_clip_fringe": bool(options.visibility.clip_fringe),
             "u_side": SIDE_TEXTURE_UNIT,
             "u_deferred": bool(options.deferred),
             "u_supersample": float(supersample),   # sub-pixels per output pixel of ``camera``, per axis
@@ -402,17 +405,19 @@ class Renderer:
         try:
             camera = _with_clip_planes(camera, splats)
             big = camera.resized(camera.width * k, camera.height * k)
-            side = tile_side(self.ctx, k, max_tile)
+            m = TILE_MARGIN   # pixels drawn around each tile and cropped: fringe clipping reads neighbours
+            side = tile_side(self.ctx, k, max_tile, margin=m)
             w, h = camera.width, camera.height
             color = np.empty((h, w, 3), "f4")
             weight = np.empty((h, w), "f4")
             depth = np.empty((h, w), "f4")
             alpha = np.empty((h, w), "f4")
             for x0, y0, tw, th in tile_rects(big.width, big.height, side):
-                self.draw(splats, big, technique, lights, options, background, tile=(x0, y0, tw, th),
-                          supersample=k)
+                self.draw(splats, big, technique, lights, options, background,
+                          tile=(x0 - m, y0 - m, tw + 2 * m, th + 2 * m), supersample=k)
                 block = np.s_[y0 // k:(y0 + th) // k, x0 // k:(x0 + tw) // k]
-                color[block], weight[block], depth[block], alpha[block] = box_reduce(self._read_tile(tw, th), k)
+                color[block], weight[block], depth[block], alpha[block] = box_reduce(
+                    self._read_tile(tw + 2 * m, th + 2 * m).cropped(m), k)
             error = self.ctx.error
             if error != "GL_NO_ERROR":
                 raise RenderError(f"OpenGL reported {error} while rendering")

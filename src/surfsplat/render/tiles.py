@@ -23,10 +23,12 @@ MAX_TILE = 2048
 MAX_SUPERSAMPLE = 8
 
 
-def tile_side(ctx: moderngl.Context, supersample: int, limit: int = MAX_TILE) -> int:
-    """Largest tile side (sub-pixels) the context allows, at most ``limit``, a multiple of ``supersample``."""
-    side = min(limit, int(ctx.info["GL_MAX_TEXTURE_SIZE"]), int(ctx.info["GL_MAX_RENDERBUFFER_SIZE"]),
-               *map(int, ctx.info["GL_MAX_VIEWPORT_DIMS"]))
+def tile_side(ctx: moderngl.Context, supersample: int, limit: int = MAX_TILE, margin: int = 0) -> int:
+    """Largest tile side (sub-pixels) the context allows with ``margin`` pixels drawn on every side,
+    at most ``limit``, a multiple of ``supersample``."""
+    side = min(limit, int(ctx.info["GL_MAX_TEXTURE_SIZE"]) - 2 * margin,
+               int(ctx.info["GL_MAX_RENDERBUFFER_SIZE"]) - 2 * margin,
+               *(int(d) - 2 * margin for d in ctx.info["GL_MAX_VIEWPORT_DIMS"]))
     return max(supersample, side - side % supersample)
 
 
@@ -50,6 +52,13 @@ class SubPixels:
     color: np.ndarray
     weight: np.ndarray
     depth: np.ndarray
+
+    def cropped(self, margin: int) -> "SubPixels":
+        """The sub-pixels without ``margin`` pixels on every side."""
+        if margin == 0:
+            return self
+        inner = np.s_[margin:-margin, margin:-margin]
+        return SubPixels(self.color[inner], self.weight[inner], self.depth[inner])
 
 
 def box_reduce(sub: SubPixels, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -35,7 +35,9 @@ void main() {
         if (beta > u_cutoff) discard;
         vec2 st = footprint_st(ray);
         if (clipped(st)) discard;
-        emit(ray, footprint_depth(st), v_scale * exp(-beta), v_color, v_normal);
+        float z = footprint_depth(st);
+        if (dot(st, st) > 1.0 && fringe_hidden(ray, z)) discard;
+        emit(ray, z, v_scale * exp(-beta), v_color, v_normal);
     }
 #endif
 }

@@ -5,7 +5,9 @@ layout(location = 1) out vec4 out_aux;     // (w * depth, w * normal), camera sp
 
 uniform float u_depth_epsilon;   // visibility offset along the viewing ray, in splat radii
 uniform bool u_separate_sides;   // blend only splats seen from the same side as the nearest one
-uniform sampler2D u_side;        // visibility pass: the side (v_back) of each pixel's nearest splat, 0.5 none
+uniform bool u_clip_fringe;      // drop filter fringes beyond a splat's disk over nothing or a farther surface
+uniform sampler2D u_side;        // visibility pass: (side of the nearest disk: 0 front, 1 back, 0.5 none;
+                                 //  its offset depth, camera space)
 
 flat in vec3 v_plane;
 flat in vec3 v_center;
@@ -57,6 +59,38 @@ float footprint_depth(vec2 st) {
     return -(v_center.z + st.x * v_uvz.x + st.y * v_uvz.y);
 }
 
+// A fragment of a filter's fringe (beyond the splat's own disk, at depth z) that covers no disk at
+// all, or only a surface farther than this splat's epsilon band, is not this surface: the prefilter
+// would widen silhouettes and the crests of folds by about a pixel (a dark rim bleeding over the
+// background or the trough behind). Inside a surface the fringes still overlap its disks and blend.
+#if PASS == PASS_ACCUMULATION
+// Whether a disk covers the pixel at this offset (false outside the full image; tiles are drawn
+// with a one-pixel margin, so a neighbour inside the image is always inside the tile's targets).
+bool disk_at(ivec2 offset) {
+    vec2 px = FRAG_PX + vec2(offset);
+    if (any(lessThan(px, vec2(0.0))) || any(greaterThanEqual(px, u_viewport))) return false;
+    ivec2 texel = clamp(ivec2(gl_FragCoord.xy) + offset, ivec2(0), textureSize(u_side, 0) - 1);
+    return abs(texelFetch(u_side, texel, 0).r - 0.5) > 0.25;
+}
+#endif
+
+bool fringe_hidden(vec3 ray, float z) {
+#if PASS == PASS_ACCUMULATION
+    if (!u_clip_fringe) return false;
+    vec2 nearest = texelFetch(u_side, ivec2(gl_FragCoord.xy), 0).rg;
+    if (abs(nearest.x - 0.5) < 0.25) {
+        // no disk covers the pixel: outside a silhouette the fringe goes; in a crack that straight
+        // clip lines leave between disks (3 or 4 neighbours covered) it fills the crack
+        int covered = int(disk_at(ivec2(1, 0))) + int(disk_at(ivec2(-1, 0))) + int(disk_at(ivec2(0, 1)))
+                      + int(disk_at(ivec2(0, -1)));
+        return covered < 3;
+    }
+    return nearest.y > z + 2.0 * u_depth_epsilon * v_radius / length(ray);
+#else
+    return false;
+#endif
+}
+
 // Writes depth (offset by epsilon along the ray in the visibility pass) and the outputs.
 // The visibility pass also records which side of its splat the nearest fragment shows; with
 // u_separate_sides the accumulation pass then blends only splats seen from that side, so the
@@ -66,7 +100,7 @@ void emit(vec3 ray, float z, float w, vec3 color, vec3 normal) {
     // Guennebaud 2003, sec. 5: translate along the viewing ray, not along z.
     z += u_depth_epsilon * v_radius / length(ray);
     gl_FragDepth = window_depth(z);
-    out_color = vec4(v_back, 0.0, 0.0, 1.0);
+    out_color = vec4(v_back, z, 0.0, 1.0);
     out_aux = vec4(0.0);
 #else
 #if PASS == PASS_ACCUMULATION
