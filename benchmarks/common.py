@@ -8,6 +8,9 @@ import platform
 import time
 from pathlib import Path
 
+import numpy as np
+from PIL import Image, ImageDraw
+
 RESULTS = Path(__file__).parent / "results"
 
 
@@ -59,3 +62,13 @@ def write_table(name: str, columns: list[str], rows: list[list], machine: str) -
     (RESULTS / f"{name}.json").write_text(json.dumps(
         {"machine": machine, "date": time.strftime("%Y-%m-%d"), "columns": columns, "rows": rows}, indent=1))
     return text
+
+
+def label(image: np.ndarray, text: str) -> np.ndarray:
+    """The image with ``text`` written at its top left (black on a white box)."""
+    picture = Image.fromarray(image)
+    draw = ImageDraw.Draw(picture)
+    box = draw.textbbox((4, 3), text)
+    draw.rectangle((box[0] - 2, box[1] - 2, box[2] + 2, box[3] + 2), fill=(255, 255, 255))
+    draw.text((4, 3), text, fill=(0, 0, 0))
+    return np.asarray(picture)

@@ -39,12 +39,12 @@ import time
 from pathlib import Path
 
 import numpy as np
-from PIL import Image, ImageDraw
+from PIL import Image
 from scipy import ndimage
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import RESULTS, machine_description, markdown_table, write_table  # noqa: E402
+from common import RESULTS, label, machine_description, markdown_table, write_table  # noqa: E402
 
 from surfsplat import (Camera, FilterOptions, Lights, RenderOptions, SplatCloud, VisibilityOptions,  # noqa: E402
                        metrics, phong_splats, preprocess)
@@ -169,13 +169,6 @@ def to_u8(color: np.ndarray) -> np.ndarray:
     return (np.clip(color, 0, 1) * 255 + 0.5).astype(np.uint8)
 
 
-def label(image: np.ndarray, text: str) -> np.ndarray:
-    picture = Image.fromarray(image)
-    draw = ImageDraw.Draw(picture)
-    box = draw.textbbox((4, 3), text)
-    draw.rectangle((box[0] - 2, box[1] - 2, box[2] + 2, box[3] + 2), fill=(255, 255, 255))
-    draw.text((4, 3), text, fill=(0, 0, 0))
-    return np.asarray(picture)
 
 
 def save_strip(panels: list[tuple[np.ndarray, str]], path: Path, columns: int = 4) -> None:

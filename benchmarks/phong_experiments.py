@@ -44,8 +44,8 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "tests"))
 
 import numpy as np  # noqa: E402
-from common import machine_description, write_table  # noqa: E402
-from PIL import Image, ImageDraw  # noqa: E402
+from common import label, machine_description, write_table  # noqa: E402
+from PIL import Image  # noqa: E402
 from test_phong_experiments import (  # noqa: E402
     CAD_DIRECTION, CAD_UP, ERODE_PX, LIGHTS, MODES, SHARP_ANGLE, STANDARD_MODES, cad_error, cad_measures,
     cad_samples, count_for_quality, crease_normals, curved_faces, dense_samples, face_mask, load_model,
@@ -87,14 +87,6 @@ def cached(cache: Path | None, key: str, make) -> SplatCloud:
     return cloud
 
 
-def label(image: np.ndarray, text: str) -> np.ndarray:
-    """The image with ``text`` written at its top left (black on a white box)."""
-    picture = Image.fromarray(image)
-    draw = ImageDraw.Draw(picture)
-    box = draw.textbbox((4, 3), text)
-    draw.rectangle((box[0] - 2, box[1] - 2, box[2] + 2, box[3] + 2), fill=(255, 255, 255))
-    draw.text((4, 3), text, fill=(0, 0, 0))
-    return np.asarray(picture)
 
 
 def save_strip(panels: list[tuple[np.ndarray, str]], path: Path) -> Path:
