@@ -45,7 +45,6 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-from scipy import ndimage
 from scipy.spatial import ConvexHull
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
