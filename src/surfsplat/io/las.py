@@ -1,4 +1,4 @@
-"""LAS / LAZ LiDAR point clouds (laspy, an optional dependency: ``pip install surfsplat[las]``).
+"""LAS / LAZ LiDAR point clouds (laspy and lazrs, optional: the ``las`` extra).
 
 Positions are the scaled coordinates (``las.x``, ``las.y``, ``las.z``, i.e.
 ``X * scale + offset``) in the file's units, cast to float32. Colors come from
@@ -112,8 +112,8 @@ def read_las(path: Path) -> SplatCloud:
     try:
         import laspy
     except ImportError as exc:
-        raise InputError(f"{source}: reading LAS/LAZ files needs laspy; install it with "
-                         "`pip install surfsplat[las]` (LAZ also needs `pip install lazrs`)") from exc
+        raise InputError(f"{source}: reading LAS/LAZ files needs laspy and, for LAZ, lazrs: "
+                         "`pip install laspy lazrs` (or `pip install \".[las]\"` in the surfsplat checkout)") from exc
     try:
         check_header(Path(path), source)
     except OSError as exc:
