@@ -537,7 +537,7 @@ def test_las_without_laspy_says_how_to_install(tmp_path, monkeypatch):
     path = tmp_path / "x.las"
     path.write_bytes(b"LASF")
     monkeypatch.setitem(sys.modules, "laspy", None)
-    with pytest.raises(InputError, match=r"x\.las.*pip install surfsplat\[las\]"):
+    with pytest.raises(InputError, match=r"x\.las.*pip install laspy lazrs"):
         load(path)
 
 

@@ -7,7 +7,7 @@
   other file -> validated :class:`~surfsplat.cloud.SplatCloud`.
 - :func:`load`: ``.ply`` (point cloud, surfel model or triangle mesh), ``.obj``,
   ``.stl``, ``.off``, ``.glb``, ``.gltf`` (triangle meshes: their vertices),
-  ``.las`` / ``.laz`` (LiDAR, needs ``surfsplat[las]``), ``.pcd`` (PCL,
+  ``.las`` / ``.laz`` (LiDAR, needs laspy and lazrs: the ``las`` extra), ``.pcd`` (PCL,
   :mod:`.pcd`), ``.xyz`` / ``.pts`` / ``.csv`` / ``.txt`` (point text,
   :mod:`.text`), trained Gaussian-splat ``.ply`` (:mod:`.gaussians`) -> validated
   :class:`~surfsplat.cloud.SplatCloud`.
