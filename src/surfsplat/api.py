@@ -20,6 +20,7 @@ import numpy as np
 from . import progress
 from .camera import MIN_FOV, Camera, camera_flags, fit_points
 from .cloud import SplatCloud
+from .colors import ColorOptions, colorize
 from .errors import EmptyFrameWarning, InputError
 from .geometry.preprocess import preprocess
 from .geometry.robust import OUTLIER_ACTIONS, OutlierAction
@@ -109,6 +110,8 @@ class SourceOptions:
             points (:func:`surfsplat.io.surface.auto_sharp_angle`); None: no sharp edges. A
             number also detects sharp features in raw points.
         seed: random seed of the samples.
+        color: colour the splats by elevation or a per-point attribute
+            (:class:`~surfsplat.colors.ColorOptions`, :func:`colored`); None: their own colours.
     """
 
     k: int = DEFAULT_K
@@ -118,8 +121,11 @@ class SourceOptions:
     spacing_px: float = DEFAULT_SPACING_PX
     sharp_angle: float | str | None = AUTO
     seed: int = 0
+    color: ColorOptions | None = None
 
     def __post_init__(self) -> None:
+        if self.color is not None and not isinstance(self.color, ColorOptions):
+            raise InputError(f"color must be a ColorOptions, got {type(self.color).__name__}")
         if not (isinstance(self.k, (int, np.integer)) and self.k >= 3):
             raise InputError(f"k must be an integer >= 3 (neighbours), got {self.k!r}")
         if self.outliers not in OUTLIER_ACTIONS:
@@ -163,13 +169,34 @@ def surface_model(model: Model, camera: Camera | None = None, source_options: So
              surface.samples is None else "as asked" if surface.samples is not None else
              f"{surface.spacing_px:g} px apart with the model {image_size} px wide")
     progress.message(f"{n:,} samples on the surface ({where})")
-    cloud = surface_splats(model, n, sharp_angle=surface.sharp_angle, seed=surface.seed)
+    cloud = colored(surface_splats(model, n, sharp_angle=surface.sharp_angle, seed=surface.seed), surface)
     lines = cloud.clip_lines is not None
     progress.message(f"{len(cloud):,} surface splats" + (", clipped at sharp and open edges" if lines else ""))
     return cloud
 
 
 def load_model(source, source_options: SourceOptions | None = None) -> Model:
+    """The model a source names, ready to draw (:func:`_load_model`), coloured as
+    ``source_options.color`` says (:func:`colored`)."""
+    model = _load_model(source, source_options)
+    return colored(model, source_options, natural_up(source))
+
+
+def colored(model: Model, source_options: SourceOptions | None, up=(0.0, 1.0, 0.0)) -> Model:
+    """A SplatCloud coloured by ``source_options.color`` along ``up``
+    (:func:`surfsplat.colors.colorize`; a hierarchy built from it averages those colours per
+    node); a mesh is coloured when its surface is sampled; without ``color`` the model as it
+    is. A loaded Hierarchy (``.npz``) keeps no attributes: an InputError."""
+    color = source_options.color if source_options is not None else None
+    if color is None or isinstance(model, Mesh):
+        return model
+    if isinstance(model, Hierarchy):
+        raise InputError("--color-by needs the points: hierarchy files keep no attributes; render the "
+                         "point file with --lod-tolerance instead")
+    return colorize(model, color.by, color.colormap, color.value_range, up=up)
+
+
+def _load_model(source, source_options: SourceOptions | None = None) -> Model:
     """The model a source names, ready to draw.
 
     A :class:`~surfsplat.hierarchy.Hierarchy` for a hierarchy (object or ``.npz`` file from

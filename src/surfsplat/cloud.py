@@ -42,6 +42,10 @@ class SplatCloud:
         clip_lines: (N, 2, 3) float32 ``(a, b, c)`` in normalized ``(s, t)``
             coordinates; a point is kept where ``a s + b t + c >= 0``. Unused
             lines are ``(0, 0, 1)``. None when no splat is clipped.
+        attributes: named per-point values, ``{name: (N,) array}`` of any numeric dtype
+            (kept as read: LAS ``intensity`` uint16, ``classification`` uint8, PLY
+            ``confidence`` float32, ...), or None. Rows follow the points through
+            ``subset``, ``validated`` and preprocessing.
     """
 
     positions: np.ndarray
@@ -51,6 +55,7 @@ class SplatCloud:
     v: np.ndarray | None = None
     normal_field: np.ndarray | None = None
     clip_lines: np.ndarray | None = None
+    attributes: dict[str, np.ndarray] | None = None
 
     _OPTIONAL = ("normals", "colors", "u", "v", "normal_field", "clip_lines")
     _SHAPES = {
@@ -82,12 +87,16 @@ class SplatCloud:
             value = getattr(self, name)
             if value is not None and len(value) != n:
                 raise InputError(f"{name} has {len(value)} rows but positions has {n}")
+        if self.attributes is not None:
+            self.attributes = checked_attributes(self.attributes, n)
 
     def __len__(self) -> int:
         return len(self.positions)
 
     def __repr__(self) -> str:
         present = [name for name in self._OPTIONAL if getattr(self, name) is not None]
+        if self.attributes:
+            present.append(f"attributes {', '.join(self.attributes)}")
         return f"SplatCloud({len(self)} splats, with {', '.join(present) or 'positions only'})"
 
     # -- derived quantities -------------------------------------------------
@@ -119,6 +128,8 @@ class SplatCloud:
         """A new SplatCloud with the rows selected by a boolean mask or index array."""
         fields = {name: (None if getattr(self, name) is None else getattr(self, name)[index])
                   for name in ("positions",) + self._OPTIONAL}
+        if self.attributes is not None:
+            fields["attributes"] = {name: values[index] for name, values in self.attributes.items()}
         return SplatCloud(**fields)
 
     def replace(self, **changes) -> "SplatCloud":
@@ -285,6 +296,24 @@ class SplatCloud:
         if out.colors is not None:
             out.colors = np.clip(out.colors, 0.0, 1.0)
         return out
+
+
+def checked_attributes(attributes, n: int) -> dict[str, np.ndarray] | None:
+    """``attributes`` as a new dict of contiguous 1-D numeric arrays of ``n`` rows (dtype kept;
+    booleans become uint8), or None when empty; an InputError names a bad one."""
+    if not hasattr(attributes, "items"):
+        raise InputError(f"attributes must be a mapping of name -> (N,) array, got {type(attributes).__name__}")
+    out = {}
+    for name, value in attributes.items():
+        arr = np.ascontiguousarray(value)
+        if arr.dtype.kind == "b":
+            arr = arr.astype(np.uint8)
+        if arr.dtype.kind not in "uif":
+            raise InputError(f"attribute {name!r} must be numeric, got dtype {arr.dtype}")
+        if arr.ndim != 1 or len(arr) != n:
+            raise InputError(f"attribute {name!r} must have shape ({n},), got {arr.shape}")
+        out[str(name)] = arr
+    return out or None
 
 
 class InvalidPointsWarning(UserWarning):

@@ -41,7 +41,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True,
                    help="output image (.png); with several inputs a pattern such as out/{stem}.png")
     opt.add_source_options(p)
-    p.add_argument("--depth", metavar="OUT.npy", help="also save the depth map (camera-space, inf = empty)")
+    p.add_argument("--depth", metavar="OUT.npy|OUT.png",
+                   help="also save the depth map: .npy camera-space depth (inf = empty), or .png 16-bit "
+                        "(0 = empty, 1..65535 = near..far, stated in its surfsplat:near/far text chunks)")
+    p.add_argument("--cameras", metavar="FILE",
+                   help="render every camera of FILE (OpenCV JSON, COLMAP cameras.txt/images.txt, NeRF "
+                        "transforms.json, or a --save-camera file), each to -o with {name} the view's name")
     opt.add_lod_options(p)
     p.add_argument("--mesh", action="store_true",
                    help="render the input's triangles instead (the ground truth: same camera and lighting, "

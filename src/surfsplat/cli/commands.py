@@ -15,6 +15,8 @@ from ..camera import camera_flags
 from ..errors import InputError
 from ..io.atomic import atomic_path, check_writable
 from ..io.camera_file import save_camera
+from ..io.camera_formats import load_cameras
+from ..io.depth_image import save_depth_png
 from ..io.video import check_video_path, write_video
 from ..render.frame import check_image_path
 from ..geometry.phong import phong_splats
@@ -22,6 +24,7 @@ from ..geometry.preprocess import neighbour_spacing, preprocess
 from ..geometry.sampling import sample_mesh
 from ..cloud import SplatCloud
 from ..hierarchy import Hierarchy, build_hierarchy, load_hierarchy, save_hierarchy
+from ..colors import describe_attributes
 from ..io import load, load_mesh, save_ply
 from . import options as opt
 
@@ -47,8 +50,8 @@ def check_image_outputs(args, inputs: tuple[Path, ...]) -> tuple[Path, Path | No
     if depth:
         depth = Path(depth)
         refuse_overwriting_inputs(depth, inputs)
-        if depth.suffix.lower() != ".npy":
-            raise InputError(f"{depth}: --depth writes a NumPy array: name it OUT.npy")
+        if depth.suffix.lower() not in (".npy", ".png"):
+            raise InputError(f"{depth}: --depth writes a NumPy array (OUT.npy) or a 16-bit PNG (OUT.png)")
         check_writable(depth, overwrite=args.force)
     camera_file = Path(args.save_camera) if args.save_camera else None
     if camera_file is not None:
@@ -59,7 +62,11 @@ def check_image_outputs(args, inputs: tuple[Path, ...]) -> tuple[Path, Path | No
 
 def save_outputs(frame, camera_file: Path | None, depth: Path | None, force: bool) -> None:
     """Write the depth array and the camera file (atomically; see :mod:`surfsplat.io.atomic`)."""
-    if depth is not None:
+    if depth is not None and depth.suffix.lower() == ".png":
+        near, far = depth_range(frame)
+        save_depth_png(frame.depth, near, far, depth, overwrite=force)
+        progress.message(f"depth (16-bit: 0 = empty, 1..65535 = {near:.6g}..{far:.6g}) -> {depth}")
+    elif depth is not None:
         with atomic_path(depth, overwrite=force) as temp:
             with open(temp, "wb") as handle:
                 np.save(handle, frame.depth)
@@ -67,6 +74,15 @@ def save_outputs(frame, camera_file: Path | None, depth: Path | None, force: boo
     if camera_file is not None:
         save_camera(frame.camera, camera_file, overwrite=force)
         progress.message(f"camera -> {camera_file}")
+
+
+def depth_range(frame) -> tuple[float, float]:
+    """(near, far) of a depth PNG: the frame's camera's clip planes, else the drawn depths' range."""
+    if frame.camera.near is not None and frame.camera.far is not None:
+        return float(frame.camera.near), float(frame.camera.far)
+    finite = frame.depth[np.isfinite(frame.depth)]
+    near = float(finite.min()) if finite.size and finite.min() > 0 else 1.0
+    return near, max(float(finite.max()) if finite.size else 0.0, 2.0 * near)
 
 
 def render_and_save(source, args, inputs: tuple[Path, ...] = ()) -> None:
@@ -103,6 +119,9 @@ def output_for(pattern: str, source: str, many: bool) -> str:
 def cmd_render(args) -> None:
     """``surfsplat render``: point/splat/mesh files or hierarchies to images (or ``--mesh``: the
     triangles); several inputs render one after another, every output checked before the first."""
+    if getattr(args, "cameras", None):
+        render_views(args)
+        return
     inputs, many = list(args.input), len(args.input) > 1
     jobs = []
     for source in inputs:
@@ -122,6 +141,50 @@ def cmd_render(args) -> None:
             render_mesh_and_save(job, (Path(job.input),))
         else:
             render_and_save(job.input, job, (Path(job.input),))
+
+
+def render_views(args) -> None:
+    """``render INPUT --cameras FILE``: every camera of FILE (:func:`~surfsplat.io.camera_formats.load_cameras`)
+    to its own output, ``{name}`` in the patterns being the view's name; every output is checked
+    before the model is loaded (once) and the first view rendered."""
+    if len(args.input) != 1 or args.mesh:
+        raise InputError("--cameras renders one INPUT (not with --mesh)")
+    if args.camera or args.eye is not None or args.target is not None or args.up is not None:
+        raise InputError("give either --cameras FILE or --camera/--eye/--target/--up, not both")
+    source = args.input[0]
+    inputs = (Path(source), Path(args.cameras))
+    api.check_source(source)
+    views = load_cameras(args.cameras, width=args.width, height=args.height)
+    jobs, paths = [], []
+    for name, camera in views:
+        job = argparse.Namespace(**vars(args))
+        job.input = source
+        for attr in ("output", "depth", "save_camera"):
+            pattern = getattr(args, attr, None)
+            if pattern:
+                if len(views) > 1 and "{name}" not in pattern:
+                    raise InputError(f"{pattern}: {len(views)} cameras need an output pattern with {{name}}, "
+                                     f"e.g. out/{{name}}.png")
+                try:
+                    setattr(job, attr, pattern.format(name=name, stem=Path(source).stem))
+                except (KeyError, IndexError, ValueError) as exc:
+                    raise InputError(f"{pattern}: bad output pattern ({exc}); use {{name}} or {{stem}}") from None
+                paths.append(Path(getattr(job, attr)).resolve())
+        jobs.append((job, camera, check_image_outputs(job, inputs)))
+    if len(set(paths)) < len(paths):
+        raise InputError(f"{args.output}: several cameras map to the same output (are their names unique?)")
+    render_options, lights = opt.render_options(args), opt.lights(args)
+    source_options = opt.source_options(args)
+    model = api.load_model(source, source_options)
+    for job, camera, (out, depth, camera_file) in jobs:
+        result = api.render_model(model, camera, technique=args.technique, lights=lights,
+                                  background=args.background, options=render_options,
+                                  lod_tolerance=args.lod_tolerance, lod_shading=args.lod_shading,
+                                  supersample=args.supersample, source_options=source_options)
+        result.frame.save(out, overwrite=args.force, transparent=args.transparent, bit_depth=args.bit_depth)
+        progress.message(f"rendered {result.describe()} with {args.technique} at {camera.width}x{camera.height} "
+                         f"in {result.seconds:.2f} s -> {out}")
+        save_outputs(result.frame, camera_file, depth, args.force)
 
 
 def cmd_turntable(args) -> None:
@@ -179,6 +242,8 @@ def cmd_info(args) -> None:
     present = [name for name in ("normals", "colors", "u", "v", "normal_field", "clip_lines")
                if getattr(cloud, name) is not None]
     print(f"properties: positions{', ' + ', '.join(present) if present else ''}")
+    for line in describe_attributes(cloud):
+        print(f"attribute:  {line}")
     if cloud.u is not None:
         r = cloud.radii
         print(f"splat radius: min {r.min():.4g}  median {np.median(r):.4g}  max {r.max():.4g}")

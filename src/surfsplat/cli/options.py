@@ -15,6 +15,7 @@ import math
 
 from ..api import DEFAULT_BACKGROUND, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec, SourceOptions
 from ..camera import MAX_IMAGE_SIDE, MIN_FOV, Camera
+from ..colors import ColorOptions
 from ..errors import InputError
 from ..hierarchy import SHADINGS
 from ..io.camera_file import load_camera
@@ -109,13 +110,37 @@ def add_source_options(p: argparse.ArgumentParser) -> None:
                    help="edges sharper than DEG degrees (0 < DEG < 180) get clip lines and crisp shading; auto "
                         "(default): 30 for meshes with creases (CAD parts), none for smooth scans and for raw "
                         "points; none: no sharp edges; a number also detects sharp features in raw points)")
+    add_color_options(p)
+
+
+def add_color_options(p: argparse.ArgumentParser) -> None:
+    """Colour by attribute: ``--color-by``, ``--colormap``, ``--color-range`` (:mod:`surfsplat.colors`)."""
+    g = p.add_argument_group("colour by attribute")
+    g.add_argument("--color-by", metavar="NAME",
+                   help="colour the splats by elevation (along the up axis: +z for LAS/LAZ) or a per-point "
+                        "attribute of the file: intensity, classification, return_number, gps_time, a PLY "
+                        "property such as confidence, ... (`surfsplat info FILE` lists them)")
+    g.add_argument("--colormap", metavar="NAME",
+                   help="matplotlib colormap (viridis, turbo, magma, ...; needs the `color` extra) or asprs "
+                        "(LAS class palette); default: asprs for classification, else viridis")
+    g.add_argument("--color-range", type=float, nargs=2, metavar=("LO", "HI"),
+                   help="values mapped to the ends of the colormap (default: the 2nd and 98th percentiles)")
+
+
+def color_options(args) -> ColorOptions | None:
+    """The ColorOptions of :func:`add_color_options`, or None without ``--color-by``."""
+    if getattr(args, "color_by", None) is None:
+        if getattr(args, "colormap", None) or getattr(args, "color_range", None):
+            raise InputError("--colormap and --color-range need --color-by NAME")
+        return None
+    return ColorOptions(args.color_by, args.colormap, tuple(args.color_range) if args.color_range else None)
 
 
 def source_options(args) -> SourceOptions:
     """The SourceOptions of :func:`add_source_options`."""
     angle = {"auto": AUTO, "none": None}.get(args.sharp_angle, args.sharp_angle)
     return SourceOptions(k=args.k, outliers=args.outliers, vertices=args.vertices, samples=args.samples,
-                         sharp_angle=angle)
+                         sharp_angle=angle, color=color_options(args))
 
 
 def add_k_option(p: argparse.ArgumentParser) -> None:

@@ -105,7 +105,8 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
     Returns:
         A validated :class:`SplatCloud` in the input order (invalid input rows
         dropped with a warning; merged duplicates and dropped outliers removed,
-        the first of each duplicate group kept: ``report.kept`` maps the rows)
+        the first of each duplicate group kept: ``report.kept`` maps the rows;
+        ``attributes`` are the kept rows', a merged group's its first point's)
         with unit ``normals`` and splat axes ``u``, ``v`` (float32, model
         units). Neighbourhoods along scan lines get splats covering their
         Voronoi cells (:mod:`surfsplat.geometry.cells`), non-planar ones (raw

@@ -205,7 +205,8 @@ def near_duplicates(dist: np.ndarray, idx: np.ndarray, tolerance: float) -> np.n
 def merge_points(cloud: SplatCloud, rep: np.ndarray) -> SplatCloud:
     """The cloud with every point merged into ``rep[i]`` (see :func:`exact_duplicates`).
 
-    Positions, splat axes, normal fields and clip lines are the representative's; colors are
+    Positions, splat axes, normal fields, clip lines and attributes are the representative's
+    (the group's first point in input order: a class cannot be averaged); colors are
     the group's mean; normals the normalized sum of the group's normals, each turned to the
     representative's side (the representative's own where they cancel). Input order is kept.
     """

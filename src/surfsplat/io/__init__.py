@@ -156,7 +156,8 @@ def save_ply(cloud: SplatCloud, path: str | os.PathLike, *, binary: bool = True,
     One ``vertex`` element with the properties, in this order, of the arrays
     present: ``x y z``, ``nx ny nz``, ``red green blue``, ``ux uy uz vx vy vz``
     (u and v both present), ``alpha beta`` (normal field), ``clip0_a clip0_b
-    clip0_c clip1_a clip1_b clip1_c`` (clip lines). All float32, except colors:
+    clip0_c clip1_a clip1_b clip1_c`` (clip lines), then each of ``cloud.attributes``
+    in its own dtype (64-bit integers as double). All float32, except colors:
     uchar when every color is exactly a float32 ``k / 255`` (as read from 8-bit
     files), else float32 in [0, 1]. Colors are clipped to [0, 1] first; for any
     other cloud ``load(save_ply(cloud, p))`` returns equal arrays.

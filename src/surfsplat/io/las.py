@@ -4,7 +4,11 @@ Positions are the scaled coordinates (``las.x``, ``las.y``, ``las.z``, i.e.
 ``X * scale + offset``) in the file's units, cast to float32. Colors come from
 the ``red green blue`` fields where the point format has them: the fields are
 16-bit, but many files store 8-bit values; :func:`rgb_scale` decides which. LAS
-has no normals.
+has no normals. Every other dimension (``intensity``, ``classification``,
+``return_number``, ``number_of_returns``, ``gps_time``, ``scan_angle`` /
+``scan_angle_rank``, flags, ``point_source_id``, extra bytes, ...) becomes a
+named attribute (``SplatCloud.attributes``) with its own dtype (flags as uint8;
+extra-bytes arrays of several values per point are skipped).
 
 Before anything is allocated, the header is checked against the file
 (:func:`check_header`): the point count times the record length must fit in the
@@ -40,12 +44,18 @@ class CoordinatePrecisionWarning(UserWarning):
 #: The child process that decodes a LAZ file: argv = [file, output .npz]; the same arrays as :func:`_arrays`.
 _LAZ_CHILD = """
 import sys, numpy as np, laspy
+SKIP = {"X", "Y", "Z", "x", "y", "z", "red", "green", "blue"}
 las = laspy.read(sys.argv[1])
 out = {"xyz": np.column_stack([np.asarray(las.x, dtype=np.float64), np.asarray(las.y, dtype=np.float64),
                                np.asarray(las.z, dtype=np.float64)]),
        "scales": np.asarray(las.header.scales, dtype=np.float64)}
 if {"red", "green", "blue"} <= set(las.point_format.dimension_names):
     out["rgb"] = np.column_stack([np.asarray(las.red), np.asarray(las.green), np.asarray(las.blue)])
+for name in las.point_format.dimension_names:
+    if name not in SKIP:
+        value = np.asarray(las[name])
+        if value.ndim == 1 and value.dtype.kind in "uifb":
+            out["attr:" + name] = value.astype(np.uint8) if value.dtype.kind == "b" else value
 np.savez(sys.argv[2], **out)
 """
 
@@ -119,7 +129,7 @@ def read_las(path: Path) -> SplatCloud:
     except OSError as exc:
         raise InputError(f"{source}: cannot read LAS file: {exc.strerror or exc}") from exc
     if Path(path).suffix.lower() == ".laz":
-        xyz, rgb, scales = _decode_laz(Path(path), source)
+        xyz, rgb, scales, attributes = _decode_laz(Path(path), source)
     else:
         try:
             las = laspy.read(source)
@@ -130,6 +140,7 @@ def read_las(path: Path) -> SplatCloud:
             if {"red", "green", "blue"} <= set(las.point_format.dimension_names):
                 rgb = np.column_stack([np.asarray(las.red), np.asarray(las.green), np.asarray(las.blue)])
             scales = np.asarray(las.header.scales, dtype=np.float64)
+            attributes = las_attributes(las)
         except MemoryError:
             raise
         except Exception as exc:  # laspy.LaspyException (bad header), OSError, ValueError, ...
@@ -147,11 +158,28 @@ def read_las(path: Path) -> SplatCloud:
                 f"{source}: coordinates up to {extent.max():,.0f} are rounded to steps of "
                 f"{spacing.max():g} in float32 positions (the file's resolution is {scales.min():g})",
                 CoordinatePrecisionWarning, stacklevel=3)
-    return SplatCloud(positions=xyz.astype(np.float32), colors=colors)
+    return SplatCloud(positions=xyz.astype(np.float32), colors=colors, attributes=attributes or None)
 
 
-def _decode_laz(path: Path, source: str) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
-    """``(xyz (N, 3) float64, rgb (N, 3) uint16 or None, scales (3,))`` of a LAZ file, decoded by
+#: LAS dimensions that are positions or colors, not attributes.
+_NOT_ATTRIBUTES = frozenset({"X", "Y", "Z", "x", "y", "z", "red", "green", "blue"})
+
+
+def las_attributes(las) -> dict[str, np.ndarray]:
+    """Every per-point dimension of a laspy ``LasData`` but positions and colors, by name, as
+    (N,) arrays of the file's dtype (flags as uint8; multi-valued extra bytes skipped)."""
+    out = {}
+    for name in las.point_format.dimension_names:
+        if name in _NOT_ATTRIBUTES:
+            continue
+        value = np.asarray(las[name])
+        if value.ndim == 1 and value.dtype.kind in "uifb":
+            out[name] = value.astype(np.uint8) if value.dtype.kind == "b" else value
+    return out
+
+
+def _decode_laz(path: Path, source: str) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, dict]:
+    """``(xyz (N, 3) float64, rgb (N, 3) uint16 or None, scales (3,), attributes)`` of a LAZ file, decoded by
     :data:`_LAZ_CHILD` in a child process; its crash, abort, failure or hang is an InputError."""
     timeout = 60.0 + os.stat(path).st_size / 1e6  # generous: about a second per megabyte
     with tempfile.TemporaryDirectory(prefix="surfsplat-laz-") as folder:
@@ -178,6 +206,7 @@ def _decode_laz(path: Path, source: str) -> tuple[np.ndarray, np.ndarray | None,
             raise InputError(f"{source}: cannot read LAZ file: {problem}{hint}")
         try:
             with np.load(out, allow_pickle=False) as data:
-                return data["xyz"], (data["rgb"] if "rgb" in data.files else None), data["scales"]
+                attributes = {key[5:]: data[key] for key in data.files if key.startswith("attr:")}
+                return data["xyz"], (data["rgb"] if "rgb" in data.files else None), data["scales"], attributes
         except (OSError, ValueError, KeyError) as exc:
             raise InputError(f"{source}: cannot read LAZ file: {exc}") from exc

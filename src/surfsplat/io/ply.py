@@ -18,8 +18,9 @@ complete):
   ``clip_lines`` (a missing line is ``(0, 0, 1)``, keep everything)
 
 ``alpha`` alone is a color's opacity and is ignored; ``alpha`` together with
-``beta`` is the linear normal field. Other properties (``confidence``,
-``intensity``, ...) are ignored.
+``beta`` is the linear normal field. Other numeric scalar properties
+(``confidence``, ``intensity``, ...) become named attributes
+(``SplatCloud.attributes``, dtype kept); writing stores them back.
 
 A ``face`` element (list property ``vertex_indices`` or ``vertex_index``,
 polygons triangulated as fans) makes the file a mesh; its vertices become the
@@ -264,7 +265,21 @@ def cloud_from_elements(elements: dict[str, np.ndarray], source: str) -> SplatCl
         clip_lines = np.stack(lines, axis=1)
 
     return SplatCloud(positions=positions, normals=normals, colors=colors, u=u, v=v,
-                      normal_field=normal_field, clip_lines=clip_lines)
+                      normal_field=normal_field, clip_lines=clip_lines,
+                      attributes=_extra_properties(data) or None)
+
+
+#: Vertex properties that are arrays of the SplatCloud, not attributes.
+_KNOWN_PROPERTIES = frozenset(("x", "y", "z", "nx", "ny", "nz", "red", "green", "blue", "alpha",
+                               "diffuse_red", "diffuse_green", "diffuse_blue", "ux", "uy", "uz",
+                               "vx", "vy", "vz", "radius", "beta") + _CLIP_NAMES)
+
+
+def _extra_properties(data: np.ndarray) -> dict[str, np.ndarray]:
+    """The vertex element's other numeric scalar properties, by name (list properties skipped)."""
+    return {name: np.ascontiguousarray(data[name]) for name in data.dtype.names or ()
+            if name.lower() not in _KNOWN_PROPERTIES and data.dtype[name].kind in "uif"
+            and data.dtype[name].shape == ()}
 
 
 def read_ply_mesh(path: Path) -> Mesh:
@@ -467,7 +482,7 @@ def write_ply(cloud: SplatCloud, path: Path, *, binary: bool = True, overwrite: 
                 ply.write(stream)
             else:  # plyfile writes ascii row by row with one savetxt call each: slow
                 stream.write(ply.header.encode("ascii") + b"\n")
-                fmt = ["%d" if values.dtype.kind == "u" else "%.9g" for _, values in columns]
+                fmt = ["%d" if values.dtype.kind in "ui" else "%.9g" for _, values in columns]
                 np.savetxt(stream, np.column_stack([values.astype(np.float64) for _, values in columns]),
                            fmt=fmt, delimiter=" ", newline="\n")
     except FileExistsError as exc:
@@ -504,6 +519,11 @@ def ply_columns(cloud: SplatCloud) -> list[tuple[str, np.ndarray]]:
         columns += [("alpha", f32(cloud.normal_field[:, 0])), ("beta", f32(cloud.normal_field[:, 1]))]
     if cloud.clip_lines is not None:
         columns += [(f"clip{k}_{c}", f32(cloud.clip_lines[:, k, j])) for k in (0, 1) for j, c in enumerate("abc")]
+    taken = {name for name, _ in columns}
+    for name, values in (cloud.attributes or {}).items():  # PLY has no 64-bit integers: float64
+        if name not in taken and name.isidentifier():
+            wide = values.dtype.kind in "ui" and values.dtype.itemsize == 8
+            columns.append((name, values.astype(np.float64) if wide else np.ascontiguousarray(values)))
     return columns
 
 
