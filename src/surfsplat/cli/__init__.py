@@ -74,8 +74,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--elevation", type=opt.number(float, low=-89.0, high=89.0), metavar="DEG",
                    help="eye height above the plane normal to up, degrees (default: the starting camera's)")
     opt.add_force_option(p)
-    p.add_argument("--supersample", type=opt.number(int, low=1, high=8), default=1, metavar="K",
-                   help="antialiasing: K x K samples per pixel (default 1)")
+    opt.add_supersample_option(p)
     opt.add_source_options(p)
     opt.add_lod_options(p)
     opt.add_render_options(p)

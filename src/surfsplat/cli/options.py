@@ -71,13 +71,18 @@ SHARP_ANGLE = number(float, low=0.0, high=180.0, low_open=True, high_open=True,
                      what="the dihedral angle in degrees above which an edge is sharp")
 
 
+def add_supersample_option(p: argparse.ArgumentParser) -> None:
+    """``--supersample K``."""
+    p.add_argument("--supersample", type=number(int, low=1, high=MAX_SUPERSAMPLE), default=1, metavar="K",
+                   help="antialiasing: K x K samples per pixel, box-filtered (1..8; default 1); any image size "
+                        "is drawn in tiles")
+
+
 def add_output_options(p: argparse.ArgumentParser) -> None:
     """``--force``, ``--save-camera``, ``--supersample``, ``--transparent``, ``--bit-depth`` of the
     commands that write an image."""
     add_force_option(p)
-    p.add_argument("--supersample", type=number(int, low=1, high=MAX_SUPERSAMPLE), default=1, metavar="K",
-                   help="antialiasing: K x K samples per pixel, box-filtered (1..8; default 1); any image size "
-                        "is drawn in tiles")
+    add_supersample_option(p)
     p.add_argument("--transparent", action="store_true",
                    help="write RGBA: alpha is the surface's coverage (antialiased with --supersample), for "
                         "compositing over any background (.png, .tif, .webp)")
@@ -123,7 +128,7 @@ def add_color_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--colormap", metavar="NAME",
                    help="matplotlib colormap (viridis, turbo, magma, ...; needs the `color` extra) or asprs "
                         "(LAS class palette); default: asprs for classification, else viridis")
-    g.add_argument("--color-range", type=float, nargs=2, metavar=("LO", "HI"),
+    g.add_argument("--color-range", type=number(float), nargs=2, metavar=("LO", "HI"),
                    help="values mapped to the ends of the colormap (default: the 2nd and 98th percentiles)")
 
 
