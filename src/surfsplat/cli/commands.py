@@ -85,18 +85,13 @@ def depth_range(frame) -> tuple[float, float]:
     return near, max(float(finite.max()) if finite.size else 0.0, 2.0 * near)
 
 
-def render_and_save(source, args, inputs: tuple[Path, ...] = ()) -> None:
-    """Load ``source``, render it as the render flags in ``args`` ask, save the image (and depth, camera)."""
-    out, depth, camera_file = check_image_outputs(args, inputs)
-    api.check_source(source)
-    render_options, lights, camera = opt.render_options(args), opt.lights(args), opt.camera_spec(args)
-    width, height = opt.image_size(args, camera)
-    source_options = opt.source_options(args) if hasattr(args, "vertices") else None
-    model = api.load_model(source, source_options)
-    camera = api.resolve_camera(model, camera, width, height, default_up=api.natural_up(source))
-    progress.message(f"camera: {camera_flags(camera)}")
-    result = api.render_model(model, camera, technique=args.technique, lights=lights, background=args.background,
-                              options=render_options, lod_tolerance=args.lod_tolerance, lod_shading=args.lod_shading,
+def draw_and_save(model, camera, args, outputs, source_options) -> None:
+    """Draw a loaded model with a resolved camera as the render flags in ``args`` ask; save the image,
+    and the depth and camera files of ``outputs`` (:func:`check_image_outputs`)."""
+    out, depth, camera_file = outputs
+    result = api.render_model(model, camera, technique=args.technique, lights=opt.lights(args),
+                              background=args.background, options=opt.render_options(args),
+                              lod_tolerance=args.lod_tolerance, lod_shading=args.lod_shading,
                               supersample=args.supersample, source_options=source_options)
     result.frame.save(out, overwrite=args.force, transparent=args.transparent, bit_depth=args.bit_depth)
     progress.message(f"rendered {result.describe()} with {args.technique} at {camera.width}x{camera.height} "
@@ -104,16 +99,50 @@ def render_and_save(source, args, inputs: tuple[Path, ...] = ()) -> None:
     save_outputs(result.frame, camera_file, depth, args.force)
 
 
-def output_for(pattern: str, source: str, many: bool) -> str:
-    """The output path of ``source``: ``pattern`` with ``{stem}`` (file name without suffix) and
-    ``{name}`` filled in; with several inputs the pattern must contain one of them."""
-    if many and "{stem}" not in pattern and "{name}" not in pattern:
-        raise InputError(f"{pattern}: several inputs need an output pattern with {{stem}} or {{name}}, "
-                         f"e.g. out/{{stem}}.png")
-    try:
-        return pattern.format(stem=Path(source).stem, name=Path(source).name)
-    except (KeyError, IndexError, ValueError) as exc:
-        raise InputError(f"{pattern}: bad output pattern ({exc}); use {{stem}} or {{name}}") from None
+def render_and_save(source, args, inputs: tuple[Path, ...] = ()) -> None:
+    """Load ``source``, render it as the render flags in ``args`` ask, save the image (and depth, camera)."""
+    outputs = check_image_outputs(args, inputs)
+    api.check_source(source)
+    camera = opt.camera_spec(args)
+    width, height = opt.image_size(args, camera)
+    source_options = opt.source_options(args) if hasattr(args, "vertices") else None
+    model = api.load_model(source, source_options)
+    camera = api.resolve_camera(model, camera, width, height, default_up=api.natural_up(source))
+    progress.message(f"camera: {camera_flags(camera)}")
+    draw_and_save(model, camera, args, outputs, source_options)
+
+
+#: The flags naming output files, filled per job from a pattern.
+OUTPUT_FLAGS = ("output", "depth", "save_camera")
+
+
+def job_for(args, many: bool, required: tuple[str, ...], **fields) -> argparse.Namespace:
+    """A copy of ``args`` whose output flags have the pattern ``fields`` (``{stem}``, ``{name}``)
+    filled in; with ``many`` jobs each pattern must contain one of the ``required`` fields."""
+    job = argparse.Namespace(**vars(args))
+    for flag in OUTPUT_FLAGS:
+        pattern = getattr(args, flag, None)
+        if not pattern:
+            continue
+        if many and not any("{" + key + "}" in pattern for key in required):
+            wanted = " or ".join("{" + key + "}" for key in required)
+            raise InputError(f"{pattern}: several outputs need a pattern with {wanted}, e.g. out/{{{required[0]}}}.png")
+        try:
+            setattr(job, flag, pattern.format(**fields))
+        except (KeyError, IndexError, ValueError) as exc:
+            raise InputError(f"{pattern}: bad output pattern ({exc}); use "
+                             f"{' or '.join('{' + key + '}' for key in fields)}") from None
+    return job
+
+
+def check_jobs(jobs: list, inputs: tuple[Path, ...]) -> list:
+    """Every job's outputs checked before any work (distinct, writable, not an input): their
+    :func:`check_image_outputs`."""
+    paths = [Path(getattr(job, flag)).resolve() for job in jobs for flag in OUTPUT_FLAGS if getattr(job, flag, None)]
+    if len(set(paths)) < len(paths):
+        raise InputError(f"{jobs[0].output}: several outputs map to the same file; use another pattern "
+                         f"(are the names unique?)")
+    return [check_image_outputs(job, inputs) for job in jobs]
 
 
 def cmd_render(args) -> None:
@@ -122,20 +151,13 @@ def cmd_render(args) -> None:
     if getattr(args, "cameras", None):
         render_views(args)
         return
-    inputs, many = list(args.input), len(args.input) > 1
+    inputs = tuple(Path(source) for source in args.input)
     jobs = []
-    for source in inputs:
-        job = argparse.Namespace(**vars(args))
-        job.input, job.output = source, output_for(args.output, source, many)
-        for name in ("depth", "save_camera"):
-            if getattr(args, name, None):
-                setattr(job, name, output_for(getattr(args, name), source, many))
+    for source in args.input:
+        job = job_for(args, len(args.input) > 1, ("stem", "name"), stem=Path(source).stem, name=Path(source).name)
+        job.input = source
         jobs.append(job)
-    outputs = [Path(job.output).resolve() for job in jobs]
-    if len(set(outputs)) < len(outputs):
-        raise InputError(f"{args.output}: several inputs map to the same output; use {{name}} or another pattern")
-    for job in jobs:
-        check_image_outputs(job, tuple(Path(i) for i in inputs))
+    check_jobs(jobs, inputs)
     for job in jobs:
         if job.mesh:
             render_mesh_and_save(job, (Path(job.input),))
@@ -155,36 +177,12 @@ def render_views(args) -> None:
     inputs = (Path(source), Path(args.cameras))
     api.check_source(source)
     views = load_cameras(args.cameras, width=args.width, height=args.height)
-    jobs, paths = [], []
-    for name, camera in views:
-        job = argparse.Namespace(**vars(args))
-        job.input = source
-        for attr in ("output", "depth", "save_camera"):
-            pattern = getattr(args, attr, None)
-            if pattern:
-                if len(views) > 1 and "{name}" not in pattern:
-                    raise InputError(f"{pattern}: {len(views)} cameras need an output pattern with {{name}}, "
-                                     f"e.g. out/{{name}}.png")
-                try:
-                    setattr(job, attr, pattern.format(name=name, stem=Path(source).stem))
-                except (KeyError, IndexError, ValueError) as exc:
-                    raise InputError(f"{pattern}: bad output pattern ({exc}); use {{name}} or {{stem}}") from None
-                paths.append(Path(getattr(job, attr)).resolve())
-        jobs.append((job, camera, check_image_outputs(job, inputs)))
-    if len(set(paths)) < len(paths):
-        raise InputError(f"{args.output}: several cameras map to the same output (are their names unique?)")
-    render_options, lights = opt.render_options(args), opt.lights(args)
+    jobs = [job_for(args, len(views) > 1, ("name",), name=name, stem=Path(source).stem) for name, _ in views]
+    outputs = check_jobs(jobs, inputs)
     source_options = opt.source_options(args)
     model = api.load_model(source, source_options)
-    for job, camera, (out, depth, camera_file) in jobs:
-        result = api.render_model(model, camera, technique=args.technique, lights=lights,
-                                  background=args.background, options=render_options,
-                                  lod_tolerance=args.lod_tolerance, lod_shading=args.lod_shading,
-                                  supersample=args.supersample, source_options=source_options)
-        result.frame.save(out, overwrite=args.force, transparent=args.transparent, bit_depth=args.bit_depth)
-        progress.message(f"rendered {result.describe()} with {args.technique} at {camera.width}x{camera.height} "
-                         f"in {result.seconds:.2f} s -> {out}")
-        save_outputs(result.frame, camera_file, depth, args.force)
+    for job, (_, camera), job_outputs in zip(jobs, views, outputs):
+        draw_and_save(model, camera, job, job_outputs, source_options)
 
 
 def cmd_turntable(args) -> None:
