@@ -18,7 +18,7 @@ from typing import Union
 import numpy as np
 
 from . import progress
-from .camera import MIN_FOV, Camera, camera_flags, fit_points
+from .camera import MIN_FOV, Camera, camera_flags, fit_points, rotate
 from .cloud import SplatCloud
 from .colors import ColorOptions, colorize
 from .errors import EmptyFrameWarning, InputError
@@ -258,20 +258,6 @@ def model_points(model: Model) -> SplatCloud:
 
 # -- the camera ------------------------------------------------------------------
 
-def _rotate_y_to(up) -> np.ndarray:
-    """3x3 rotation taking +y to the unit vector ``up`` (Rodrigues; 180 degrees about x for -y)."""
-    up = np.asarray(up, dtype=np.float64)
-    up = up / np.linalg.norm(up)
-    y = np.array([0.0, 1.0, 0.0])
-    axis = np.cross(y, up)
-    s, c = np.linalg.norm(axis), float(y @ up)
-    if s < 1e-12:
-        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
-    k = axis / s
-    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + s * kx + (1 - c) * kx @ kx
-
-
 #: Points used to fit the automatic view (a regular subsample of larger clouds).
 FIT_SAMPLE = 200_000
 #: Suffixes of files whose z axis points up (LiDAR).
@@ -300,7 +286,13 @@ def default_direction(cloud: SplatCloud, up) -> np.ndarray:
     x, y, z = DEFAULT_DIRECTION
     if along < FLAT_MODEL_RATIO * across:
         y = 1.2   # about 45 degrees above the horizon
-    return _rotate_y_to(up) @ np.array([x, y, z])
+    # the y-up direction turned so +y goes to up: about y x up, or half a turn about x for -y
+    direction = np.array([x, y, z])
+    axis = np.cross([0.0, 1.0, 0.0], up)
+    if np.linalg.norm(axis) < 1e-12:
+        return direction if up[1] > 0 else rotate(direction, np.array([1.0, 0.0, 0.0]), 180.0)
+    angle = np.degrees(np.arctan2(np.linalg.norm(axis), up[1]))
+    return rotate(direction, axis / np.linalg.norm(axis), angle)
 
 
 def auto_camera(cloud: SplatCloud, width: int = DEFAULT_WIDTH, height: int = DEFAULT_HEIGHT, fov: float = 40.0,
@@ -590,9 +582,7 @@ def orbit_cameras(camera: Camera, frames: int, degrees: float = 360.0, elevation
         offset = np.linalg.norm(offset) * (np.cos(angle) * flat + np.sin(angle) * up)
     cameras = []
     for i in range(int(frames)):
-        a = np.radians(degrees) * i / frames
-        # Rodrigues rotation of the offset about up
-        turned = offset * np.cos(a) + np.cross(up, offset) * np.sin(a) + up * (up @ offset) * (1 - np.cos(a))
+        turned = rotate(offset, up, degrees * i / frames)
         cameras.append(replace(camera, eye=tuple(target + turned)))
     if camera.near is not None and camera.far is not None:
         near, far = camera.near, camera.far

@@ -149,6 +149,12 @@ def frame_bounds(lo, hi, *, width: int = 512, height: int = 512, fov: float = 40
     return cam.with_clip_from_bounds(lo, hi, margin)
 
 
+def rotate(v: np.ndarray, axis: np.ndarray, angle_deg: float) -> np.ndarray:
+    """``v`` rotated by ``angle_deg`` degrees about the unit ``axis`` (right-handed; Rodrigues)."""
+    a = np.radians(angle_deg)
+    return v * np.cos(a) + np.cross(axis, v) * np.sin(a) + axis * (axis @ v) * (1.0 - np.cos(a))
+
+
 def fit_points(points, *, direction, up=(0.0, 1.0, 0.0), fov: float = 40.0, width: int = 512, height: int = 512,
                fill: float = 0.9, margin: float = 0.0) -> Camera:
     """A camera looking along ``-direction`` whose image the points' projections fill tightly.

@@ -18,6 +18,8 @@ from typing import Callable, Literal
 
 import numpy as np
 
+from ..camera import rotate
+
 from ..camera import Camera
 
 #: Orbit and look never get closer than this to the up axis (degrees of elevation), so the
@@ -27,12 +29,6 @@ MAX_ELEVATION_DEG = 89.0
 
 def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v)
-
-
-def rotate(v: np.ndarray, axis: np.ndarray, angle_deg: float) -> np.ndarray:
-    """``v`` rotated by ``angle_deg`` degrees about the unit ``axis`` (right-handed; Rodrigues)."""
-    a = np.radians(angle_deg)
-    return v * np.cos(a) + np.cross(axis, v) * np.sin(a) + axis * (axis @ v) * (1.0 - np.cos(a))
 
 
 def _split(direction: np.ndarray, up: np.ndarray) -> tuple[np.ndarray, float]:
