@@ -18,7 +18,6 @@ from surfsplat.errors import InputError
 from surfsplat.io.mesh import Mesh, area_weighted_normals
 from surfsplat.io.surface import weld
 from surfsplat.lighting import Lights
-from surfsplat.render import mesh as mesh_module
 from surfsplat.render.frame import Frame
 from surfsplat.render.mesh import render_mesh
 
@@ -211,12 +210,11 @@ def test_image_orientation_row_zero_is_top(renderer):
     assert rows.max() < 24 and cols.max() < 32
 
 
-def test_tiles_join_seamlessly(renderer, icosphere, monkeypatch):
+def test_tiles_join_seamlessly(renderer, icosphere):
     """Images larger than a tile are drawn in tiles; 64-px tiles give the one-tile image."""
     cam = frame_bounds((-1, -1, -1), (1, 1, 1), width=100, height=75, radius=1.0)
     whole = render_mesh(icosphere, cam, supersample=3, renderer=renderer)
-    monkeypatch.setattr(mesh_module, "MAX_TILE", 64)
-    tiled = render_mesh(icosphere, cam, supersample=3, renderer=renderer)
+    tiled = render_mesh(icosphere, cam, supersample=3, renderer=renderer, max_tile=64)
     np.testing.assert_array_equal(tiled.weight, whole.weight)
     np.testing.assert_allclose(tiled.color, whole.color, atol=1e-5)
     np.testing.assert_allclose(tiled.depth[whole.mask], whole.depth[whole.mask], rtol=1e-5)

@@ -32,9 +32,8 @@ from ..io.surface import AUTO, resolve_sharp_angle, shading_normals
 from ..lighting import Lights
 from .frame import Frame
 from .renderer import OPTIONAL_FRAME_UNIFORMS, Renderer, default_renderer
+from .tiles import MAX_TILE, tile_rects, tile_side
 
-#: Largest tile side in subsample pixels: bounds GPU memory (~24 bytes per subsample).
-MAX_TILE = 2048
 #: Largest supersampling factor accepted.
 MAX_SUPERSAMPLE = 16
 
@@ -66,17 +65,9 @@ def _vertex_data(mesh: Mesh, smooth: bool, sharp_angle) -> tuple[np.ndarray, np.
     return np.hstack(columns).astype("f4"), None, colored
 
 
-def _tile_size(ctx: moderngl.Context, supersample: int) -> tuple[int, int]:
-    """(tile side in subsample pixels, a multiple of the factor; the factor itself,
-    reduced if the GL limits cannot hold one output pixel's subsamples)."""
-    limit = min(MAX_TILE, int(ctx.info["GL_MAX_RENDERBUFFER_SIZE"]), *map(int, ctx.info["GL_MAX_VIEWPORT_DIMS"]))
-    supersample = min(supersample, limit)
-    return limit - limit % supersample, supersample
-
-
 def render_mesh(mesh: Mesh, camera: Camera, lights: Lights = Lights(), *, background=(1.0, 1.0, 1.0),
                 supersample: int = 4, smooth: bool = True, sharp_angle: float | str | None = AUTO,
-                renderer: Renderer | None = None) -> Frame:
+                renderer: Renderer | None = None, max_tile: int = MAX_TILE) -> Frame:
     """Render a triangle mesh as the ground-truth image for splat renderings of it.
 
     Args:
@@ -102,6 +93,7 @@ def render_mesh(mesh: Mesh, camera: Camera, lights: Lights = Lights(), *, backgr
         renderer: the :class:`~surfsplat.render.renderer.Renderer` whose
             OpenGL context draws (default:
             :func:`~surfsplat.render.renderer.default_renderer`).
+        max_tile: largest tile side in subsample pixels (GPU memory, ~24 bytes a subsample).
 
     Returns:
         :class:`Frame` with the clip-planed camera and, per pixel (row 0 at the top):
@@ -131,7 +123,8 @@ def render_mesh(mesh: Mesh, camera: Camera, lights: Lights = Lights(), *, backgr
         camera = camera.with_clip_from_bounds(*mesh.bounds())
 
     ctx = renderer.ctx
-    tile, s = _tile_size(ctx, int(supersample))
+    s = int(supersample)
+    tile = tile_side(ctx, s, max_tile)
     width, height = camera.width, camera.height
     big_w, big_h = width * s, height * s
     tile_w, tile_h = min(tile, big_w), min(tile, big_h)
@@ -173,24 +166,22 @@ def render_mesh(mesh: Mesh, camera: Camera, lights: Lights = Lights(), *, backgr
         ctx.disable(moderngl.CULL_FACE)
         ctx.depth_func = "<"
         fbo.depth_mask = True
-        for y0 in range(0, big_h, tile_h):
-            for x0 in range(0, big_w, tile_w):
-                tw, th = min(tile_w, big_w - x0), min(tile_h, big_h - y0)
-                fbo.viewport = (0, 0, tw, th)
-                fbo.use()
-                fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-                renderer.set_uniforms(program, uniforms | {"u_tile": (float(x0), float(y0), float(tw), float(th))},
-                                      OPTIONAL_FRAME_UNIFORMS)
-                vao.render(moderngl.TRIANGLES)
-                rgba = np.frombuffer(fbo.read(viewport=(0, 0, tw, th), components=4, attachment=0, dtype="f4"),
-                                     dtype="f4").reshape(th // s, s, tw // s, s, 4)
-                z = np.frombuffer(fbo.read(viewport=(0, 0, tw, th), components=1, attachment=1, dtype="f4"),
-                                  dtype="f4").reshape(th // s, s, tw // s, s)
-                # uncovered subsamples hold the clear value 0 in every channel
-                block = np.s_[y0 // s:(y0 + th) // s, x0 // s:(x0 + tw) // s]
-                covered[block] = rgba[..., 3].sum(axis=(1, 3), dtype=np.float64)
-                color_sum[block] = rgba[..., :3].sum(axis=(1, 3), dtype=np.float64)
-                depth_sum[block] = z.sum(axis=(1, 3), dtype=np.float64)
+        for x0, y0, tw, th in tile_rects(big_w, big_h, tile):
+            fbo.viewport = (0, 0, tw, th)
+            fbo.use()
+            fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+            renderer.set_uniforms(program, uniforms | {"u_tile": (float(x0), float(y0), float(tw), float(th))},
+                                  OPTIONAL_FRAME_UNIFORMS)
+            vao.render(moderngl.TRIANGLES)
+            rgba = np.frombuffer(fbo.read(viewport=(0, 0, tw, th), components=4, attachment=0, dtype="f4"),
+                                 dtype="f4").reshape(th // s, s, tw // s, s, 4)
+            z = np.frombuffer(fbo.read(viewport=(0, 0, tw, th), components=1, attachment=1, dtype="f4"),
+                              dtype="f4").reshape(th // s, s, tw // s, s)
+            # uncovered subsamples hold the clear value 0 in every channel
+            block = np.s_[y0 // s:(y0 + th) // s, x0 // s:(x0 + tw) // s]
+            covered[block] = rgba[..., 3].sum(axis=(1, 3), dtype=np.float64)
+            color_sum[block] = rgba[..., :3].sum(axis=(1, 3), dtype=np.float64)
+            depth_sum[block] = z.sum(axis=(1, 3), dtype=np.float64)
         error = ctx.error
         if error != "GL_NO_ERROR":
             raise RenderError(f"OpenGL reported {error} while rendering the mesh")
