@@ -161,9 +161,10 @@ def sample_mesh(mesh: Mesh, n: int, *, seed: int = 0, sharp_angle: float | None 
             whose total area is zero.
     """
     n = _check_count(n, "sample_mesh")
-    if n * BYTES_PER_SAMPLE > memory_limit():
+    limit = memory_limit()
+    if n * BYTES_PER_SAMPLE > limit:
         raise InputError(f"sample_mesh: {n:,} samples need about {n * BYTES_PER_SAMPLE / 2**20:,.0f} MiB, more than "
-                         f"the {memory_limit() / 2**20:,.0f} MiB of memory available")
+                         f"the {limit / 2**20:,.0f} MiB of memory available")
     if sharp_angle is not None:
         sharp_angle = check_sharp_angle(sharp_angle, "sample_mesh: sharp_angle")
     mesh = mesh.validated("sample_mesh: mesh")
