@@ -36,6 +36,7 @@ import json
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -49,6 +50,7 @@ from common import RESULTS, label, machine_description, markdown_table, write_ta
 from surfsplat import (Camera, FilterOptions, Lights, RenderOptions, SplatCloud, VisibilityOptions,  # noqa: E402
                        metrics, phong_splats, preprocess)
 from surfsplat.api import auto_camera  # noqa: E402
+from surfsplat.geometry.closed import is_closed_surface, outward_splats  # noqa: E402
 from surfsplat.geometry.sampling import sample_mesh, surface_splats  # noqa: E402
 from surfsplat.io import load_mesh  # noqa: E402
 from surfsplat.io.mesh import Mesh  # noqa: E402
@@ -195,6 +197,7 @@ def worst_window(error: np.ndarray, where: np.ndarray, size: int = CROP) -> tupl
 
 
 def crop(color: np.ndarray, window, zoom: int = 4) -> np.ndarray:
+    """The window of ``color`` as uint8, each pixel ``zoom`` x ``zoom``."""
     return np.kron(to_u8(color[window]), np.ones((zoom, zoom, 1), np.uint8))
 
 
@@ -209,13 +212,19 @@ def prepare(name: str, mesh: Mesh, camera: Camera, args) -> dict:
     dense = sample_mesh(mesh, args.phong_samples, seed=0, smooth_normals=True)
     phong = phong_splats(dense, count=args.phong_count)
     phong_s = time.perf_counter() - start
+    closed = is_closed_surface(mesh)
+    if closed:   # what render() does with a closed mesh: outward normals, back faces culled
+        splats, phong = outward_splats(splats), outward_splats(phong)
     print(f"{name}: {len(splats):,} splats ({splat_s:.1f} s), {len(phong):,} Phong splats from "
-          f"{len(dense):,} samples ({phong_s:.1f} s)", flush=True)
-    return {"name": name, "mesh": mesh, "camera": camera, "splats": splats, "phong": phong}
+          f"{len(dense):,} samples ({phong_s:.1f} s); closed: {closed}", flush=True)
+    return {"name": name, "mesh": mesh, "camera": camera, "splats": splats, "phong": phong,
+            "options": RenderOptions(visibility=VisibilityOptions(cull_backfaces=closed))}
 
 
-def supersampling(model: dict, renderer, ks, images: Path) -> list[dict]:
+def supersampling(model: dict, renderer, ks, images: Path, docs: Path | None = None) -> list[dict]:
+    """Table (1): K per technique against the 4x4 mesh; with ``docs``, a strip of silhouette crops there."""
     camera = model["camera"]
+    kept = {}
     truth = render_mesh(model["mesh"], camera, LIGHTS, supersample=4, renderer=renderer)
     edges = edge_mask(truth)
     model["truth"], model["edges"] = truth, edges
@@ -235,12 +244,28 @@ def supersampling(model: dict, renderer, ks, images: Path) -> list[dict]:
     for technique, splats, n in (("ewa", gpu, len(model["splats"])), ("blend", gpu, len(model["splats"])),
                                  ("phong", gpu_phong, len(model["phong"]))):
         for k in ks:
-            frame, seconds = timed(renderer, splats, camera, technique, supersample=k)
+            frame, seconds = timed(renderer, splats, camera, technique, model["options"], supersample=k)
             rows.append(base | {"technique": technique, "splats": n, "K": k, "frame_s": seconds}
                         | scores(frame, truth, edges))
             print(rows[-1], flush=True)
             if k in (1, max(ks)):
                 Image.fromarray(frame.image()).save(images / f"{model['name']}_{technique}_K{k}.png")
+                if technique == "ewa":
+                    kept[k] = frame
+    if model["options"].visibility.cull_backfaces:   # what culling the closed surface's back side changes
+        two_sided = RenderOptions(visibility=VisibilityOptions(cull_backfaces=False))
+        kept["two-sided"], seconds = timed(renderer, gpu, camera, "ewa", two_sided, supersample=max(ks))
+        rows.append(base | {"technique": "ewa two-sided (not culled)", "splats": len(model["splats"]),
+                            "K": max(ks), "frame_s": seconds} | scores(kept["two-sided"], truth, edges))
+        print(rows[-1], flush=True)
+    if docs is not None:   # the README's crops: the silhouette window where K = 1 errs most
+        window = worst_window(np.abs(kept[1].color - truth.color).max(axis=2), edges)
+        panels = [(crop(truth.color, window, 3), "mesh 4x4 (truth)"), (crop(mesh1.color, window, 3), "mesh 1 spp"),
+                  (crop(kept[1].color, window, 3), "ewa K=1"),
+                  (crop(kept[max(ks)].color, window, 3), f"ewa K={max(ks)}")]
+        if "two-sided" in kept:
+            panels.append((crop(kept["two-sided"].color, window, 3), f"K={max(ks)} two-sided"))
+        save_strip(panels, docs / f"quality_{model['name'].split()[0]}_edges.png", columns=len(panels))
     return rows
 
 
@@ -335,7 +360,7 @@ def shading(model: dict, renderer) -> list[dict]:
     warm_up(renderer, gpu["phong"], ("ewa", "phong"), (RenderOptions(), RenderOptions(deferred=True)))
     rows = []
     for name, (technique, deferred, which) in SHADING.items():
-        frame, seconds = timed(renderer, gpu[which], camera, technique, RenderOptions(deferred=deferred))
+        frame, seconds = timed(renderer, gpu[which], camera, technique, replace(model["options"], deferred=deferred))
         rows.append({"model": model["name"], "mode": name, "splats": len(model[which]), "frame_s": seconds}
                     | scores(frame, truth, edges))
         print(rows[-1], flush=True)
@@ -350,6 +375,7 @@ def main() -> None:
     parser.add_argument("--phong-count", type=int, default=30_000, help="Phong splats")
     parser.add_argument("--ks", type=int, nargs="+", default=[1, 2, 3, 4])
     parser.add_argument("--images", type=Path, default=Path(tempfile.gettempdir()) / "edge_quality")
+    parser.add_argument("--docs", type=Path, default=None, help="write the README's crops here (docs/images)")
     args = parser.parse_args()
     args.images.mkdir(parents=True, exist_ok=True)
     renderer = default_renderer()
@@ -364,10 +390,14 @@ def main() -> None:
                              height=args.size), args)]
     ss_rows = []
     for model in models:
-        ss_rows += supersampling(model, renderer, args.ks, args.images)
+        ss_rows += supersampling(model, renderer, args.ks, args.images, args.docs)
     fold_rows, fold_info = folds(sheet, whole, args, renderer, args.images)
+    cad = load_mesh(DATA / "featuretype.ply")   # sharp creases: where deferred shading loses
+    cad_model = prepare("CAD part", cad, auto_camera(SplatCloud(cad.vertices), args.size, args.size), args)
+    cad_model["truth"] = render_mesh(cad, cad_model["camera"], LIGHTS, supersample=4, renderer=renderer)
+    cad_model["edges"] = edge_mask(cad_model["truth"])
     shade_rows = []
-    for model in models:
+    for model in models + [cad_model]:
         shade_rows += shading(model, renderer)
 
     ss_cols = ["model", "technique", "splats", "K", "psnr", "psnr_img", "psnr_inner", "ssim", "psnr_edge",

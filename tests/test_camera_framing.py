@@ -112,7 +112,7 @@ def test_cli_outputs_are_checked_before_loading_and_never_clobbered(tmp_path, ca
     for flags, message in ((["-o", str(out)], "exists; use --force"),
                            (["-o", str(tmp_path / "no" / "x.png")], "does not exist"),
                            (["-o", str(tmp_path / "x")], "unsupported image format"),
-                           (["-o", str(tmp_path / "x.png"), "--depth", str(tmp_path / "d.exr")], "(OUT.npy) or a 16-bit PNG")):
+                           (["-o", str(tmp_path / "x.png"), "--depth", str(tmp_path / "d.tiff")], "--depth writes")):
         assert main(["-q", "render", str(missing), *flags]) == 2
         err = capsys.readouterr().err
         assert message in err and "never-read.ply" not in err and "Traceback" not in err

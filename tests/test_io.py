@@ -613,7 +613,7 @@ def test_simple_las(shared_data):
         cloud = load(path)
     assert len(cloud) == 1065 and cloud.normals is None
     assert np.isclose(cloud.colors.max(), 249 / 255) and cloud.colors.min() >= 0
-    assert cloud.positions[:, 0].min() > 6e5  # coordinates kept, not recentred
+    assert cloud.world_positions()[:, 0].min() > 6e5  # world coordinates kept (origin + local positions)
 
 
 def test_saved_real_file_reloads_identically(shared_data, tmp_path):

@@ -119,12 +119,20 @@ def test_lighting_matches_reference(renderer):
     lights = Lights(directions=((0.3, 0.5, 1.0),), shininess=8.0)
     cloud = single_splat((0, 0, 1.0), (0.2, 0, 0), (0, 0.2, 0), color=(0.9, 0.5, 0.2))
     cam = Camera(eye=(0.0, 0.0, 2.0), target=(0, 0, 0), width=64, height=64, near=0.5, far=5.0)
-    frame = renderer.render(cloud, cam, "ewa", lights)
+    per_splat = renderer.render(cloud, cam, "ewa", lights)
     view = cam.view_matrix[:3, :3]
     p = reference.to_camera(cam, cloud.positions)
-    expected = reference.shade(cloud.colors, reference.to_camera_dir(cam, cloud.normals),
-                               -p / np.linalg.norm(p), lights.world_directions(cam) @ view.T, lights)
-    np.testing.assert_allclose(frame.color[32, 32], np.clip(expected[0], 0, 1), atol=1e-5)
+    n = reference.to_camera_dir(cam, cloud.normals)
+    light_dirs = lights.world_directions(cam) @ view.T
+    expected = reference.shade(cloud.colors, n, -p / np.linalg.norm(p), light_dirs, lights)
+    np.testing.assert_allclose(per_splat.color[32, 32], np.clip(expected[0], 0, 1), atol=1e-5)
+    # deferred: lit at the pixel's own point of the splat, seen along its own ray
+    deferred = renderer.render(cloud, cam, "ewa", lights, RenderOptions(deferred=True))
+    ray = reference.pixel_rays(cam, reference.pixel_centers(cam))[32, 32]
+    q = ray * reference.ray_plane_distance(ray[None, None], p, n)[0, 0]
+    at_pixel = reference.shade(cloud.colors, n, -q[None] / np.linalg.norm(q), light_dirs, lights)
+    np.testing.assert_allclose(deferred.color[32, 32], np.clip(at_pixel[0], 0, 1), atol=1e-5)
+    assert np.abs(deferred.color[32, 32] - per_splat.color[32, 32]).max() > 1e-4   # the highlight moves
 
 
 def test_visibility_hides_the_back_surface(renderer):

@@ -280,7 +280,7 @@ def test_technique_table_lists_every_technique():
 def test_options_by_concern():
     options = RenderOptions()
     assert options.filter == FilterOptions(prefilter=True, cutoff=1.0)
-    assert options.visibility == VisibilityOptions(depth_epsilon=1.0, cull_backfaces=False)
+    assert options.visibility == VisibilityOptions(depth_epsilon=1.0, cull_backfaces=None)   # None: automatic
     assert options.kernel == KernelOptions("pajarola", 6.0, 1.5, 3.0, 0.5) and not options.deferred
     assert KERNELS == get_args(KernelName) == ("pajarola", "gaussian")
     assert KernelOptions().exponent() == (6.0, 3.0)

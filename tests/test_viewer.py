@@ -384,3 +384,123 @@ def test_no_display_is_a_clear_error(monkeypatch):
     result = run_view(["view", "demo:torus", "--frames", 1], display=None)
     assert result.returncode == 2
     assert "surfsplat render" in result.stderr and "xvfb-run" in result.stderr
+
+
+# -- point budget, refinement, colour by, EDL, recording ------------------------------------------
+
+def test_refinement_budgets_grow_to_the_budget():
+    from surfsplat.viewer.detail import REFINE_MIN, refinement_budgets
+
+    assert refinement_budgets(None) == [None]
+    steps = refinement_budgets(1_000_000)
+    assert steps == sorted(steps) and steps[-1] == 1_000_000 and len(steps) == 3 and steps[0] >= REFINE_MIN
+    assert refinement_budgets(5_000) == [5_000]      # below the smallest step: drawn at once
+    assert refinement_budgets(100_000)[0] == REFINE_MIN
+
+
+def test_recolor_averages_point_colors_per_node():
+    from surfsplat.hierarchy import build_hierarchy
+    from surfsplat.viewer.detail import recolor
+
+    h = build_hierarchy(surfsplat.demo_scene("torus"))
+    rng = np.random.default_rng(0)
+    colors = rng.uniform(size=(len(h.points), 3)).astype(np.float32)
+    recolor(h, colors)
+    for node in (0, 5, len(h) - 1):
+        s, c = h.node_point_start[node], h.node_point_count[node]
+        np.testing.assert_allclose(h.node_colors[node], colors[s:s + c].mean(axis=0), atol=1e-5)
+    np.testing.assert_array_equal(h.points.colors, colors)
+    recolor(h, None)
+    assert h.node_colors is None and h.points.colors is None
+
+
+def test_recorder_writes_one_video_frame_per_scripted_frame(tmp_path):
+    from surfsplat.viewer.recorder import Recorder
+
+    rec = Recorder(tmp_path / "r.gif", realtime=False)
+    for i in range(5):
+        rec.add(lambda i=i: np.full((20, 30, 3), 40 * i, np.uint8))
+    assert rec.close() == tmp_path / "r.gif"
+    with Image.open(tmp_path / "r.gif") as gif:
+        assert gif.n_frames == 5 and gif.size == (30, 20)
+        gif.seek(3)
+        assert np.asarray(gif.convert("RGB"))[0, 0, 0] == 120
+    with pytest.raises(InputError, match="unsupported"):
+        Recorder(tmp_path / "r.avi")
+
+
+def test_view_command_takes_budget_record_and_hybrid():
+    from surfsplat.cli.view import add_view_command
+
+    parser = argparse.ArgumentParser()
+    add_view_command(parser.add_subparsers())
+    args = parser.parse_args(["view", "scan.las", "--point-budget", "5000", "--record", "a.mp4"])
+    assert args.point_budget == 5000 and args.record == "a.mp4" and args.hybrid is None
+    assert parser.parse_args(["view", "a.ply", "--no-hybrid"]).hybrid is False
+    with pytest.raises(SystemExit):
+        parser.parse_args(["view", "a.ply", "--point-budget", "0"])
+
+
+def test_budget_refines_progressively_with_edl_and_colors(xvfb_display, tmp_path):
+    result = run_python(f"""
+        import time
+        import numpy as np
+        from surfsplat import api
+        from surfsplat.lighting import Lights
+        from surfsplat.render.options import RenderOptions
+        from surfsplat.scenes_faulty import aerial
+        from surfsplat.viewer import app, detail
+        detail.REFINE_MIN = 500
+        model = api.as_splats(aerial(n=8000, houses=3, trees=3).cloud)
+        glfw, window, ctx = app.open_window(240, 180, "test")
+        v = app.Viewer(glfw, window, ctx, model, api.CameraSpec(up=(0, 0, 1)), technique="ewa", lights=Lights(),
+                       options=RenderOptions(), background=(1, 1, 1), lod_tolerance=1.0,
+                       motion=app.MotionOptions("off"), hud=False, point_budget=4000, hybrid=True,
+                       record=r"{tmp_path}/rec.gif")
+        assert v.budgets == [500, 1000, 4000]
+        drawn, images = [], []
+        v.step(wait=False)
+        drawn.append(v.drawn); images.append(v.full_image())
+        while v.refine + 1 < len(v.budgets) or v.fade_from is not None:
+            before = v.refine
+            v.step(wait=False)
+            if v.refine != before:
+                # the new step is faded in from the previous one: halfway, the screen is their mean
+                v.present(0.5)
+                mid = v.screen_image().astype(int)
+                prev = np.frombuffer(v._targets["previous"].read(), np.uint8).reshape(180, 240, 4)[::-1, :, :3]
+                full = v.full_image().astype(int)
+                assert np.abs(mid - (prev.astype(int) + full) / 2).max() <= 2
+                drawn.append(v.drawn); images.append(full)
+        assert drawn == sorted(drawn) and drawn[-1] <= 4000 and drawn[0] <= 500 and len(drawn) == 3
+        assert np.abs(images[0].astype(int) - images[-1]).mean() > 0.5   # the refinement changed the image
+        # O: eye-dome lighting darkens depth edges of the still view
+        plain = v.full_image().astype(int)
+        v._on_key(window, glfw.KEY_O, 0, glfw.PRESS, 0)
+        v.step(wait=False)
+        assert v.options.edl is not None and v.refine == 0   # a change starts the refinement again
+        while v.refine + 1 < len(v.budgets) or v.fade_from is not None:
+            v.step(wait=False)
+        shaded = v.full_image().astype(int)
+        assert (shaded <= plain + 1).all() and (shaded < plain - 20).any()
+        # C: colour by elevation, then classification (ASPRS palette)
+        assert v.color_modes[:2] == ["own colours", "elevation"] and "classification" in v.color_modes
+        v._on_key(window, glfw.KEY_C, 0, glfw.PRESS, 0)
+        v.step(wait=False)
+        while v.refine + 1 < len(v.budgets) or v.fade_from is not None or v.full_version != v.version:
+            v.step(wait=False)
+        by_height = v.full_image().astype(int)
+        assert np.abs(by_height - shaded).mean() > 5
+        v.release()
+        glfw.terminate()
+        print("ok", v.recorder.frames)
+        """, xvfb_display)
+    assert result.returncode == 0 and result.stdout.strip().splitlines()[-1].startswith("ok"), result.stderr
+    frames = int(result.stdout.strip().split()[-1])
+    with Image.open(tmp_path / "rec.gif") as gif:
+        assert 1 <= gif.n_frames <= frames   # Pillow merges repeated frames into longer ones
+        total = 0
+        for i in range(gif.n_frames):
+            gif.seek(i)
+            total += gif.info["duration"]
+        assert abs(total - frames * 1000 / 24) <= 2 * frames   # the real-time clock: 24 frames/s

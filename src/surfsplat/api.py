@@ -20,17 +20,23 @@ import numpy as np
 from . import progress
 from .camera import MIN_FOV, Camera, camera_flags, fit_points, rotate
 from .cloud import SplatCloud
-from .colors import ColorOptions, colorize
+from .colors import ELEVATION, ColorOptions, colorize
 from .errors import EmptyFrameWarning, InputError
-from .geometry.preprocess import preprocess
+from .geometry.closed import is_closed_surface, outward_splats
+from .geometry.preprocess import NONPLANAR, preprocess
 from .geometry.robust import OUTLIER_ACTIONS, OutlierAction
 from .geometry.sampling import DEFAULT_SPACING_PX, samples_for_pixels, surface_splats
 from .hierarchy import Hierarchy, LodShading, Selection, build_hierarchy, load_hierarchy, select
+from .hierarchy.lod import check_point_budget, selection_flags
+from .hierarchy.chunked import ChunkedHierarchy, chunked_up, is_chunked_hierarchy, open_chunked
 from .io import Mesh, load, load_input, load_mesh
+from .io.image_maps import normals_from_depth
 from .io.objects import from_object
 from .io.surface import AUTO
 from .lighting import Lights
 from .render.frame import Frame
+from .render.hybrid import facing_points
+from .render.lod_auto import AUTO, auto_lod_tolerance
 from .render.mesh import render_mesh as rasterize_mesh
 from .render.options import RenderOptions, TechniqueName
 from .render.renderer import default_renderer
@@ -38,7 +44,7 @@ from .scenes import SCENES, demo_scene
 
 #: What can be rendered: splats as they are, a point-octree cut per view, or a surface (a mesh,
 #: sampled into splats for the view).
-Model = Union[SplatCloud, Hierarchy, Mesh]
+Model = Union[SplatCloud, Hierarchy, ChunkedHierarchy, Mesh]
 
 #: Image size (pixels) of :func:`render` when no camera is given.
 DEFAULT_WIDTH = DEFAULT_HEIGHT = 512
@@ -79,7 +85,7 @@ def check_source(source) -> None:
         if name not in SCENES:
             raise InputError(f"unknown demo scene {name!r}; choose one of "
                              f"{', '.join(DEMO_PREFIX + n for n in sorted(SCENES))}")
-    elif isinstance(source, (str, Path)) and not Path(source).is_file():
+    elif isinstance(source, (str, Path)) and not Path(source).is_file() and not is_chunked_hierarchy(source):
         raise InputError(f"{source}: no such file (or {DEMO_PREFIX}NAME for a built-in scene)")
 
 
@@ -151,14 +157,17 @@ def as_splats(source: SplatCloud | str | Path, options: SourceOptions | None = N
     if not isinstance(source, SplatCloud):
         raise InputError(f"expected a SplatCloud or a file path, got {type(source).__name__}")
     if not source.has_splats:
-        source = preprocess(source, k=options.k, sharp_angle=options.raw_sharp_angle, outliers=options.outliers)
+        source = preprocess(source, k=options.k, sharp_angle=options.raw_sharp_angle, outliers=options.outliers,
+                            mark_nonplanar=True)
     return source
 
 
 def surface_model(model: Model, camera: Camera | None = None, source_options: SourceOptions | None = None, *,
-                  image_size: int = DEFAULT_WIDTH) -> SplatCloud | Hierarchy:
+                  image_size: int = DEFAULT_WIDTH, closed: bool | None = None) -> SplatCloud | Hierarchy:
     """A mesh's surface as splats (others as they are): sampled for ``camera`` (the spacing on
-    screen), or with the model's diagonal spanning ``image_size`` pixels when no view is known."""
+    screen), or with the model's diagonal spanning ``image_size`` pixels when no view is known.
+    The splats of a closed mesh (``closed``; None: :func:`is_closed_surface` decides) get outward
+    normals (:func:`outward_splats`), so that back-face culling keeps the visible side."""
     if not isinstance(model, Mesh):
         return model
     surface = source_options or SourceOptions()
@@ -170,6 +179,8 @@ def surface_model(model: Model, camera: Camera | None = None, source_options: So
              f"{surface.spacing_px:g} px apart with the model {image_size} px wide")
     progress.message(f"{n:,} samples on the surface ({where})")
     cloud = colored(surface_splats(model, n, sharp_angle=surface.sharp_angle, seed=surface.seed), surface)
+    if closed if closed is not None else is_closed_surface(model):
+        cloud = outward_splats(cloud)
     lines = cloud.clip_lines is not None
     progress.message(f"{len(cloud):,} surface splats" + (", clipped at sharp and open edges" if lines else ""))
     return cloud
@@ -190,10 +201,15 @@ def colored(model: Model, source_options: SourceOptions | None, up=(0.0, 1.0, 0.
     color = source_options.color if source_options is not None else None
     if color is None or isinstance(model, Mesh):
         return model
-    if isinstance(model, Hierarchy):
+    if isinstance(model, (Hierarchy, ChunkedHierarchy)):
         raise InputError("--color-by needs the points: hierarchy files keep no attributes; render the "
                          "point file with --lod-tolerance instead")
-    return colorize(model, color.by, color.colormap, color.value_range, up=up)
+    value_range = color.value_range
+    if value_range is not None and color.by.lower() == ELEVATION and model.origin.any():
+        # colorize reads the local positions: a range in world elevations moves by the origin's
+        shift = float(model.origin @ np.asarray(up, dtype=np.float64)) / float(np.linalg.norm(up))
+        value_range = (value_range[0] - shift, value_range[1] - shift)
+    return colorize(model, color.by, color.colormap, value_range, up=up)
 
 
 def _load_model(source, source_options: SourceOptions | None = None) -> Model:
@@ -209,12 +225,12 @@ def _load_model(source, source_options: SourceOptions | None = None) -> Model:
     clouds and meshes.
     """
     surface = source_options or SourceOptions()
-    if isinstance(source, Hierarchy):
+    if isinstance(source, (Hierarchy, ChunkedHierarchy)):
         return source
     if not isinstance(source, (str, Path, SplatCloud, Mesh)):
         source = from_object(source)   # arrays, tables, trimesh and Open3D objects
     if isinstance(source, Mesh):
-        return as_splats(SplatCloud(source.vertices, source.vertex_normals, source.vertex_colors),
+        return as_splats(SplatCloud(source.vertices, source.vertex_normals, source.vertex_colors, origin=source.origin),
                          surface) if surface.vertices else source
     if is_demo_source(source):
         check_source(source)
@@ -225,6 +241,10 @@ def _load_model(source, source_options: SourceOptions | None = None) -> Model:
             hierarchy = load_hierarchy(source)
         progress.message(f"{len(hierarchy.points):,} points, {len(hierarchy):,} nodes in {hierarchy.levels} levels")
         return hierarchy
+    if is_chunked_hierarchy(source):  # a directory from `surfsplat build --chunked`: cells are read per view
+        chunked = open_chunked(source)
+        progress.message(f"{chunked.point_count:,} points in {len(chunked.cells):,} cells (read as views need them)")
+        return chunked
     if isinstance(source, (str, Path)) and not surface.vertices:
         with progress.stage(f"loading {source}"):
             data = load_input(source)
@@ -241,7 +261,7 @@ def _load_model(source, source_options: SourceOptions | None = None) -> Model:
 def as_hierarchy(model: Model, source_options: SourceOptions | None = None, *, image_size: int = DEFAULT_WIDTH) -> Hierarchy:
     """A Hierarchy as it is, or the point-octree built over a render-ready SplatCloud (a mesh's
     surface is sampled first, see :func:`surface_model`)."""
-    if isinstance(model, Hierarchy):
+    if isinstance(model, (Hierarchy, ChunkedHierarchy)):
         return model
     model = surface_model(model, None, source_options, image_size=image_size)
     with progress.stage(f"building the point-octree of {len(model):,} splats"):
@@ -252,25 +272,29 @@ def model_points(model: Model) -> SplatCloud:
     """The original splats of a model (for framing): a SplatCloud itself, a Hierarchy's points, a
     mesh's vertices."""
     if isinstance(model, Mesh):
-        return SplatCloud(model.vertices)
-    return model.points if isinstance(model, Hierarchy) else model
+        return SplatCloud(model.vertices, origin=model.origin)
+    return model.points if isinstance(model, (Hierarchy, ChunkedHierarchy)) else model
 
 
 # -- the camera ------------------------------------------------------------------
 
 #: Points used to fit the automatic view (a regular subsample of larger clouds).
 FIT_SAMPLE = 200_000
-#: Suffixes of files whose z axis points up (LiDAR).
-Z_UP_SUFFIXES = (".las", ".laz")
+#: Suffixes of files whose z axis points up (LiDAR, E57 scans).
+Z_UP_SUFFIXES = (".las", ".laz", ".e57")
 #: A model whose extent along up is below this fraction of its horizontal extent (terrain, an
 #: aerial survey) is looked at from about 45 degrees above instead of from the front.
 FLAT_MODEL_RATIO = 0.2
 
 
 def natural_up(source) -> tuple[float, float, float]:
-    """The up axis a source's data assume: +z for LAS/LAZ files (LiDAR), else +y."""
+    """The up axis a source's data assume: +z for LAS/LAZ (LiDAR) and E57 (scanner) files, else +y."""
     if isinstance(source, (str, Path)) and Path(source).suffix.lower() in Z_UP_SUFFIXES:
         return (0.0, 0.0, 1.0)
+    if isinstance(source, ChunkedHierarchy):  # the up of the file it was built from
+        return source.up
+    if is_chunked_hierarchy(source):
+        return chunked_up(source)
     return (0.0, 1.0, 0.0)
 
 
@@ -311,8 +335,9 @@ def auto_camera(cloud: SplatCloud, width: int = DEFAULT_WIDTH, height: int = DEF
     step = max(1, len(cloud) // FIT_SAMPLE)
     margin = float(np.percentile(cloud.radii, 99)) if cloud.u is not None else 0.0
     lo, hi = cloud.bounds()
-    camera = fit_points(cloud.positions[::step], direction=direction, up=up, fov=fov, width=width, height=height,
-                        margin=margin)
+    # world positions in float64: the camera is composed where the data sit, whatever their offset
+    camera = fit_points(cloud.positions[::step].astype(np.float64) + cloud.origin, direction=direction, up=up,
+                        fov=fov, width=width, height=height, margin=margin)
     # near/far from every splat, not only the subsample
     return replace(camera, near=None, far=None).with_clip_from_bounds(
         lo, hi, float(cloud.radii.max()) if cloud.u is not None else 0.0)
@@ -367,30 +392,77 @@ def resolve_camera(model: Model, camera: Camera | CameraSpec | None, width: int,
 # -- level of detail -------------------------------------------------------------
 
 def lod_splats(hierarchy: Hierarchy, camera: Camera, lod_tolerance: float = DEFAULT_LOD_TOLERANCE, *,
-               cull_backfaces: bool = False, lod_shading: LodShading = DEFAULT_LOD_SHADING):
-    """The splats of a hierarchy to draw for a view, and the selection (Pajarola 2003, sec. 5.1).
+               cull_backfaces: bool = False, lod_shading: LodShading = DEFAULT_LOD_SHADING,
+               point_budget: int | None = None):
+    """The splats of a hierarchy to draw for a view (``camera`` in world coordinates), and the
+    selection (Pajarola 2003, sec. 5.1). The splats keep the points' origin: draw them with
+    :func:`local_camera`.
 
     Nodes whose projected ellipse is at most ``lod_tolerance`` pixels wide are
     drawn as one splat, others are refined; nodes outside the view frustum (and
     with ``cull_backfaces`` those whose normal cone faces away) are dropped with
     their subtrees. ``lod_shading`` is the normal field of node splats: "fit"
-    (least-squares linear field), "cone" (Pajarola 2003, fig. 14) or "flat".
+    (least-squares linear field), "cone" (Pajarola 2003, fig. 14) or "flat". With ``point_budget``
+    at most that many splats: the largest nodes on screen are refined first (Potree's priority).
 
     Returns:
         (SplatCloud, :class:`~surfsplat.hierarchy.Selection`).
     """
-    selection = select(hierarchy, camera, lod_tolerance, cull_backfaces=cull_backfaces, lod_shading=lod_shading)
-    return hierarchy.splats(selection), selection
+    origin = hierarchy.points.origin
+    selection = select(hierarchy, camera.translated(-origin), lod_tolerance, cull_backfaces=cull_backfaces,
+                       lod_shading=lod_shading, point_budget=point_budget)
+    return hierarchy.splats(selection).replace(origin=origin), selection
+
+
+def local_camera(splats: SplatCloud, camera: Camera) -> Camera:
+    """The world ``camera`` in the local frame of ``splats`` (what the renderer draws them with):
+    near/far set from their world bounds where None (grown by the largest splat radius), then eye
+    and target moved by ``-splats.origin`` in float64. The GPU then only sees coordinates of the
+    size of the model, wherever it sits (positions relative to a float64 origin, see
+    :class:`~surfsplat.cloud.SplatCloud`)."""
+    if camera.near is None or camera.far is None:
+        margin = float(splats.radii.max()) if splats.u is not None and len(splats) else 0.0
+        camera = camera.with_clip_from_bounds(*splats.bounds(), margin=margin)
+    return camera.translated(-splats.origin)
 
 
 def view_splats(model: Model, camera: Camera, lod_tolerance: float | None = None, *, cull_backfaces: bool = False,
-                lod_shading: LodShading = DEFAULT_LOD_SHADING) -> tuple[SplatCloud, Selection | None]:
+                lod_shading: LodShading = DEFAULT_LOD_SHADING,
+                point_budget: int | None = None) -> tuple[SplatCloud, Selection | None]:
     """The splats to draw for a view: a SplatCloud as it is, or a Hierarchy's LOD cut (:func:`lod_splats`,
-    tolerance :data:`DEFAULT_LOD_TOLERANCE` when None). Returns (SplatCloud, Selection or None)."""
+    tolerance :data:`DEFAULT_LOD_TOLERANCE` when None, at most ``point_budget`` splats when given).
+    Returns (SplatCloud, Selection or None)."""
+    tolerance = DEFAULT_LOD_TOLERANCE if lod_tolerance is None else lod_tolerance
+    if isinstance(model, ChunkedHierarchy):
+        return model.view_splats(camera, tolerance, cull_backfaces=cull_backfaces, lod_shading=lod_shading,
+                                 point_budget=point_budget)
     if not isinstance(model, Hierarchy):
         return model, None
-    tolerance = DEFAULT_LOD_TOLERANCE if lod_tolerance is None else lod_tolerance
-    return lod_splats(model, camera, tolerance, cull_backfaces=cull_backfaces, lod_shading=lod_shading)
+    return lod_splats(model, camera, tolerance, cull_backfaces=cull_backfaces, lod_shading=lod_shading,
+                      point_budget=point_budget)
+
+
+def is_lidar(source) -> bool:
+    """Whether ``source`` names a LAS/LAZ file (drawn hybrid by default, :func:`hybrid_splats`)."""
+    return isinstance(source, (str, Path)) and Path(source).suffix.lower() in Z_UP_SUFFIXES
+
+
+def hybrid_splats(model: Model, drawn: Model, cloud: SplatCloud, selection: Selection | None,
+                  camera: Camera) -> SplatCloud:
+    """The splats ``cloud`` drawn for ``model`` with the non-planar ones (the ``nonplanar``
+    attribute of preprocessing) made round points facing the eye of ``camera`` (in the splats'
+    frame) and the planar ones left surface splats (:func:`surfsplat.render.hybrid.facing_points`).
+    ``drawn`` is what was cut: ``model`` itself, or the Hierarchy built over it, whose
+    ``selection`` gives a node splat the majority flag of its points. Unchanged when the points
+    carry no such attribute (splat files, given normals, hierarchy files)."""
+    flags = (model_points(model).attributes or {}).get(NONPLANAR)
+    if flags is None or len(cloud) == 0:
+        return cloud
+    if selection is not None:
+        if isinstance(drawn, Hierarchy) and drawn is not model:
+            flags = flags[drawn.order]   # the hierarchy's points are the model's, reordered
+        flags = selection_flags(drawn, selection, flags)
+    return facing_points(cloud, np.asarray(flags, dtype=bool), camera)
 
 
 # -- drawing -----------------------------------------------------------------------
@@ -426,6 +498,16 @@ class RenderResult:
             return f"{self.splats:,} splats"
         return (f"{self.splats:,} LOD splats (tolerance {s.lod_tolerance:g} px, {s.node_count:,} nodes, "
                 f"{s.point_total:,} points)")
+
+    def normals(self, space: str = "camera") -> np.ndarray:
+        """(H, W, 3) float32 unit normals of the visible surface, computed from the depth map (NaN where
+        empty; :func:`surfsplat.io.image_maps.normals_from_depth`), in "camera" or "world" space."""
+        return normals_from_depth(self.frame.depth, self.frame.camera, space=space)
+
+    @property
+    def coverage(self) -> np.ndarray:
+        """(H, W) float32 antialiased coverage in [0, 1]: the fraction of each pixel the surface covers."""
+        return self.frame.alpha
 
 
 def bounds_pixels(camera: Camera, lo, hi) -> float:
@@ -467,27 +549,40 @@ def check_coverage(frame: Frame, model: Model, what: str = "the model") -> None:
 
 def render_model(model: Model, camera: Camera, *, technique: TechniqueName = "ewa", lights: Lights | None = None,
                  background=DEFAULT_BACKGROUND, options: RenderOptions | None = None,
-                 lod_tolerance: float | None = None, lod_shading: LodShading = DEFAULT_LOD_SHADING,
-                 supersample: int = 1, source_options: SourceOptions | None = None) -> RenderResult:
+                 lod_tolerance: float | str | None = None, lod_shading: LodShading = DEFAULT_LOD_SHADING,
+                 supersample: int = 1, source_options: SourceOptions | None = None,
+                 point_budget: int | None = None, hybrid: bool = False) -> RenderResult:
     """Draw a loaded model (:func:`load_model`) with a resolved camera.
 
     A mesh's surface is sampled for this camera (:func:`surface_model`); a SplatCloud given
-    ``lod_tolerance`` gets its hierarchy built first; a Hierarchy is cut per view
-    (:func:`view_splats`). See :func:`render` for the arguments.
+    ``lod_tolerance`` or ``point_budget`` gets its hierarchy built first; a Hierarchy is cut per
+    view (:func:`view_splats`); with ``hybrid`` the non-planar splats are drawn as round points
+    (:func:`hybrid_splats`). See :func:`render` for the arguments.
     """
     options = options or RenderOptions()
     background = check_background(background)
-    drawn = surface_model(model, camera, source_options)
-    if lod_tolerance is not None:
+    if point_budget is not None:
+        point_budget = check_point_budget(point_budget)
+    closed = isinstance(model, Mesh) and is_closed_surface(model)
+    if options.visibility.cull_backfaces is None:   # automatic: a closed mesh's back side is never seen
+        options = replace(options, visibility=replace(options.visibility, cull_backfaces=closed))
+    drawn = surface_model(model, camera, source_options, closed=closed)
+    if lod_tolerance == AUTO:   # from the output resolution (render/lod_auto.py)
+        tree = isinstance(drawn, (Hierarchy, ChunkedHierarchy))
+        lod_tolerance = auto_lod_tolerance(None if tree else drawn.positions,
+                                           None if tree else local_camera(drawn, camera), supersample, hierarchy=tree)
+    if lod_tolerance is not None or point_budget is not None:
         drawn = as_hierarchy(drawn)
     start = time.perf_counter()
     cloud, selection = view_splats(drawn, camera, lod_tolerance, cull_backfaces=options.visibility.cull_backfaces,
-                                   lod_shading=lod_shading)
+                                   lod_shading=lod_shading, point_budget=point_budget)
     if len(cloud) == 0:
         frame = Frame.empty(camera, background)
     else:
+        if hybrid:
+            cloud = hybrid_splats(model, drawn, cloud, selection, local_camera(cloud, camera))
         frame = default_renderer().render(cloud, camera, technique, lights or Lights(), options, background,
-                                          supersample=supersample)
+                                          supersample=supersample)   # world camera: the renderer handles the origin
     result = RenderResult(frame, len(cloud), selection, time.perf_counter() - start)
     check_coverage(frame, model)
     return result
@@ -495,17 +590,20 @@ def render_model(model: Model, camera: Camera, *, technique: TechniqueName = "ew
 
 def render(source, camera: Camera | CameraSpec | None = None, *, technique: TechniqueName = "ewa",
            width: int = DEFAULT_WIDTH, height: int = DEFAULT_HEIGHT, lights: Lights | None = None,
-           background=DEFAULT_BACKGROUND, options: RenderOptions | None = None, lod_tolerance: float | None = None,
+           background=DEFAULT_BACKGROUND, options: RenderOptions | None = None,
+           lod_tolerance: float | str | None = None,
            lod_shading: LodShading = DEFAULT_LOD_SHADING, supersample: int = 1,
-           source_options: SourceOptions | None = None) -> Frame:
+           source_options: SourceOptions | None = None, point_budget: int | None = None,
+           hybrid: bool | None = None) -> Frame:
     """Render a SplatCloud, a hierarchy, a file or a built-in scene to a :class:`Frame`.
 
     Args:
         source: a SplatCloud (preprocessed if it lacks normals or splat axes), a
             :class:`~surfsplat.hierarchy.Hierarchy`, a :class:`~surfsplat.io.Mesh`,
             ``"demo:NAME"``, or a path: a point/splat file, a mesh file (its surface is
-            sampled for the view, see ``source_options``) or a hierarchy file (``.npz`` from
-            ``surfsplat build``).
+            sampled for the view, see ``source_options``), a hierarchy file (``.npz`` from
+            ``surfsplat build``) or a chunked hierarchy directory (``surfsplat build --chunked``:
+            only the cells a view needs are read).
         camera: a :class:`Camera`; or a :class:`CameraSpec` (eye, target, up, fov) or None
             (automatic framing), resolved at ``width`` x ``height`` pixels.
         technique: "ewa" (Guennebaud 2003), "perspective" (Zwicker 2004), "phong"
@@ -518,6 +616,8 @@ def render(source, camera: Camera | CameraSpec | None = None, *, technique: Tech
         lod_tolerance: LOD screen tolerance in pixels (see :func:`lod_splats`).
             Hierarchies default to :data:`DEFAULT_LOD_TOLERANCE`; a cloud given a
             tolerance is turned into a hierarchy first (``surfsplat build`` saves one).
+            ``"auto"``: one pixel of the drawn grid, for a cloud only where its view holds many
+            points per pixel (:mod:`surfsplat.render.lod_auto`).
         lod_shading: normal field of coarse LOD splats: "fit", "cone" or "flat".
         supersample: K in 1..8: draw K x K sub-pixels per pixel and average them (antialiased
             edges and an antialiased ``Frame.alpha``; any size is drawn in tiles). The LOD cut
@@ -526,13 +626,20 @@ def render(source, camera: Camera | CameraSpec | None = None, *, technique: Tech
             preprocessed (k neighbours, outliers dropped); a mesh's surface sampled 0.75 px
             apart for the view, with crease-aware normals and clip lines at sharp and open
             edges (or its vertices).
+        point_budget: at most this many splats (>= 1): the LOD cut refined largest node on
+            screen first until the budget is spent (Potree's priority; a cloud gets its
+            hierarchy built first). None: the whole tolerance cut.
+        hybrid: draw non-planar neighbourhoods (vegetation, wires) as round points facing the
+            eye and planar ones as surface splats, in one frame (:func:`hybrid_splats`); None:
+            on for LAS/LAZ files (:func:`is_lidar`), off otherwise.
     """
     background = check_background(background)
     model = load_model(source, source_options)
     camera = resolve_camera(model, camera, width, height, default_up=natural_up(source))
+    hybrid = is_lidar(source) if hybrid is None else bool(hybrid)
     return render_model(model, camera, technique=technique, lights=lights, background=background, options=options,
                         lod_tolerance=lod_tolerance, lod_shading=lod_shading, supersample=supersample,
-                        source_options=source_options).frame
+                        source_options=source_options, point_budget=point_budget, hybrid=hybrid).frame
 
 
 def render_mesh(source, camera: Camera | CameraSpec | None = None, *, width: int = DEFAULT_WIDTH,
@@ -550,7 +657,8 @@ def render_mesh(source, camera: Camera | CameraSpec | None = None, *, width: int
     else:
         with progress.stage(f"loading {source}"):
             mesh = load_mesh(source)
-    camera = resolve_camera(SplatCloud(mesh.vertices), camera, width, height, default_up=natural_up(source))
+    camera = resolve_camera(SplatCloud(mesh.vertices, origin=mesh.origin), camera, width, height,
+                            default_up=natural_up(source))
     return rasterize_mesh(mesh, camera, lights or Lights(), background=background, supersample=supersample,
                           smooth=smooth, renderer=default_renderer())
 
@@ -594,22 +702,20 @@ def turntable_frames(model: Model, cameras: list[Camera], *, technique: Techniqu
                      lights: Lights | None = None, background=DEFAULT_BACKGROUND,
                      options: RenderOptions | None = None, lod_tolerance: float | None = None,
                      lod_shading: LodShading = DEFAULT_LOD_SHADING, supersample: int = 1,
-                     source_options: SourceOptions | None = None):
+                     source_options: SourceOptions | None = None, point_budget: int | None = None,
+                     hybrid: bool = False):
     """Yield the (H, W, 3) uint8 image of each camera (a mesh is sampled once, for the first camera;
-    a hierarchy is cut per frame). Progress every tenth of the frames."""
+    a hierarchy is cut per frame, within ``point_budget`` splats if given; ``hybrid`` as in
+    :func:`render_model`). Progress per frame (:func:`surfsplat.progress.stage`)."""
     if not cameras:
         return
     model = surface_model(model, cameras[0], source_options)
-    if lod_tolerance is not None:
+    if lod_tolerance is not None or point_budget is not None:
         model = as_hierarchy(model)
-    start = time.perf_counter()
-    step = max(1, len(cameras) // 10)
-    for i, camera in enumerate(cameras):
-        result = render_model(model, camera, technique=technique, lights=lights, background=background,
-                              options=options, lod_tolerance=lod_tolerance, lod_shading=lod_shading,
-                              supersample=supersample)
-        if (i + 1) % step == 0 or i + 1 == len(cameras):
-            elapsed = time.perf_counter() - start
-            progress.message(f"  frame {i + 1}/{len(cameras)}, {elapsed / (i + 1):.2f} s a frame, "
-                             f"{elapsed / (i + 1) * (len(cameras) - i - 1):.0f} s to go")
-        yield result.frame.image()
+    with progress.stage(f"rendering {len(cameras)} frames", unit="frames", total=len(cameras)) as frames:
+        for camera in cameras:
+            result = render_model(model, camera, technique=technique, lights=lights, background=background,
+                                  options=options, lod_tolerance=lod_tolerance, lod_shading=lod_shading,
+                                  supersample=supersample, point_budget=point_budget, hybrid=hybrid)
+            frames.update()
+            yield result.frame.image()

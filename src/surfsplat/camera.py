@@ -105,6 +105,30 @@ class Camera:
         """The same camera with another image size."""
         return replace(self, width=width, height=height)
 
+    def translated(self, offset) -> "Camera":
+        """The same view with eye and target moved by ``offset`` (3 numbers, model units), in float64.
+
+        ``camera.translated(-origin)`` is the camera in the local frame of a cloud whose world
+        coordinates are ``origin + positions``: the image, near/far and depth are unchanged, and
+        the renderer composes its float32 transform from small numbers only.
+        """
+        d = _vec3(offset, "offset")
+        if not d.any():
+            return self
+        eye, target = np.asarray(self.eye) + d, np.asarray(self.target) + d
+        return replace(self, eye=tuple(eye), target=tuple(target))
+
+    def scaled(self, factor: float) -> "Camera":
+        """The same view of a model scaled by ``factor`` (> 0) about the origin: eye, target, near
+        and far times ``factor`` (a power of two keeps every float32 computed from it exact)."""
+        if not (np.isfinite(factor) and factor > 0):
+            raise InputError(f"camera scale factor must be a positive number, got {factor!r}")
+        if factor == 1.0:
+            return self
+        scale = lambda x: None if x is None else float(x) * factor  # noqa: E731
+        return replace(self, eye=tuple(np.asarray(self.eye) * factor), target=tuple(np.asarray(self.target) * factor),
+                       near=scale(self.near), far=scale(self.far))
+
     def with_clip_from_bounds(self, lo: np.ndarray, hi: np.ndarray, margin: float = 0.0) -> "Camera":
         """Set near/far (where None) so the box [lo, hi], grown by ``margin``, lies between them.
 

@@ -1,6 +1,9 @@
 """SplatCloud: the one splat representation every technique renders.
 
-A structure of arrays, float32, one row per splat (DESIGN.md). A splat is an
+A structure of arrays, float32, one row per splat (DESIGN.md), with positions relative to
+a float64 ``origin``: world coordinates are ``origin + positions``, so georeferenced data
+(coordinates of 1e6..1e7 with millimetre spacing) keep float32's precision relative to
+their own extent wherever they sit. A splat is an
 ellipse in 3D: center ``positions[i]``, unit ``normals[i]`` and two scaled
 tangent axes ``u[i]``, ``v[i]`` (orthogonal to the normal; a circular splat of
 radius r has |u| = |v| = r). A point of the splat is
@@ -25,13 +28,18 @@ DEFAULT_ALBEDO = 0.8
 #: A clip line that keeps everything: ``0 s + 0 t + 1 >= 0``.
 NO_CLIP = np.array([0.0, 0.0, 1.0], dtype=np.float32)
 
+#: Positions given without an origin are moved to one (their bounding-box centre) when the
+#: centre lies farther from zero than this many times their extent: beyond it float32 would
+#: keep less than 1/16 of its precision relative to the data's own size.
+RECENTER_RATIO = 16.0
+
 
 @dataclass
 class SplatCloud:
     """Splats as a structure of float32 arrays.
 
     Attributes:
-        positions: (N, 3) float32, model space: splat centers.
+        positions: (N, 3) float32 splat centers relative to ``origin``, model units.
         normals: (N, 3) float32 unit vectors or None (estimated by preprocessing).
         colors: (N, 3) float32 linear RGB in [0, 1] or None (rendered 0.8 gray).
         u, v: (N, 3) float32 scaled tangent axes, model-space units, or None
@@ -46,6 +54,12 @@ class SplatCloud:
             (kept as read: LAS ``intensity`` uint16, ``classification`` uint8, PLY
             ``confidence`` float32, ...), or None. Rows follow the points through
             ``subset``, ``validated`` and preprocessing.
+        origin: (3,) float64 world position of the local zero: a splat's world center is
+            ``origin + positions[i]``. None: zeros, or, for positions given in another dtype
+            than float32 (float64 world coordinates) that lie far from zero relative to their
+            extent (:data:`RECENTER_RATIO`), their bounding-box centre (rounded to a multiple of
+            a power of two below the extent), the positions being stored relative to it
+            (:func:`split_origin`).
     """
 
     positions: np.ndarray
@@ -56,6 +70,7 @@ class SplatCloud:
     normal_field: np.ndarray | None = None
     clip_lines: np.ndarray | None = None
     attributes: dict[str, np.ndarray] | None = None
+    origin: np.ndarray | None = None
 
     _OPTIONAL = ("normals", "colors", "u", "v", "normal_field", "clip_lines")
     _SHAPES = {
@@ -69,13 +84,24 @@ class SplatCloud:
     }
 
     def __post_init__(self) -> None:
+        if self.origin is None:
+            if self.positions is not None:
+                self.origin, self.positions = split_origin(self.positions)
+            else:
+                self.origin = np.zeros(3)
+        else:
+            origin = np.array(self.origin, dtype=np.float64).reshape(-1)
+            if origin.shape != (3,) or not np.isfinite(origin).all():
+                raise InputError(f"origin must be 3 finite numbers, got {self.origin!r}")
+            self.origin = origin
         for name, tail in self._SHAPES.items():
             value = getattr(self, name)
             if value is None:
                 if name == "positions":
                     raise InputError("positions are required")
                 continue
-            arr = np.ascontiguousarray(value, dtype=np.float32)
+            with np.errstate(over="ignore"):   # beyond float32's range: inf, dropped and counted by validation
+                arr = np.ascontiguousarray(value, dtype=np.float32)
             if name == "clip_lines" and arr.ndim == 2 and arr.shape[1] == 3:
                 # one clip line per splat: pad the second with "keep all"
                 arr = np.concatenate([arr[:, None, :], np.broadcast_to(NO_CLIP, arr.shape)[:, None, :]], axis=1)
@@ -97,7 +123,8 @@ class SplatCloud:
         present = [name for name in self._OPTIONAL if getattr(self, name) is not None]
         if self.attributes:
             present.append(f"attributes {', '.join(self.attributes)}")
-        return f"SplatCloud({len(self)} splats, with {', '.join(present) or 'positions only'})"
+        at = f", origin {np.array2string(self.origin, precision=10)}" if self.origin.any() else ""
+        return f"SplatCloud({len(self)} splats, with {', '.join(present) or 'positions only'}{at})"
 
     # -- derived quantities -------------------------------------------------
 
@@ -121,16 +148,21 @@ class SplatCloud:
         return np.full((len(self), 3), DEFAULT_ALBEDO, dtype=np.float32)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Axis-aligned bounds ``(min, max)`` of the splat centers, model units."""
-        return self.positions.min(axis=0), self.positions.max(axis=0)
+        """Axis-aligned world bounds ``(min, max)`` of the splat centers, (3,) float64 each, model
+        units (``origin`` + the local bounds)."""
+        return self.positions.min(axis=0) + self.origin, self.positions.max(axis=0) + self.origin
+
+    def world_positions(self) -> np.ndarray:
+        """(N, 3) float64 world splat centers, ``origin + positions``, model units."""
+        return self.positions.astype(np.float64) + self.origin
 
     def subset(self, index: np.ndarray) -> "SplatCloud":
-        """A new SplatCloud with the rows selected by a boolean mask or index array."""
+        """A new SplatCloud with the rows selected by a boolean mask or index array (same origin)."""
         fields = {name: (None if getattr(self, name) is None else getattr(self, name)[index])
                   for name in ("positions",) + self._OPTIONAL}
         if self.attributes is not None:
             fields["attributes"] = {name: values[index] for name, values in self.attributes.items()}
-        return SplatCloud(**fields)
+        return SplatCloud(**fields, origin=self.origin)
 
     def replace(self, **changes) -> "SplatCloud":
         """A copy with some arrays replaced (validated like the constructor)."""
@@ -140,8 +172,11 @@ class SplatCloud:
 
     @classmethod
     def from_arrays(cls, positions, normals=None, colors=None, *, radius=None, u=None, v=None,
-                    normal_field=None, clip_lines=None) -> "SplatCloud":
+                    normal_field=None, clip_lines=None, origin=None) -> "SplatCloud":
         """A SplatCloud from plain arrays (anything ``numpy.asarray`` accepts), unvalidated.
+
+        ``positions`` are world coordinates (kept in float64 until an origin is chosen, see
+        :class:`SplatCloud`), or relative to ``origin`` when it is given.
 
         ``colors`` may be uint8 / uint16 (divided by 255 / 65535), other integers or floats
         (see :func:`unit_colors`: floats above 1 are read as 0..255). ``radius`` ((N,) model
@@ -155,7 +190,7 @@ class SplatCloud:
                 raise InputError("radius needs normals (a circular splat needs a normal to orient it)")
             u, v = circle_axes(normals, radius)
         return cls(positions=positions, normals=normals, colors=colors, u=u, v=v,
-                   normal_field=normal_field, clip_lines=clip_lines)
+                   normal_field=normal_field, clip_lines=clip_lines, origin=origin)
 
     @classmethod
     def from_dict(cls, columns, *, extras: dict | None = None) -> "SplatCloud":
@@ -224,12 +259,16 @@ class SplatCloud:
     def to_dict(self, *, columns: bool = False) -> dict[str, np.ndarray]:
         """The arrays present, by name: ``{"positions": (N, 3), "normals": ..., ...}`` (copies).
 
-        With ``columns=True``: one (N,) float32 array per scalar column, named as in PLY files
+        With ``columns=True``: one (N,) array per scalar column (float32; x y z float64 with an origin),
+        named as in PLY files
         (``x y z nx ny nz red green blue ux uy uz vx vy vz alpha beta clip0_a ... clip1_c``;
         colors in [0, 1]), ready for ``pandas.DataFrame``; :meth:`from_dict` reads both forms.
+        Positions are world coordinates: float64 ``origin + positions`` when the origin is not zero.
         """
         arrays = {name: getattr(self, name).copy() for name in ("positions",) + self._OPTIONAL
                   if getattr(self, name) is not None}
+        if self.origin.any():   # world coordinates, as from_dict reads them
+            arrays["positions"] = self.world_positions()
         if not columns:
             return arrays
         names = {"positions": ("x", "y", "z"), "normals": ("nx", "ny", "nz"), "colors": ("red", "green", "blue"),
@@ -258,7 +297,7 @@ class SplatCloud:
         if n == 0:
             raise InputError(f"{source}: contains no points")
         keep = np.isfinite(self.positions).all(axis=1)
-        reasons = {"non-finite coordinates": int(n - keep.sum())}
+        reasons = {"non-finite coordinates or ones beyond float32's 3.4e38 from the origin": int(n - keep.sum())}
         if self.normals is not None:
             length = np.linalg.norm(self.normals.astype(np.float64), axis=1)
             bad = ~np.isfinite(length) | (length < 1e-12)
@@ -296,6 +335,34 @@ class SplatCloud:
         if out.colors is not None:
             out.colors = np.clip(out.colors, 0.0, 1.0)
         return out
+
+
+def split_origin(positions) -> tuple[np.ndarray, np.ndarray]:
+    """``(origin, local)`` of world ``positions``: (3,) float64 and the (N, 3) positions relative
+    to it. float32 positions are taken as they are (local, origin zero: what library code passes);
+    for others the origin is zero unless the bounding-box centre of the finite rows lies farther
+    from zero than :data:`RECENTER_RATIO` times their extent; it is then that centre rounded to a
+    multiple of the largest power of two not above the extent (so coordinates on a grid stay
+    exact), and ``local`` is computed in float64. Shapes are checked by the caller."""
+    arr = np.asarray(positions)
+    if arr.dtype == np.float32 or arr.dtype.kind not in "uif" or arr.ndim != 2 or arr.shape[1:] != (3,) \
+            or len(arr) == 0:
+        return np.zeros(3), positions
+    world = arr.astype(np.float64)
+    finite = np.isfinite(world).all(axis=1)
+    if not finite.any():
+        return np.zeros(3), positions
+    with np.errstate(over="ignore", invalid="ignore"):
+        lo, hi = world[finite].min(axis=0), world[finite].max(axis=0)
+        center = 0.5 * lo + 0.5 * hi
+        extent = float(np.max(hi - lo))
+        if not np.isfinite(extent) or not np.abs(center).max() > RECENTER_RATIO * extent:
+            return np.zeros(3), positions
+        if extent == 0:
+            return np.zeros(3), positions   # coincident points: no spacing for float32 to lose
+        step = 2.0 ** np.floor(np.log2(extent)) if extent > 0 else 0.0
+        origin = np.round(center / step) * step if step > 0 and np.isfinite(center / step).all() else center
+        return origin, world - origin
 
 
 def checked_attributes(attributes, n: int) -> dict[str, np.ndarray] | None:

@@ -9,7 +9,9 @@ splat axes: :func:`surfsplat.preprocess` must size them) whose true surface is t
 * :func:`scan_lines`: airborne-LiDAR-like scan lines, points much denser along a line than across,
 * :func:`tree`: a noisy volume of random points above the plane (vegetation),
 * :func:`duplicates`: points stored twice or more (mesh vertices at texture seams, merged scans),
-* :func:`faulty_scan`: all of them at once.
+* :func:`faulty_scan`: all of them at once,
+* :func:`aerial`: an airborne scan of a block: ground, gable roofs and trees, with LAS-like
+  ``classification`` and ``intensity`` attributes (its surfaces are the ground and the roofs).
 
 The surface is sampled uniformly at random (the hardest case for hole-free splats) or on a
 jittered grid; ``spacing`` is the nominal sample spacing ``1 / sqrt(density)`` (model units).
@@ -213,3 +215,77 @@ def faulty_scan(lines: int = 60, ratio: float = 5.0, side: float = 1.0, seed: in
     copies = pts[rng.choice(n, size=n // 10, replace=False)]
     return _assemble([(pts, True), (copies, True), (stray, False), (groups, False), (ball, False)], side, spacing,
                      f"faulty scan lines {ratio:g}:1", rng, len(copies))
+
+
+#: ASPRS LAS classes of :func:`aerial`'s points, and their colors.
+GROUND, HIGH_VEGETATION, BUILDING = 2, 5, 6
+AERIAL_COLORS = {GROUND: SURFACE_COLOR, BUILDING: (0.72, 0.36, 0.3), HIGH_VEGETATION: (0.25, 0.5, 0.2)}
+
+
+def aerial(n: int = 40_000, houses: int = 6, trees: int = 8, side: float = 100.0, seed: int = 0) -> FaultyCloud:
+    """An airborne LiDAR block: ``n`` ground samples on ``[0, side]^2`` (z = 0), ``houses`` gable
+    roofs and ``trees`` trees, one per cell of a 4 x 4 grid (so at most 16 of them together).
+
+    A house cell holds a roof of 0.5 x 0.36 cells, eaves at 0.16 cells, 30 degree slopes, sampled as
+    densely as the ground (per true area), and walls at half that density; the ground under a roof
+    is not seen (no samples). A
+    tree is a ball crown of radius 0.12 cells (random points in its volume, as many as its surface
+    would get) on a trunk, over ground that stays sampled (the beams pass between the leaves).
+    Attributes: ``classification`` (uint8, ASPRS: 2 ground, 6 building, 5 high vegetation) and
+    ``intensity`` (uint16: 800, 2000, 400 with 10 % noise); colors by class (:data:`AERIAL_COLORS`).
+    ``surface`` marks the ground and roof samples; ``spacing`` is the ground's. Model units.
+    """
+    if not (houses >= 0 and trees >= 0 and houses + trees <= 16):
+        raise InputError(f"houses + trees must be within 0..16 (one per cell of a 4 x 4 grid), got {houses} + {trees}")
+    _check(n, side)
+    rng = np.random.default_rng(seed)
+    spacing = side / np.sqrt(n)
+    cell = side / 4.0
+    order = rng.permutation(16)
+    corners = np.column_stack([order % 4, order // 4]).astype(np.float64) * cell
+    house_at, tree_at = corners[:houses] + cell / 2, corners[houses:houses + trees] + cell / 2
+    half_w, half_d, eave, slope = 0.25 * cell, 0.18 * cell, 0.16 * cell, np.radians(30.0)
+    ground = rng.uniform(0.0, side, size=(n, 2))
+    under = np.zeros(n, dtype=bool)
+    for c in house_at:
+        under |= (np.abs(ground[:, 0] - c[0]) <= half_w) & (np.abs(ground[:, 1] - c[1]) <= half_d)
+    ground = np.column_stack([ground[~under], np.zeros(int((~under).sum()))])
+    # roofs: two planes meeting at a ridge along x, z falling with |y - center| at the slope
+    per_roof = int(round(2 * half_w * 2 * half_d / np.cos(slope) / spacing ** 2))
+    xy = rng.uniform(-1.0, 1.0, size=(houses, per_roof, 2)) * (half_w, half_d)
+    z = eave + (half_d - np.abs(xy[..., 1])) * np.tan(slope)
+    roofs = np.concatenate([xy + house_at[:, None, :], z[..., None]], axis=2).reshape(-1, 3)
+    # walls (seen at grazing angles: half the ground's density), up to the eaves (and the gables)
+    perimeter = 4 * (half_w + half_d)
+    per_wall = int(round(0.5 * perimeter * eave / spacing ** 2))
+    t = rng.uniform(0.0, perimeter, size=(houses, per_wall))
+    along = np.select([t < 2 * half_w, t < 2 * half_w + 2 * half_d, t < 4 * half_w + 2 * half_d],
+                      [t - half_w, half_w, 3 * half_w + 2 * half_d - t], -half_w)
+    across = np.select([t < 2 * half_w, t < 2 * half_w + 2 * half_d, t < 4 * half_w + 2 * half_d],
+                       [-half_d, t - 2 * half_w - half_d, half_d], 4 * half_w + 3 * half_d - t)
+    top = eave + np.where(np.abs(along) >= half_w, (half_d - np.abs(across)) * np.tan(slope), 0.0)
+    walls = np.stack([along, across, rng.uniform(size=(houses, per_wall)) * top], axis=2)
+    walls[..., :2] += house_at[:, None, :]
+    roofs = np.concatenate([roofs, walls.reshape(-1, 3)])
+    radius = 0.12 * cell
+    per_crown = int(round(4 * np.pi * radius ** 2 / spacing ** 2))
+    d = rng.normal(size=(trees, per_crown, 3))
+    d *= (radius * rng.uniform(size=(trees, per_crown, 1)) ** (1 / 3) / np.linalg.norm(d, axis=2, keepdims=True))
+    crown_z = eave + 1.2 * radius
+    crowns = (d + np.column_stack([tree_at, np.full(trees, crown_z)])[:, None, :]).reshape(-1, 3)
+    per_trunk = max(2, per_crown // 20)
+    trunk_xy = np.repeat(tree_at, per_trunk, axis=0) + rng.normal(scale=0.5 * spacing, size=(trees * per_trunk, 2))
+    trunks = np.concatenate([trunk_xy, rng.uniform(0.0, crown_z - radius, size=(trees * per_trunk, 1))], axis=1)
+    pts = np.concatenate([ground, roofs, crowns, trunks])
+    cls = np.repeat(np.array([GROUND, BUILDING, HIGH_VEGETATION, HIGH_VEGETATION], dtype=np.uint8),
+                    [len(ground), len(roofs), len(crowns), len(trunks)])
+    order = rng.permutation(len(pts))
+    pts, cls = pts[order], cls[order]
+    base = np.select([cls == GROUND, cls == BUILDING], [800.0, 2000.0], 400.0)
+    intensity = np.clip(base * (1.0 + 0.1 * rng.normal(size=len(pts))), 0, 65535).astype(np.uint16)
+    palette = np.zeros((256, 3), dtype=np.float32)
+    for code, color in AERIAL_COLORS.items():
+        palette[code] = color
+    cloud = SplatCloud(pts.astype(np.float32), colors=palette[cls],
+                       attributes={"classification": cls, "intensity": intensity})
+    return FaultyCloud(cloud, cls != HIGH_VEGETATION, float(side), float(spacing), "aerial block")

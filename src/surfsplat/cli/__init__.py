@@ -15,7 +15,7 @@ from .. import progress
 from ..version import __version__
 from ..errors import SurfsplatError
 from ..scenes import SCENES
-from . import commands
+from . import chunked, commands
 from . import options as opt
 from .view import add_view_command
 
@@ -41,9 +41,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True,
                    help="output image (.png); with several inputs a pattern such as out/{stem}.png")
     opt.add_source_options(p)
-    p.add_argument("--depth", metavar="OUT.npy|OUT.png",
-                   help="also save the depth map: .npy camera-space depth (inf = empty), or .png 16-bit "
+    p.add_argument("--depth", metavar="OUT.npy|OUT.exr|OUT.png",
+                   help="also save the depth map: .npy or .exr (float32 channel Z; the exr extra) camera-space "
+                        "depth along the view axis in model units (inf = empty), or .png 16-bit "
                         "(0 = empty, 1..65535 = near..far, stated in its surfsplat:near/far text chunks)")
+    p.add_argument("--normals", metavar="OUT.png|OUT.exr|OUT.npy",
+                   help="also save camera-space unit normals (x right, y up, z toward the viewer) computed from "
+                        "the depth map: .png RGB = 0.5 + 0.5 n (black = empty), .exr/.npy float32 (NaN = empty)")
+    p.add_argument("--coverage", metavar="OUT.png|OUT.npy|OUT.exr",
+                   help="also save the antialiased coverage (alpha) in [0, 1]: .png grey with --bit-depth bits, "
+                        ".npy/.exr float32")
     p.add_argument("--cameras", metavar="FILE",
                    help="render every camera of FILE (OpenCV JSON, COLMAP cameras.txt/images.txt, NeRF "
                         "transforms.json, or a --save-camera file), each to -o with {name} the view's name")
@@ -67,12 +74,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("input", help="a point, splat or mesh file, a hierarchy MODEL.npz, or demo:NAME")
     p.add_argument("-o", "--output", required=True, help="output animation (.gif; .mp4, .webm with the video extra)")
     p.add_argument("--frames", type=opt.number(int, low=1, high=100_000), default=72, metavar="N",
-                   help="frames in one turn (default %(default)s)")
+                   help="frames in one turn, or along the --path (default %(default)s)")
     p.add_argument("--seconds", type=opt.number(float, low=0.0, low_open=True), metavar="S",
                    help="duration (default: frames / 24)")
     p.add_argument("--degrees", type=opt.number(float), default=360.0, help="angle of the turn (default 360)")
     p.add_argument("--elevation", type=opt.number(float, low=-89.0, high=89.0), metavar="DEG",
                    help="eye height above the plane normal to up, degrees (default: the starting camera's)")
+    p.add_argument("--path", metavar="CAMERAS",
+                   help="instead of an orbit, a smooth path (Catmull-Rom spline of eye, target, up and fov) "
+                        "through the key views of CAMERAS (a camera file with a \"cameras\" list, OpenCV JSON, "
+                        "COLMAP or NeRF transforms.json), --frames in all")
+    p.add_argument("--loop", action="store_true", help="with --path: a closed path back to the first key view")
+    p.add_argument("--constant-speed", action="store_true",
+                   help="with --path: frames at equal distances along the eye's path (default: equal time "
+                        "between key views)")
     opt.add_force_option(p)
     opt.add_supersample_option(p)
     opt.add_source_options(p)
@@ -81,17 +96,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=commands.cmd_turntable)
 
     p = sub.add_parser("build", help="build the point-octree LOD hierarchy of a model; save it as one .npz file")
-    p.add_argument("input", help="a point, splat or mesh file (raw points are preprocessed, meshes sampled first)")
-    p.add_argument("-o", "--output", required=True, help="output hierarchy MODEL.npz")
+    p.add_argument("input", help="a point, splat or mesh file (raw points are preprocessed, meshes sampled first); "
+                   "with --chunked also a folder of LAS/LAZ/PLY tiles")
+    p.add_argument("-o", "--output", required=True, help="output hierarchy MODEL.npz (a MODEL.ssh directory "
+                   "with --chunked)")
     p.add_argument("--leaf-capacity", type=opt.number(int, low=1, high=2**31 - 1), default=8, metavar="N",
                    help="at most N points in a leaf node (default %(default)s)")
     opt.add_source_options(p)
     opt.add_force_option(p)
-    p.set_defaults(func=commands.cmd_build)
+    chunked.add_build_options(p)
+    p.set_defaults(func=chunked.cmd_build)
 
     p = sub.add_parser("info", help="counts, bounds, properties and spacing of a point file or hierarchy")
     p.add_argument("input")
-    p.set_defaults(func=commands.cmd_info)
+    p.set_defaults(func=chunked.cmd_info)
 
     p = sub.add_parser("preprocess", help="splats from raw points (normals, ellipses) or from a mesh's surface; "
                                           "write a splat PLY")
@@ -141,7 +159,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    print(f"{PROG}: warning: {message}", file=sys.stderr)
+    progress.write(f"{PROG}: warning: {message}")   # above any live progress bar
 
 
 def main(argv: list[str] | None = None) -> int:

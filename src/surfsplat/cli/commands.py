@@ -12,11 +12,12 @@ import numpy as np
 
 from .. import api, progress
 from ..camera import camera_flags
+from ..camera_path import interpolate_cameras
 from ..errors import InputError
-from ..io.atomic import atomic_path, check_writable
+from ..io.atomic import check_writable
 from ..io.camera_file import save_camera
 from ..io.camera_formats import load_cameras
-from ..io.depth_image import save_depth_png
+from ..io.image_maps import check_map_path, normals_from_depth, save_coverage, save_depth, save_normals
 from ..io.video import check_video_path, write_video
 from ..render.frame import check_image_path
 from ..geometry.phong import phong_splats
@@ -50,9 +51,11 @@ def check_image_outputs(args, inputs: tuple[Path, ...]) -> tuple[Path, Path | No
     if depth:
         depth = Path(depth)
         refuse_overwriting_inputs(depth, inputs)
-        if depth.suffix.lower() not in (".npy", ".png"):
-            raise InputError(f"{depth}: --depth writes a NumPy array (OUT.npy) or a 16-bit PNG (OUT.png)")
-        check_writable(depth, overwrite=args.force)
+        check_writable(check_map_path("depth", depth), overwrite=args.force)
+    for kind in ("normals", "coverage"):
+        if getattr(args, kind, None):
+            refuse_overwriting_inputs(Path(getattr(args, kind)), inputs)
+            check_writable(check_map_path(kind, getattr(args, kind)), overwrite=args.force)
     camera_file = Path(args.save_camera) if args.save_camera else None
     if camera_file is not None:
         refuse_overwriting_inputs(camera_file, inputs)
@@ -62,18 +65,23 @@ def check_image_outputs(args, inputs: tuple[Path, ...]) -> tuple[Path, Path | No
 
 def save_outputs(frame, camera_file: Path | None, depth: Path | None, force: bool) -> None:
     """Write the depth array and the camera file (atomically; see :mod:`surfsplat.io.atomic`)."""
-    if depth is not None and depth.suffix.lower() == ".png":
-        near, far = depth_range(frame)
-        save_depth_png(frame.depth, near, far, depth, overwrite=force)
-        progress.message(f"depth (16-bit: 0 = empty, 1..65535 = {near:.6g}..{far:.6g}) -> {depth}")
-    elif depth is not None:
-        with atomic_path(depth, overwrite=force) as temp:
-            with open(temp, "wb") as handle:
-                np.save(handle, frame.depth)
-        progress.message(f"depth (camera-space, inf = empty) -> {depth}")
+    if depth is not None:
+        convention = save_depth(frame.depth, depth, *depth_range(frame), overwrite=force)
+        progress.message(f"depth ({convention}) -> {depth}")
     if camera_file is not None:
         save_camera(frame.camera, camera_file, overwrite=force)
         progress.message(f"camera -> {camera_file}")
+
+
+def save_maps(frame, args) -> None:
+    """Write the normal and coverage maps ``--normals``, ``--coverage`` ask for
+    (:mod:`surfsplat.io.image_maps`)."""
+    if getattr(args, "normals", None):
+        save_normals(normals_from_depth(frame.depth, frame.camera), args.normals, overwrite=args.force)
+        progress.message(f"normals (camera space, from the depth map) -> {args.normals}")
+    if getattr(args, "coverage", None):
+        save_coverage(frame.alpha, args.coverage, bit_depth=args.bit_depth, overwrite=args.force)
+        progress.message(f"coverage -> {args.coverage}")
 
 
 def depth_range(frame) -> tuple[float, float]:
@@ -92,11 +100,13 @@ def draw_and_save(model, camera, args, outputs, source_options) -> None:
     result = api.render_model(model, camera, technique=args.technique, lights=opt.lights(args),
                               background=args.background, options=opt.render_options(args),
                               lod_tolerance=args.lod_tolerance, lod_shading=args.lod_shading,
-                              supersample=args.supersample, source_options=source_options)
+                              supersample=args.supersample, source_options=source_options,
+                              point_budget=args.point_budget, hybrid=opt.hybrid_for(args))
     result.frame.save(out, overwrite=args.force, transparent=args.transparent, bit_depth=args.bit_depth)
     progress.message(f"rendered {result.describe()} with {args.technique} at {camera.width}x{camera.height} "
                      f"in {result.seconds:.2f} s -> {out}")
     save_outputs(result.frame, camera_file, depth, args.force)
+    save_maps(result.frame, args)
 
 
 def render_and_save(source, args, inputs: tuple[Path, ...] = ()) -> None:
@@ -113,7 +123,7 @@ def render_and_save(source, args, inputs: tuple[Path, ...] = ()) -> None:
 
 
 #: The flags naming output files, filled per job from a pattern.
-OUTPUT_FLAGS = ("output", "depth", "save_camera")
+OUTPUT_FLAGS = ("output", "depth", "normals", "coverage", "save_camera")
 
 
 def job_for(args, many: bool, required: tuple[str, ...], **fields) -> argparse.Namespace:
@@ -158,11 +168,13 @@ def cmd_render(args) -> None:
         job.input = source
         jobs.append(job)
     check_jobs(jobs, inputs)
-    for job in jobs:
-        if job.mesh:
-            render_mesh_and_save(job, (Path(job.input),))
-        else:
-            render_and_save(job.input, job, (Path(job.input),))
+    with progress.stage(f"rendering {len(jobs)} inputs", unit="images", total=len(jobs), show=len(jobs) > 1) as done:
+        for job in jobs:
+            if job.mesh:
+                render_mesh_and_save(job, (Path(job.input),))
+            else:
+                render_and_save(job.input, job, (Path(job.input),))
+            done.update()
 
 
 def render_views(args) -> None:
@@ -181,8 +193,10 @@ def render_views(args) -> None:
     outputs = check_jobs(jobs, inputs)
     source_options = opt.source_options(args)
     model = api.load_model(source, source_options)
-    for job, (_, camera), job_outputs in zip(jobs, views, outputs):
-        draw_and_save(model, camera, job, job_outputs, source_options)
+    with progress.stage(f"rendering {len(jobs)} views", unit="images", total=len(jobs), show=len(jobs) > 1) as done:
+        for job, (_, camera), job_outputs in zip(jobs, views, outputs):
+            draw_and_save(model, camera, job, job_outputs, source_options)
+            done.update()
 
 
 def cmd_turntable(args) -> None:
@@ -192,18 +206,45 @@ def cmd_turntable(args) -> None:
     api.check_source(args.input)
     options, lights, camera = opt.render_options(args), opt.lights(args), opt.camera_spec(args)
     width, height = opt.image_size(args, camera)
-    model = api.load_model(args.input, opt.source_options(args))
-    start = api.resolve_camera(model, camera, width, height, default_up=api.natural_up(args.input))
-    cameras = api.orbit_cameras(start, args.frames, args.degrees, args.elevation)
     seconds = args.seconds or args.frames / 24.0
-    progress.message(f"{args.frames} frames over {args.degrees:g} degrees, {seconds:g} s; first camera: "
-                     f"{camera_flags(cameras[0])}")
+    cameras = path_cameras(args)
+    model = api.load_model(args.input, opt.source_options(args))
+    if cameras is None:
+        start = api.resolve_camera(model, camera, width, height, default_up=api.natural_up(args.input))
+        cameras = api.orbit_cameras(start, args.frames, args.degrees, args.elevation)
+        progress.message(f"{args.frames} frames over {args.degrees:g} degrees, {seconds:g} s; first camera: "
+                         f"{camera_flags(cameras[0])}")
+    width, height = cameras[0].width, cameras[0].height
     frames = api.turntable_frames(model, cameras, technique=args.technique, lights=lights,
                                   background=args.background, options=options, lod_tolerance=args.lod_tolerance,
                                   lod_shading=args.lod_shading, supersample=args.supersample,
-                                  source_options=opt.source_options(args))
+                                  source_options=opt.source_options(args), point_budget=args.point_budget,
+                                  hybrid=opt.hybrid_for(args))
     write_video(frames, out, fps=args.frames / seconds, overwrite=args.force)
     progress.message(f"wrote {args.frames} frames at {width}x{height} -> {out}")
+
+
+def path_cameras(args) -> list | None:
+    """``turntable --path FILE``: ``--frames`` cameras on a smooth path through the key views of FILE
+    (:func:`~surfsplat.io.camera_formats.load_cameras`; :mod:`surfsplat.camera_path`), checked before
+    the model is loaded; None without ``--path`` (an orbit)."""
+    if not args.path:
+        if args.loop or args.constant_speed:
+            raise InputError("--loop and --constant-speed shape a camera path; give --path CAMERAS")
+        return None
+    if args.camera or args.eye is not None or args.target is not None or args.up is not None:
+        raise InputError("give either --path FILE or --camera/--eye/--target/--up, not both")
+    if args.elevation is not None or args.degrees != 360.0:
+        raise InputError("--degrees and --elevation shape the orbit; a --path gives the cameras itself")
+    refuse_overwriting_inputs(Path(args.output), (Path(args.path),))
+    keys = [camera for _, camera in load_cameras(args.path, width=args.width, height=args.height)]
+    if len(keys) < 2:
+        raise InputError(f"{args.path}: a camera path needs at least 2 key views, the file has {len(keys)}")
+    cameras = interpolate_cameras(keys, max(args.frames, 2), closed=args.loop, constant_speed=args.constant_speed,
+                                  width=args.width, height=args.height)
+    progress.message(f"{len(cameras)} frames on a {'closed ' if args.loop else ''}path through {len(keys)} key "
+                     f"views of {args.path}{' at constant speed' if args.constant_speed else ''}")
+    return cameras
 
 
 def render_mesh_and_save(args, inputs: tuple[Path, ...]) -> None:
@@ -219,6 +260,7 @@ def render_mesh_and_save(args, inputs: tuple[Path, ...]) -> None:
     progress.message(f"rendered the mesh at {frame.camera.width}x{frame.camera.height} "
                      f"in {time.perf_counter() - start:.2f} s -> {out}")
     save_outputs(frame, camera_file, depth, args.force)
+    save_maps(frame, args)
 
 
 def cmd_demo(args) -> None:

@@ -13,7 +13,8 @@ import argparse
 import dataclasses
 import math
 
-from ..api import DEFAULT_BACKGROUND, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec, SourceOptions
+from ..api import DEFAULT_BACKGROUND, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec, SourceOptions, is_lidar
+from ..render.lod_auto import AUTO, AUTO_MIN_DENSITY
 from ..camera import MAX_IMAGE_SIDE, MIN_FOV, Camera
 from ..colors import ColorOptions
 from ..errors import InputError
@@ -161,13 +162,32 @@ def add_force_option(p: argparse.ArgumentParser) -> None:
 
 def add_lod_options(p: argparse.ArgumentParser) -> None:
     """``--lod-tolerance`` and ``--lod-shading``."""
-    p.add_argument("--lod-tolerance", type=number(float, low=0.0, what="pixels"), metavar="PX",
+    pixels = number(float, low=0.0, what="pixels or auto")
+    p.add_argument("--lod-tolerance", type=lambda text: AUTO if text == AUTO else pixels(text), metavar="PX",
                    help=f"level of detail: draw hierarchy nodes whose projected size is at most PX pixels as "
                         f"one splat (default {DEFAULT_LOD_TOLERANCE:g} for a hierarchy MODEL.npz; a point file given "
-                        f"PX gets its hierarchy built first; 0: every original splat)")
+                        f"PX gets its hierarchy built first; 0: every original splat; auto: one pixel of the "
+                        f"drawn image, for a point file only where the view holds {AUTO_MIN_DENSITY:g} or more points per "
+                        f"pixel)")
     p.add_argument("--lod-shading", choices=SHADINGS, default=DEFAULT_LOD_SHADING,
                    help="normal field of coarse LOD splats: fit (least squares, default), cone (the normal "
                         "cone, Pajarola 2003 fig. 14) or flat")
+    add_point_budget_option(p)
+
+
+def add_point_budget_option(p: argparse.ArgumentParser) -> None:
+    """``--point-budget``."""
+    p.add_argument("--point-budget", type=number(int, low=1, what="splats"), metavar="N",
+                   help="draw at most N splats: the LOD cut refined largest node on screen first (Potree's "
+                        "priority; a point file gets its hierarchy built first)")
+
+
+def hybrid_for(args) -> bool:
+    """``--hybrid``/``--no-hybrid``, or by default whether the input is a LAS/LAZ file."""
+    if args.hybrid is not None:
+        return args.hybrid
+    source = getattr(args, "input", None)
+    return is_lidar(source[0] if isinstance(source, list) else source)
 
 
 def add_camera_options(p: argparse.ArgumentParser) -> None:
@@ -205,8 +225,9 @@ def add_render_options(p: argparse.ArgumentParser, *, window: bool = False) -> N
                    help="EWA kernel cutoff c (default %(default)s)")
     p.add_argument("--depth-epsilon", type=number(float, low=0.0), default=default(VisibilityOptions, "depth_epsilon"),
                    help="visibility offset along the viewing rays, in splat radii (default %(default)s)")
-    p.add_argument("--cull-backfaces", action="store_true",
-                   help="drop splats facing away from the eye (closed models with outward normals only)")
+    p.add_argument("--cull-backfaces", action=argparse.BooleanOptionalAction, default=None,
+                   help="drop splats facing away from the eye (closed models with outward normals only; "
+                        "default: on for the surface of a closed mesh, off for point clouds and open surfaces)")
     p.add_argument("--no-separate-sides", action="store_true",
                    help="blend splats seen from the back with the front surface within the depth epsilon "
                         "(default: a pixel blends only splats seen from the side of its nearest one, so hidden "
@@ -216,7 +237,8 @@ def add_render_options(p: argparse.ArgumentParser, *, window: bool = False) -> N
                         "background and farther surfaces (default: they end at the surface: thinner, sharper "
                         "silhouettes and fold crests)")
     p.add_argument("--deferred", action="store_true",
-                   help="deferred shading: blend albedo and normals, light each pixel once (any technique)")
+                   help="deferred shading: blend albedo and normals, light each pixel once (any technique; "
+                        "better on smooth surfaces, worse at creases)")
     p.add_argument("--kernel", choices=KERNELS, default=default(KernelOptions, "name"),
                    help="blend technique's kernel: pajarola exp(-a (r/b)^n) or gaussian exp(-r^2 / 2 sigma^2) "
                         "(default %(default)s)")
@@ -229,9 +251,12 @@ def add_render_options(p: argparse.ArgumentParser, *, window: bool = False) -> N
                    help="n of the pajarola kernel (default %(default)s)")
     p.add_argument("--kernel-sigma", type=positive, default=default(KernelOptions, "sigma"), metavar="S",
                    help="sigma of the gaussian kernel, units of b (default %(default)s)")
+    p.add_argument("--hybrid", action=argparse.BooleanOptionalAction, default=None,
+                   help="draw non-planar neighbourhoods (vegetation, wires) as round points facing the eye and "
+                        "planar ones as surface splats, in one frame (default: on for LAS/LAZ input)")
     p.add_argument("--edl", action="store_true",
                    help="eye-dome lighting (Boucheny 2009): shade by depth discontinuities alone, for clouds "
-                        "without normals or colors (any technique; rendered images, not the window)")
+                        "without normals or colors (any technique; in the window still views, key O)")
     p.add_argument("--edl-strength", type=positive, default=default(EdlOptions, "strength"), metavar="S",
                    help="EDL strength s in exp(-s sum max(0, log2 z - log2 z_neighbour)) (default %(default)s)")
     p.add_argument("--edl-radius", type=number(float, low=1.0, high=64.0, what="pixels"),

@@ -12,7 +12,8 @@ from . import options as opt
 VIEW_EPILOG = """\
 keys in the window: mouse left drag orbit, right/middle drag pan, wheel zoom; F fly mode
 (W A S D Q E move, arrows look); R reset view; T or 1..9 technique; P prefilter; L lighting;
-B back-face culling; +/- LOD tolerance; S screenshot; H help; Esc or Q quit.
+B back-face culling; O eye-dome lighting; C colour by (own, elevation, attributes); +/- LOD tolerance;
+S screenshot; H help; Esc or Q quit.
 scripted: surfsplat view demo:torus --frames 36 --orbit 10 --screenshot turn.png
 without a display: xvfb-run -s '-screen 0 1280x1024x24' surfsplat view ... --screenshot out.png"""
 
@@ -40,6 +41,9 @@ def add_view_command(subparsers) -> argparse.ArgumentParser:
                         "point-octree is cut where nodes project to at most PX pixels")
     p.add_argument("--lod-shading", choices=SHADINGS, default=DEFAULT_LOD_SHADING,
                    help="normal field of coarse LOD splats (default %(default)s)")
+    opt.add_point_budget_option(p)
+    p.add_argument("--record", metavar="OUT.mp4|OUT.gif",
+                   help="record the frames the window shows (24 frames/s; .gif, or .mp4/.webm with the video extra)")
     motion = MotionOptions()
     p.add_argument("--motion", choices=MOTION_MODES, default=motion.mode,
                    help="while the camera moves draw: flat one-pass disks, the same technique, or full "
@@ -69,4 +73,5 @@ def cmd_view(args) -> None:
          lod_shading=args.lod_shading,
          motion=MotionOptions(mode=args.motion, budget=args.motion_budget, scale=args.motion_scale),
          hud=not args.no_hud, frames=args.frames, orbit=args.orbit, screenshot=args.screenshot,
-         source_options=opt.source_options(args))
+         source_options=opt.source_options(args), point_budget=args.point_budget, hybrid=opt.hybrid_for(args),
+         record=args.record)

@@ -50,6 +50,9 @@ from .splats import (CIRCLE_COVERAGE, ELLIPSE_COVERAGE, MAX_ANISOTROPY, check_el
 
 SHAPES = ("ellipse", "circle")
 
+#: Name of the per-point attribute ``preprocess(mark_nonplanar=True)`` adds (1: non-planar neighbourhood).
+NONPLANAR = "nonplanar"
+
 #: Rounds of near-duplicate merging (each needs a new kNN query; one is almost always enough).
 _MERGE_ROUNDS = 3
 
@@ -57,7 +60,7 @@ _MERGE_ROUNDS = 3
 def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True,
                coverage: float | None = None, max_anisotropy: float = MAX_ANISOTROPY,
                source: str = "input", sharp_angle: float | None = None, outliers: OutlierAction = "drop",
-               merge_duplicates: bool = True, return_report: bool = False):
+               merge_duplicates: bool = True, return_report: bool = False, mark_nonplanar: bool = False):
     """Turn a point cloud into renderable splats.
 
     Args:
@@ -101,6 +104,9 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
             first of them, averaging colors and given normals (default True).
         return_report: also return a :class:`~surfsplat.geometry.robust.PreprocessReport`
             (the counts of duplicates, outliers, scan-line, non-planar and capped splats).
+        mark_nonplanar: add the per-point attribute ``NONPLANAR`` ("nonplanar", uint8): 1 where
+            the neighbourhood is not planar (:func:`~surfsplat.geometry.robust.volumetric`:
+            vegetation, wires, noise; raw points only), 0 elsewhere. Nothing else changes.
 
     Returns:
         A validated :class:`SplatCloud` in the input order (invalid input rows
@@ -225,6 +231,10 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
         u[outlier], v[outlier] = t1 * radius[:, None], t2 * radius[:, None]
 
     changes = {"u": _unsort(u, perm), "v": _unsort(v, perm)}
+    if mark_nonplanar:
+        flag = np.empty(m, dtype=np.uint8)
+        flag[perm] = vol
+        changes["attributes"] = {**(cloud.attributes or {}), NONPLANAR: flag}
     if need_normals:
         changes["normals"] = _unsort(normals, perm)
     if sharp:

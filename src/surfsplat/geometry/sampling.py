@@ -106,7 +106,7 @@ def _samples(mesh: Mesh, n: int, seed: int, smooth_normals: bool, crease_angle: 
         colors = np.einsum("nk,nkd->nd", bary, mesh.vertex_colors.astype(np.float64)[corners])
 
     cloud = SplatCloud(positions=positions.astype(np.float32), normals=normals.astype(np.float32),
-                       colors=None if colors is None else colors.astype(np.float32))
+                       colors=None if colors is None else colors.astype(np.float32), origin=mesh.origin)
     return cloud, face
 
 

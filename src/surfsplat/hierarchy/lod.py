@@ -18,6 +18,15 @@ it) is always refined, and so is a node over splats with clip lines (sharp
 edges stay sharp). An unrefined node contributes its representative
 splat; a refined leaf contributes its original points. At ``lod_tolerance`` 0
 every node is refined: the selection is the original cloud, less culled leaves.
+
+Point budget (Schuetz 2016, Potree, sec. 3.3: a priority queue over the octree by projected
+size, the largest node refined first until the budget is spent): with ``point_budget`` N the
+cut is the coarsest-first refinement of the tolerance cut that draws at most N splats. It is
+computed without a queue: the traversal above yields every node the tolerance cut refines;
+each gets the priority ``min`` of its projected size and its parent's (so a child never comes
+before its parent) and a cost (splats it adds when refined: its visible children, or a leaf's
+points, minus itself); sorted by priority, the longest prefix whose running total stays within
+N is refined. Larger budgets refine a longer prefix of the same order: cuts are nested.
 """
 
 from __future__ import annotations
@@ -67,6 +76,10 @@ class _LodArrays:
         # local index (within its parent's level) of each node's parent, per level
         self.parent_local = [None] + [np.repeat(np.arange(off[L + 1] - off[L], dtype=np.int64),
                                                 counts[off[L]:off[L + 1]]) for L in range(h.levels - 1)]
+        # global index of each node's parent (-1 for the root), for the point budget
+        self.parent = np.full(len(self.leaf), -1, dtype=np.int64)
+        for L in range(1, h.levels):
+            self.parent[off[L]:off[L + 1]] = off[L - 1] + self.parent_local[L]
 
 
 def _lod_arrays(h: Hierarchy) -> _LodArrays:
@@ -106,7 +119,8 @@ class _View:
 
 
 def select(hierarchy: Hierarchy, camera: Camera, lod_tolerance: float, *, cull_frustum: bool = True,
-           cull_backfaces: bool = False, lod_shading: LodShading = "fit") -> Selection:
+           cull_backfaces: bool = False, lod_shading: LodShading = "fit",
+           point_budget: int | None = None) -> Selection:
     """Select the splats to draw for a view: the LOD cut at screen tolerance ``lod_tolerance``, culled.
 
     Pajarola 2003, sec. 5.1 (top-down traversal with tolerance tau),
@@ -129,6 +143,10 @@ def select(hierarchy: Hierarchy, camera: Camera, lod_tolerance: float, *, cull_f
         lod_shading: normal field of the node splats in :meth:`Hierarchy.splats`:
             ``"fit"`` (least-squares linear field), ``"cone"`` (normal-cone
             spread, Pajarola 2003 fig. 14) or ``"flat"``.
+        point_budget: at most this many splats (>= 1; None: no limit): the tolerance cut's
+            refinements are made largest projected size first while the cut stays within the
+            budget (Potree's priority; see the module docstring). The tolerance cut itself when
+            it fits.
 
     Returns:
         A :class:`Selection`; ``hierarchy.splats(selection)`` gathers the SplatCloud.
@@ -140,11 +158,13 @@ def select(hierarchy: Hierarchy, camera: Camera, lod_tolerance: float, *, cull_f
     if not (np.isfinite(float(lod_tolerance)) and float(lod_tolerance) >= 0):
         raise InputError(f"LOD tolerance must be a finite number of pixels >= 0, got {lod_tolerance!r}")
     lod_tolerance = float(lod_tolerance)
+    if point_budget is not None:
+        point_budget = check_point_budget(point_budget)
     check_lod_shading(lod_shading)
     lod = _lod_arrays(hierarchy)
     view = _View.of(camera, hierarchy)
     off = hierarchy.level_offsets
-    nodes, leaves = [], []
+    nodes, leaves, opened_all = [], [], []
     visited = culled_frustum = culled_backface = 0
     reach = None  # None: every node of the level; bool array: a mask over the level; int array: local indices
     frustum = cull_frustum  # False once every node left is entirely inside the frustum
@@ -181,6 +201,7 @@ def select(hierarchy: Hierarchy, camera: Camera, lod_tolerance: float, *, cull_f
             nodes.append(lo + np.flatnonzero(chosen))
             leaves.append(lo + np.flatnonzero(points))
             go = np.flatnonzero(opened)
+        opened_all.append(lo + go)
         if level + 1 == hierarchy.levels or len(go) == 0:
             break
         counts = lod.child_count[lo + go]
@@ -194,12 +215,91 @@ def select(hierarchy: Hierarchy, camera: Camera, lod_tolerance: float, *, cull_f
             reach = full[lod.parent_local[level + 1]]
         else:
             reach = ranges_to_indices(lod.child_first_local[lo + go], counts)
+    if point_budget is not None:
+        size = sum(len(x) for x in nodes) + int(sum(hierarchy.node_point_count[x].sum() for x in leaves))
+        if size > point_budget:
+            nodes, leaves = _budget_cut(hierarchy, lod, view, nodes, leaves, opened_all, point_budget)
     leaf_index = np.concatenate(leaves) if leaves else np.zeros(0, dtype=np.int64)
     return Selection(nodes=tuple(nodes), leaves=tuple(leaves),
                      point_start=hierarchy.node_point_start[leaf_index],
                      point_count=hierarchy.node_point_count[leaf_index],
                      lod_shading=lod_shading, lod_tolerance=lod_tolerance, visited=visited,
                      culled_frustum=culled_frustum, culled_backface=culled_backface)
+
+
+def check_point_budget(point_budget) -> int:
+    """``point_budget`` as an int >= 1 (splats); InputError otherwise."""
+    if isinstance(point_budget, bool) or not isinstance(point_budget, (int, np.integer)) or point_budget < 1:
+        raise InputError(f"point budget must be an integer >= 1 (splats), got {point_budget!r}")
+    return int(point_budget)
+
+
+def projected_size(hierarchy: Hierarchy, camera: Camera, index: np.ndarray) -> np.ndarray:
+    """(len(index),) float64 projected diameter (pixels) of nodes ``index``: ``focal * 2 a /
+    (|c - eye| - R)``, inf where the bounding sphere reaches closer than ``near`` (module docstring)."""
+    return _projected_size(_lod_arrays(hierarchy), _View.of(camera, hierarchy), np.asarray(index, dtype=np.int64))
+
+
+def _projected_size(lod: _LodArrays, view: _View, index: np.ndarray) -> np.ndarray:
+    d = np.sqrt((lod.cx[index] - view.eye[0]) ** 2 + (lod.cy[index] - view.eye[1]) ** 2
+                + (lod.cz[index] - view.eye[2]) ** 2)
+    gap = d - lod.radius[index]
+    with np.errstate(divide="ignore"):
+        size = view.focal * lod.diameter[index].astype(np.float64) / np.maximum(gap, view.near)
+    size[gap < view.near] = np.inf
+    return size
+
+
+def _budget_cut(h: Hierarchy, lod: _LodArrays, view: _View, nodes: list, leaves: list, opened: list,
+                budget: int) -> tuple[list, list]:
+    """The tolerance cut (``nodes``, ``leaves``, refined inner nodes ``opened``, per level) cut back
+    to at most ``budget`` splats, refining in Potree's priority order (module docstring)."""
+    levels = len(nodes)
+    live = np.concatenate(nodes + leaves + opened)
+    if len(live) == 0:
+        return nodes, leaves
+    refined = [np.concatenate([opened[L], leaves[L]]) for L in range(levels)]
+    live_children = np.bincount(lod.parent[live][lod.parent[live] >= 0], minlength=len(lod.leaf))
+    priority = np.full(len(lod.leaf), np.inf)
+    for L in range(levels):   # top-down: a node's priority is at most its parent's
+        r = refined[L]
+        p = _projected_size(lod, view, r)
+        priority[r] = p if L == 0 else np.minimum(p, priority[lod.parent[r]])
+    cand = np.concatenate(refined)
+    cost = np.where(lod.leaf[cand], h.node_point_count[cand], live_children[cand]) - 1
+    depth = np.repeat(np.arange(levels), [len(r) for r in refined])
+    order = np.lexsort((depth, -priority[cand]))   # largest first, parents before children on ties
+    total = 1 + np.cumsum(cost[order])
+    over = np.flatnonzero(total > budget)
+    keep = np.zeros(len(lod.leaf), dtype=bool)
+    keep[cand[order[:over[0] if len(over) else len(order)]]] = True
+    live = np.sort(live)
+    parent = lod.parent[live]
+    parent_kept = np.ones(len(live), dtype=bool)   # the root, and nodes whose parent is refined
+    parent_kept[parent >= 0] = keep[parent[parent >= 0]]
+    drawn = live[parent_kept & ~keep[live]]
+    opened_leaves = live[keep[live] & lod.leaf[live]]   # a refined node's parent is refined (prefix)
+    off = h.level_offsets[:levels + 1]
+    return _by_level(drawn, off), _by_level(opened_leaves, off)
+
+
+def _by_level(index: np.ndarray, off: np.ndarray) -> list[np.ndarray]:
+    """Sorted global node indices split into one array per level (``off``: level offsets)."""
+    return [index[a:b] for a, b in zip(np.searchsorted(index, off[:-1]), np.searchsorted(index, off[1:]))]
+
+
+def selection_flags(hierarchy: Hierarchy, selection: Selection, flags: np.ndarray) -> np.ndarray:
+    """A per-point boolean ``flags`` ((P,) over ``hierarchy.points``) carried to the splats of
+    ``selection`` (in ``hierarchy.splats`` order): a node splat is flagged when most of its points
+    are (majority vote over its contiguous point range, by prefix sums), a point splat as it is."""
+    flags = np.asarray(flags).astype(bool)
+    if flags.shape != (len(hierarchy.points),):
+        raise InputError(f"flags must have one entry per point ({len(hierarchy.points)}), got shape {flags.shape}")
+    total = np.concatenate([[0], np.cumsum(flags, dtype=np.int64)])
+    nodes = selection.node_indices()
+    start, count = hierarchy.node_point_start[nodes], hierarchy.node_point_count[nodes]
+    majority = 2 * (total[start + count] - total[start]) > count
+    return np.concatenate([majority, flags[selection.point_indices()]])
 
 
 def uniform_cut(hierarchy: Hierarchy, budget: int) -> np.ndarray:

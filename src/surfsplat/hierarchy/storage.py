@@ -17,7 +17,9 @@ float32 (optional), ``node_normal_field`` (M, 2) float32, ``node_radius``,
 ``node_child_count`` (M,) int64; point arrays (the reordered SplatCloud)
 ``point_positions``, ``point_normals``, ``point_u``, ``point_v`` (N, 3)
 float32, optional ``point_colors`` (N, 3), ``point_normal_field`` (N, 2),
-``point_clip_lines`` (N, 2, 3) float32.
+``point_clip_lines`` (N, 2, 3) float32; ``point_origin`` (3,) float64, the world position of
+the points' zero (world coordinates are ``point_origin + point_positions``; files without it,
+written before it existed, load with the origin at zero).
 """
 
 from __future__ import annotations
@@ -65,6 +67,7 @@ _SPEC = {
     "point_v": (np.float32, (3,), "points", True),
     "point_normal_field": (np.float32, (2,), "points", False),
     "point_clip_lines": (np.float32, (2, 3), "points", False),
+    "point_origin": (np.float64, (), 3, False),   # world position of the points' zero; absent in older files
 }
 
 
@@ -91,6 +94,7 @@ def save_hierarchy(hierarchy: Hierarchy, path, *, overwrite: bool = False) -> Pa
     members["format_version"] = np.array(FORMAT_VERSION, dtype=np.int64)
     members["leaf_capacity"] = np.array(hierarchy.leaf_capacity, dtype=np.int64)
     members["max_depth"] = np.array(hierarchy.max_depth, dtype=np.int64)
+    members["point_origin"] = np.asarray(hierarchy.points.origin, dtype=np.float64)
     try:  # through a temporary file beside ``path``: a failed write leaves no partial file, an old one intact
         with atomic_path(path, overwrite=overwrite) as temp, open(temp, "wb") as handle:
             np.savez(handle, **members)
@@ -204,7 +208,7 @@ def _from_members(members: dict[str, np.ndarray], source: str) -> Hierarchy:
         arrays[name] = value
     _check_structure(arrays, source)
     points = SplatCloud(**{name: arrays["point_" + name] for name in
-                           ("positions", "normals", "colors", "u", "v", "normal_field", "clip_lines")})
+                           ("positions", "normals", "colors", "u", "v", "normal_field", "clip_lines", "origin")})
     return Hierarchy(points=points, order=arrays["order"], level_offsets=arrays["level_offsets"],
                      origin=arrays["origin"], leaf_capacity=int(leaf_capacity), max_depth=int(max_depth),
                      **{name: arrays[name] for name in _SPEC if name.startswith("node_")})

@@ -33,6 +33,7 @@ from ..cloud import SplatCloud
 from ..errors import InputError
 from .atomic import check_readable
 from .mesh import TRIMESH_TYPES, Mesh, area_weighted_normals, check_face_indices, read_trimesh
+from .e57 import read_e57
 from .las import read_las
 from .pcd import read_pcd
 from .text import TEXT_EXTENSIONS, read_text
@@ -43,7 +44,7 @@ from .surface import (AUTO, DEFAULT_SHARP_ANGLE, WELD_TOLERANCE, auto_sharp_angl
 #: File extensions :func:`load_mesh` understands (lower case).
 MESH_EXTENSIONS = (".ply", ".obj", ".stl", ".off", ".glb", ".gltf")
 #: File extensions :func:`load` and :func:`load_input` understand (lower case).
-CLOUD_EXTENSIONS = MESH_EXTENSIONS + (".las", ".laz", ".pcd") + TEXT_EXTENSIONS
+CLOUD_EXTENSIONS = MESH_EXTENSIONS + (".las", ".laz", ".pcd", ".e57") + TEXT_EXTENSIONS
 
 
 def load(path: str | os.PathLike) -> SplatCloud:
@@ -63,6 +64,8 @@ def load(path: str | os.PathLike) -> SplatCloud:
       gives the mesh itself, whose surface is what should be drawn.)
     - ``.las`` / ``.laz``: positions and RGB (optional dependency laspy).
     - ``.pcd``: PCL point clouds, ascii or binary (:mod:`surfsplat.io.pcd`).
+    - ``.e57``: every scan with its pose applied, colors, ``intensity`` and
+      ``scan`` attributes (optional dependency pye57, :mod:`surfsplat.io.e57`).
     - ``.xyz``, ``.pts``, ``.csv``, ``.txt``: point text, with a header row of
       names or columns ``x y z [nx ny nz] [r g b]`` (:mod:`surfsplat.io.text`).
     - a ``.ply`` of trained Gaussians (3DGS / 2DGS): splat ellipses
@@ -190,6 +193,8 @@ def _read_points(path: Path) -> SplatCloud:
     suffix = path.suffix.lower()
     if suffix == ".pcd":
         return read_pcd(path)
+    if suffix == ".e57":
+        return read_e57(path)
     if suffix in TEXT_EXTENSIONS:
         return read_text(path)
     return read_las(path)
@@ -199,12 +204,13 @@ def _mesh_to_cloud(mesh: Mesh, source: str) -> SplatCloud:
     """The mesh's vertices as points, with its normals or area-weighted ones
     (no normals when the mesh has no faces: a point cloud)."""
     if len(mesh.faces) == 0:
-        return SplatCloud(positions=mesh.vertices, normals=mesh.vertex_normals, colors=mesh.vertex_colors)
+        return SplatCloud(positions=mesh.vertices, normals=mesh.vertex_normals, colors=mesh.vertex_colors,
+                          origin=mesh.origin)
     check_face_indices(mesh.faces, len(mesh.vertices), source)
     normals = mesh.vertex_normals
     if normals is None:
         normals = area_weighted_normals(mesh.vertices, mesh.faces)
-    return SplatCloud(positions=mesh.vertices, normals=normals, colors=mesh.vertex_colors)
+    return SplatCloud(positions=mesh.vertices, normals=normals, colors=mesh.vertex_colors, origin=mesh.origin)
 
 
 __all__ = ["load", "load_input", "load_mesh", "save_ply", "Mesh", "CLOUD_EXTENSIONS", "MESH_EXTENSIONS",

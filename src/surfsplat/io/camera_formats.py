@@ -1,6 +1,7 @@
 """Cameras from other tools: OpenCV JSON, COLMAP text models and NeRF ``transforms.json``.
 
-:func:`load_cameras` reads any of them (and surfsplat's own camera file, :mod:`.camera_file`) as a
+:func:`load_cameras` reads any of them (and surfsplat's own camera file of one camera or a
+``"cameras"`` list, :mod:`.camera_file`) as a
 list of ``(name, Camera)``; the format is told from the file name and content:
 
 OpenCV JSON (``*.json`` with ``"K"``, or ``{"cameras": [...]}`` of such objects)
@@ -39,7 +40,7 @@ import numpy as np
 
 from ..camera import Camera
 from ..errors import InputError
-from .camera_file import CAMERA_FORMAT, load_camera
+from .camera_file import CAMERA_FORMAT, load_camera_list
 
 COLMAP_FILES = ("cameras.txt", "images.txt")
 #: COLMAP camera models read: the number of parameters and whether they include distortion.
@@ -249,7 +250,7 @@ def load_cameras(path: str | os.PathLike, *, width: int | None = None,
         return load_colmap(folder)
     data = _load_json(path)
     if isinstance(data, dict) and data.get("format") == CAMERA_FORMAT:
-        return [(path.stem, load_camera(path))]
+        return load_camera_list(path)
     if isinstance(data, dict) and "frames" in data:
         return load_nerf(path, data, width, height)
     if isinstance(data, dict) and ("K" in data or "cameras" in data):

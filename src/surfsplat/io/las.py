@@ -1,7 +1,8 @@
 """LAS / LAZ LiDAR point clouds (laspy and lazrs, optional: the ``las`` extra).
 
 Positions are the scaled coordinates (``las.x``, ``las.y``, ``las.z``, i.e.
-``X * scale + offset``) in the file's units, cast to float32. Colors come from
+``X * scale + offset``) in the file's units, computed in float64 and kept as float32
+relative to the cloud's float64 origin (``SplatCloud.origin``). Colors come from
 the ``red green blue`` fields where the point format has them: the fields are
 16-bit, but many files store 8-bit values; :func:`rgb_scale` decides which. LAS
 has no normals. Every other dimension (``intensity``, ``classification``,
@@ -38,7 +39,7 @@ from .atomic import memory_limit
 
 
 class CoordinatePrecisionWarning(UserWarning):
-    """Coordinates are too large for float32 to keep the file's resolution."""
+    """The points spread so far about their origin that float32 cannot keep the file's resolution."""
 
 
 #: The child process that decodes a LAZ file: argv = [file, output .npz]; the same arrays as :func:`_arrays`.
@@ -112,10 +113,12 @@ def check_header(path: Path, source: str) -> None:
 def read_las(path: Path) -> SplatCloud:
     """Read a .las or .laz file as an (unvalidated) SplatCloud.
 
-    Returns positions (N, 3) float32 in the file's units, and colors (N, 3)
-    float32 in [0, 1] when the point format has RGB (scale: :func:`rgb_scale`).
-    Warns (:class:`CoordinatePrecisionWarning`) when georeferenced coordinates
-    are so large that float32 rounds them more coarsely than the file's scale.
+    Returns positions (N, 3) float32 in the file's units relative to the cloud's float64
+    ``origin`` (the points' centre when they sit far from zero, as georeferenced data do:
+    world coordinates are ``origin + positions``), and colors (N, 3) float32 in [0, 1] when
+    the point format has RGB (scale: :func:`rgb_scale`). Warns
+    (:class:`CoordinatePrecisionWarning`) when the points spread so far about that origin that
+    float32 rounds them more coarsely than the file's scale.
     ``.laz`` is decoded in a child process (see the module docstring).
     """
     source = str(path)
@@ -149,16 +152,18 @@ def read_las(path: Path) -> SplatCloud:
     if rgb is not None:
         colors = np.clip(rgb.astype(np.float64) / rgb_scale(rgb), 0.0, 1.0).astype(np.float32)
 
-    finite = xyz[np.isfinite(xyz).all(axis=1)]
+    # float64 world coordinates: kept as float32 positions relative to an origin near the points
+    cloud = SplatCloud(positions=xyz, colors=colors, attributes=attributes or None)
+    finite = cloud.positions[np.isfinite(cloud.positions).all(axis=1)]
     if len(finite):
         extent = np.abs(finite).max(axis=0)
-        spacing = np.spacing(extent.astype(np.float32)).astype(np.float64)
+        spacing = np.spacing(extent).astype(np.float64)
         if np.any(spacing > scales):
             warnings.warn(
-                f"{source}: coordinates up to {extent.max():,.0f} are rounded to steps of "
+                f"{source}: coordinates up to {extent.max():,.0f} from their centre are rounded to steps of "
                 f"{spacing.max():g} in float32 positions (the file's resolution is {scales.min():g})",
                 CoordinatePrecisionWarning, stacklevel=3)
-    return SplatCloud(positions=xyz.astype(np.float32), colors=colors, attributes=attributes or None)
+    return cloud
 
 
 #: LAS dimensions that are positions or colors, not attributes.

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from ..cloud import split_origin
 from ..errors import InputError
 
 
@@ -26,7 +27,7 @@ class Mesh:
     """An indexed triangle mesh.
 
     Attributes:
-        vertices: (V, 3) float32, model space.
+        vertices: (V, 3) float32 relative to ``origin``, model units.
         faces: (F, 3) int64 vertex indices; counter-clockwise seen from the
             outside gives the outward normal (right-hand rule).
         vertex_normals: (V, 3) float32 unit normals, or None.
@@ -40,6 +41,9 @@ class Mesh:
             read; see :func:`surfsplat.io.surface.weld`).
         collapsed_faces: how many faces welding removed because two of their
             corners became one vertex.
+        origin: (3,) float64 world position of the vertices' zero (world = ``origin +
+            vertices``); None: chosen as for :class:`~surfsplat.cloud.SplatCloud` (zeros, or the
+            centre of float64 vertices lying far from zero, :func:`~surfsplat.cloud.split_origin`).
 
     The constructor checks shapes and converts dtypes; :meth:`validated`
     checks the contents (faces present, finite vertices, indices in range).
@@ -52,8 +56,16 @@ class Mesh:
     corner_normals: np.ndarray | None = None
     merged_vertices: int = field(default=0, compare=False)
     collapsed_faces: int = field(default=0, compare=False)
+    origin: np.ndarray | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
+        if self.origin is None:
+            self.origin, self.vertices = split_origin(self.vertices)
+        else:
+            origin = np.array(self.origin, dtype=np.float64).reshape(-1)
+            if origin.shape != (3,) or not np.isfinite(origin).all():
+                raise InputError(f"origin must be 3 finite numbers, got {self.origin!r}")
+            self.origin = origin
         self.vertices = _as_rows(self.vertices, np.float32, "vertices")
         self.faces = _as_rows(self.faces, np.int64, "faces")
         n = len(self.vertices)
@@ -110,12 +122,12 @@ class Mesh:
         return 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Axis-aligned bounds ``(min, max)``, each (3,) float32, of the vertices
+        """Axis-aligned world bounds ``(min, max)``, each (3,) float64, of the vertices
         used by faces (all vertices when there are no faces), model units."""
         used = self.vertices[np.unique(self.faces)] if len(self.faces) else self.vertices
         if len(used) == 0:
             raise InputError("mesh has no vertices")
-        return used.min(axis=0), used.max(axis=0)
+        return used.min(axis=0) + self.origin, used.max(axis=0) + self.origin
 
     # -- validation --------------------------------------------------------
 

@@ -154,23 +154,23 @@ def _open3d_mesh(obj, what: str) -> Mesh | SplatCloud:
 
 
 def to_trimesh(cloud: SplatCloud) -> trimesh.PointCloud:
-    """The splat centers as a ``trimesh.PointCloud`` with 8-bit RGBA colors (when the cloud has
-    colors). Normals and splat axes have no place in a trimesh PointCloud: normals are kept in
-    ``metadata["normals"]``."""
+    """The splat centers (world coordinates, float64) as a ``trimesh.PointCloud`` with 8-bit RGBA
+    colors (when the cloud has colors). Normals and splat axes have no place in a trimesh
+    PointCloud: normals are kept in ``metadata["normals"]``."""
     if not isinstance(cloud, SplatCloud):
         raise InputError(f"to_trimesh needs a SplatCloud, got {type(cloud).__name__}")
     colors = None
     if cloud.colors is not None:
         rgb = np.round(np.clip(cloud.colors, 0.0, 1.0) * 255.0).astype(np.uint8)
         colors = np.column_stack([rgb, np.full(len(cloud), 255, np.uint8)])
-    out = trimesh.PointCloud(cloud.positions.astype(np.float64), colors=colors)
+    out = trimesh.PointCloud(cloud.world_positions(), colors=colors)
     if cloud.normals is not None:
         out.metadata["normals"] = cloud.normals.copy()
     return out
 
 
 def to_open3d(cloud: SplatCloud):
-    """The cloud as an ``open3d.geometry.PointCloud`` (points, normals, colors in [0, 1]).
+    """The cloud as an ``open3d.geometry.PointCloud`` (world points, normals, colors in [0, 1]).
 
     Raises InputError when Open3D is not installed (``pip install open3d``)."""
     if not isinstance(cloud, SplatCloud):
@@ -180,7 +180,7 @@ def to_open3d(cloud: SplatCloud):
     except ImportError as exc:
         raise InputError("to_open3d needs Open3D, which is not installed (pip install open3d)") from exc
     out = open3d.geometry.PointCloud()
-    out.points = open3d.utility.Vector3dVector(cloud.positions.astype(np.float64))
+    out.points = open3d.utility.Vector3dVector(cloud.world_positions())
     if cloud.normals is not None:
         out.normals = open3d.utility.Vector3dVector(cloud.normals.astype(np.float64))
     if cloud.colors is not None:

@@ -231,7 +231,8 @@ def cloud_from_elements(elements: dict[str, np.ndarray], source: str) -> SplatCl
     if is_gaussian_ply(names):  # a trained 3DGS / 2DGS model: see surfsplat.io.gaussians
         return cloud_from_gaussians(data, source)
 
-    positions = _group(data, names, ("x", "y", "z"), source, required=True)
+    # float64 world coordinates: the SplatCloud keeps them relative to an origin where they sit far out
+    positions = _group(data, names, ("x", "y", "z"), source, required=True, dtype=np.float64)
     normals = _group(data, names, ("nx", "ny", "nz"), source)
     colors = read_colors(data, names, source)
 
@@ -296,7 +297,7 @@ def mesh_from_elements(elements: dict[str, np.ndarray], source: str) -> Mesh:
     """The Mesh of parsed PLY elements (:func:`read_elements`); see :func:`read_ply_mesh`."""
     data = _vertex_element(elements, source)
     names = set(data.dtype.names or ())
-    vertices = _group(data, names, ("x", "y", "z"), source, required=True)
+    vertices = _group(data, names, ("x", "y", "z"), source, required=True, dtype=np.float64)
     faces = read_faces(elements, len(data), source)
     if faces is None or len(faces) == 0:
         raise InputError(f"{source}: PLY file has no faces; it is a point cloud, not a mesh")
@@ -449,15 +450,15 @@ def _require(names: set[str], group: tuple[str, ...], source: str) -> None:
 
 
 def _group(data: np.ndarray, names: set[str], group: tuple[str, ...], source: str,
-           required: bool = False) -> np.ndarray | None:
-    """(N, len(group)) float32 from scalar vertex properties, or None if absent."""
+           required: bool = False, dtype=np.float32) -> np.ndarray | None:
+    """(N, len(group)) ``dtype`` from scalar vertex properties, or None if absent."""
     if not required and not any(name in names for name in group):
         return None
     _require(names, group, source)
     for name in group:
         if data.dtype[name].kind not in "uif":
             raise InputError(f"{source}: vertex property {name!r} must be a number, not a list")
-    return np.column_stack([_column(data, name) for name in group]).astype(np.float32)
+    return np.column_stack([_column(data, name) for name in group]).astype(dtype, copy=False)
 
 
 # -- writing ---------------------------------------------------------------
@@ -497,10 +498,15 @@ def ply_columns(cloud: SplatCloud) -> list[tuple[str, np.ndarray]]:
 
     Colors are clipped to [0, 1] and written as uchar when every value is
     exactly ``k / 255`` as float32 (so reading divides back to the same
-    float32), else as float32. Everything else is float32.
+    float32), else as float32. Positions of a cloud with a non-zero origin are written as double
+    world coordinates (``origin + positions``); everything else is float32.
     """
     f32 = lambda a: np.ascontiguousarray(a, dtype=np.float32)  # noqa: E731
-    columns = [(name, f32(cloud.positions[:, k])) for k, name in enumerate("xyz")]
+    if cloud.origin.any():
+        world = cloud.world_positions()
+        columns = [(name, np.ascontiguousarray(world[:, k])) for k, name in enumerate("xyz")]
+    else:
+        columns = [(name, f32(cloud.positions[:, k])) for k, name in enumerate("xyz")]
     if cloud.normals is not None:
         columns += [(name, f32(cloud.normals[:, k])) for k, name in enumerate(("nx", "ny", "nz"))]
     if cloud.colors is not None:

@@ -162,7 +162,7 @@ def weld(mesh: Mesh, tolerance: float | None = None) -> Mesh:
         corner_normals = corner_normals[keep]
     return Mesh(mesh.vertices[first], faces[keep], vertex_normals, colors, corner_normals,
                 merged_vertices=mesh.merged_vertices + len(ids) - n_new,
-                collapsed_faces=mesh.collapsed_faces + int((~keep).sum()))
+                collapsed_faces=mesh.collapsed_faces + int((~keep).sum()), origin=mesh.origin)
 
 
 def _group_mean(values: np.ndarray, ids: np.ndarray, n: int) -> np.ndarray:

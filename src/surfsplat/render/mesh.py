@@ -121,6 +121,7 @@ def render_mesh(mesh: Mesh, camera: Camera, lights: Lights = Lights(), *, backgr
         renderer = default_renderer()
     if camera.near is None or camera.far is None:
         camera = camera.with_clip_from_bounds(*mesh.bounds())
+    world_camera, camera = camera, camera.translated(-mesh.origin)   # drawn in the vertices' local frame
 
     ctx = renderer.ctx
     s = int(supersample)
@@ -200,5 +201,5 @@ def render_mesh(mesh: Mesh, camera: Camera, lights: Lights = Lights(), *, backgr
     with np.errstate(divide="ignore", invalid="ignore"):
         depth = np.where(covered > 0, depth_sum / covered, np.inf)
     return Frame(np.ascontiguousarray(color[::-1], dtype="f4"), np.ascontiguousarray(depth[::-1], dtype="f4"),
-                 np.ascontiguousarray(weight[::-1], dtype="f4"), camera,
+                 np.ascontiguousarray(weight[::-1], dtype="f4"), world_camera,
                  alpha=np.ascontiguousarray(weight[::-1], dtype="f4"), background=bg)

@@ -77,13 +77,27 @@ def check_render_memory(splats: int, width: int, height: int, supersample: int =
 
 @dataclass
 class GpuSplats:
-    """A SplatCloud uploaded to the GPU: one buffer per attribute, float32."""
+    """A SplatCloud uploaded to the GPU: one buffer per attribute, float32.
+
+    The buffers hold the cloud's local coordinates times ``scale`` (a power of two, see
+    :func:`gpu_scale`); ``origin`` (float64) is the cloud's world position of its zero, ``bounds``
+    and ``max_radius`` are in world units. Cameras given to the renderer are world cameras:
+    :meth:`local_camera` is the view the GPU draws with.
+    """
 
     buffers: dict[str, moderngl.Buffer]
     count: int
     bounds: tuple[np.ndarray, np.ndarray]
     max_radius: float
+    origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    scale: float = 1.0
     _vaos: dict = field(default_factory=dict)
+
+    def local_camera(self, camera: Camera) -> Camera:
+        """The world ``camera`` in the buffers' frame: eye and target moved by ``-origin`` in float64,
+        then scaled by ``scale`` (exact: a power of two), so the GPU composes its float32 transform
+        from numbers of the size of the model wherever it sits."""
+        return camera.translated(-self.origin).scaled(self.scale)
 
     def release(self) -> None:
         """Free the GPU buffers."""
@@ -97,6 +111,27 @@ class GpuSplats:
 
 #: Largest magnitude of a splat's coordinates and axes: their squares stay finite in float32.
 MAX_COORDINATE = 1e18
+
+#: Local extents (model units) the renderer draws as they are; a model outside this range is drawn
+#: scaled by a power of two to about unit size (:func:`gpu_scale`): the shaders' products of axes
+#: (a splat's normal is ``u x v``, its squared length a 4th power) leave float32's range for
+#: splat radii below ~1e-9 or above ~1e9; within 1e-6..1e6 the picture is drawn bit for bit as given.
+GPU_EXTENT_RANGE = (2.0 ** -20, 2.0 ** 20)
+
+
+def gpu_scale(cloud: SplatCloud) -> float:
+    """The power of two the renderer scales a cloud's local coordinates (and the camera) by: 1 when
+    their extent (and largest splat radius) is within :data:`GPU_EXTENT_RANGE`, else the one
+    bringing it to about 1 (exact in float32)."""
+    if len(cloud) == 0:
+        return 1.0
+    lo, hi = cloud.positions.min(axis=0), cloud.positions.max(axis=0)
+    extent = float(np.max(hi.astype(np.float64) - lo))
+    if cloud.u is not None:
+        extent = max(extent, float(cloud.radii.max()))
+    if not np.isfinite(extent) or extent <= 0 or GPU_EXTENT_RANGE[0] <= extent <= GPU_EXTENT_RANGE[1]:
+        return 1.0
+    return float(2.0 ** -np.round(np.log2(extent)))
 
 
 def _check_gpu_values(arrays: dict[str, np.ndarray]) -> None:
@@ -215,9 +250,14 @@ class Renderer:
         if cloud.normal_field is not None:
             arrays["normal_field"] = cloud.normal_field
         _check_gpu_values(arrays)
+        scale = gpu_scale(cloud)
+        if scale != 1.0:   # a power of two: exact
+            for name in ("position", "u", "v"):
+                arrays[name] = arrays[name] * np.float32(scale)
         arrays["color"] = np.clip(arrays["color"], 0.0, 1.0)
         buffers = {name: self.ctx.buffer(np.ascontiguousarray(a, dtype="f4")) for name, a in arrays.items()}
-        return GpuSplats(buffers, len(cloud), cloud.bounds(), float(cloud.radii.max()))
+        return GpuSplats(buffers, len(cloud), cloud.bounds(), float(cloud.radii.max()),
+                         origin=np.asarray(cloud.origin, dtype=np.float64), scale=scale)
 
     def _vao(self, splats: GpuSplats, program: moderngl.Program, technique: Technique) -> moderngl.VertexArray:
         key = id(program)
@@ -313,9 +353,10 @@ class Renderer:
         (window pixels of the camera's image, y up) draws only that rectangle, into
         targets of its size (default: the whole image). ``supersample``: the sub-pixels per
         output pixel along each axis that ``camera`` is drawn at (``u_supersample``).
+        ``camera`` is a world camera (see :class:`GpuSplats`).
         """
         technique = get_technique(technique) if isinstance(technique, str) else technique
-        camera = _with_clip_planes(camera, splats)
+        camera = splats.local_camera(_with_clip_planes(camera, splats))   # world camera in, GPU frame out
         ctx = self.ctx
         tile = tile or (0, 0, camera.width, camera.height)
         targets = self._ensure_targets(tile[2], tile[3])
@@ -424,6 +465,8 @@ class Renderer:
             if self._non_finite:
                 warnings.warn(f"{self._non_finite:,} sub-pixels got a non-finite splat weight, color or depth "
                               f"(degenerate splats?) and show the background", RuntimeWarning, stacklevel=2)
+            if splats.scale != 1.0:
+                depth /= np.float32(splats.scale)   # the GPU drew the model scaled (gpu_scale)
             if not (np.isfinite(color).all() and np.isfinite(weight).all() and np.isfinite(alpha).all()):
                 raise RenderError("the rendered image has non-finite pixels")
             if options.edl is not None:   # after tiling: neighbours across tile borders (edl.py)

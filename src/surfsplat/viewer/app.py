@@ -2,8 +2,9 @@
 
 Frame loop (one thread; glfw callbacks only record input, the loop acts on it):
 
-1. input -> :class:`~surfsplat.viewer.camera_control.CameraController` (orbit, pan, zoom, fly) and
-   settings (technique, prefilter, lighting, culling, LOD tolerance);
+1. input (:mod:`~surfsplat.viewer.keys`) -> :class:`~surfsplat.viewer.camera_control.CameraController`
+   (orbit, pan, zoom, fly) and settings (technique, prefilter, lighting, culling, EDL, colouring,
+   LOD tolerance);
 2. rendering, off-screen, into RGBA8 textures of the window's framebuffer size:
    - while the camera moves (and for ``SETTLE_S`` after its last change), where full quality
      is too slow to follow (over ``PREVIEW_ABOVE_S`` a frame), a cheap *preview*:
@@ -11,8 +12,13 @@ Frame loop (one thread; glfw callbacks only record input, the loop acts on it):
      LOD hierarchy: :func:`preview_cloud`), optionally at a lower internal
      resolution (``MotionOptions.scale``);
    - once the camera has been still for ``SETTLE_S``, one *full-quality* frame with the chosen
-     technique; it is kept and shown again, not re-rendered, until something changes;
-3. presenting: the preview cross-faded into the full frame over ``FADE_S`` (no pop), then the HUD.
+     technique (the LOD cut of :class:`~surfsplat.viewer.detail.LevelOfDetail`); it is kept and
+     shown again, not re-rendered, until something changes. Under a point budget the still view
+     is refined progressively (:func:`~surfsplat.viewer.detail.refinement_budgets`): each step is
+     drawn into the ``full`` target while the previous one moves to ``previous``;
+3. presenting: the preview (or the previous refinement step) cross-faded into the full frame over
+   ``FADE_S`` (no pop), then the HUD; with ``record`` the shown frame goes to the
+   :class:`~surfsplat.viewer.recorder.Recorder`.
 
 Why this preview: on Mesa's llvmpipe (2 cores) the cost of a frame is about proportional to
 the number of splats (vertex and setup bound), not to the pixels: 1 M splats at 1280x720
@@ -21,240 +27,58 @@ take 0.7 s with ``flat``, 1.6-1.9 s with ``ewa``, and halving the resolution sav
 (Pajarola 2003, :class:`LevelOfDetail`) draws fewer splats where they are small on screen.
 
 Rendering off-screen also gives screenshots without the HUD, independent of the window's
-pixel ownership, and lets a still view be re-shown without re-rendering.
+pixel ownership, and lets a still view be re-shown without re-rendering. With eye-dome lighting
+on, full-quality frames go through ``Renderer.render`` (EDL needs the depth image: read back,
+shaded in NumPy, written to the ``full`` texture); previews do not get it.
+
+Modules: ``settings`` (constants, :class:`MotionOptions`, :class:`ViewStats`), ``window``
+(:func:`open_window`), ``keys`` (input), ``detail`` (LOD cut, preview, recolouring),
+``recorder``, ``hud``, ``camera_control``, ``screenshots``; this one is the frame loop.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
-from typing import Literal, get_args
 
 import moderngl
 import numpy as np
 
 from .. import progress
 from ..api import (DEFAULT_BACKGROUND, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec, SourceOptions,
-                   as_hierarchy, check_background, check_source, load_model, lod_splats, natural_up,
-                   resolve_camera)
+                   as_hierarchy, check_background, check_source, is_lidar, load_model, natural_up, resolve_camera)
 from ..camera import Camera
 from ..cloud import SplatCloud
-from ..errors import InputError, RenderError
-from ..hierarchy import LodShading, uniform_cut
+from ..colors import colorize
+from ..geometry.preprocess import NONPLANAR
+from ..errors import InputError
+from ..hierarchy import LodShading
+from ..hierarchy.lod import check_point_budget
+from ..io.video import check_video_path
 from ..lighting import Lights
+from ..render.frame import check_image_path
 from ..render.options import RenderOptions, TechniqueName
 from ..render.renderer import Renderer
-from ..render.techniques import TECHNIQUES
 from . import camera_control as cc
+from .detail import LevelOfDetail, preview_cloud, recolor, refinement_budgets
 from .hud import Hud, viewer_program
-from ..render.frame import check_image_path
-from .screenshots import save_image, unique_screenshot_path
+from .keys import HELP, ViewerInput
+from .recorder import Recorder
+from .screenshots import save_image
+from .settings import (FADE_S, FPS_INTERVAL_S, MOTION_MODES, PREVIEW_ABOVE_S, SETTLE_S, MotionOptions, ViewStats,
+                       technique_names)
+from .window import open_window
 
-#: Seconds the camera must be still before the full-quality frame replaces the preview.
-SETTLE_S = 0.25
-#: Seconds of the cross-fade from the preview to the full-quality frame.
-FADE_S = 0.15
-#: Default (about) number of splats and resolution scale of the motion preview: with ``flat``
-#: at 1280x720 (drawn at 640x360) about 5-10 frames/s on llvmpipe with 2 cores. Only used
-#: where full quality is slow (motion "auto"), so a GPU usually never shows the preview.
-#: LOD screen tolerance range, pixels, and the factor of one +/- step.
-TOLERANCE_RANGE = (0.125, 64.0)
-TOLERANCE_STEP = math.sqrt(2.0)
-#: Seconds between refreshes of the frame counter (and so of the HUD's text).
-FPS_INTERVAL_S = 0.5
+#: The viewer's off-screen targets (textures and their framebuffers).
+TARGETS = ("full_fbo", "preview_fbo", "previous_fbo", "full", "preview", "previous")
 
-Motion = Literal["auto", "flat", "same", "off"]
-#: The values of :data:`Motion`.
-MOTION_MODES = get_args(Motion)
-#: With motion "auto", the preview is used only where a full-quality frame takes longer than this
-#: (seconds): on a GPU the full quality usually keeps up and is drawn while moving too.
-PREVIEW_ABOVE_S = 0.05
-
-NO_DISPLAY = ("cannot open a window: {why}. The viewer needs a display. Without one, render images "
-              "with `surfsplat render INPUT -o out.png` (or `surfsplat demo`), or run the viewer under "
-              "a virtual X server: `xvfb-run -s '-screen 0 1280x1024x24' surfsplat view INPUT --frames N "
-              "--screenshot out.png` (Debian/Ubuntu: apt-get install xvfb)")
+__all__ = ["MOTION_MODES", "LevelOfDetail", "MotionOptions", "ViewStats", "Viewer", "open_window", "preview_cloud",
+           "view"]
 
 
-@dataclass(frozen=True)
-class MotionOptions:
-    """What the viewer draws while the camera moves.
-
-    Attributes:
-        mode: "flat" (opaque one-pass disks) or "same" (the chosen technique), both on about
-            ``budget`` splats at ``scale`` of the resolution; "off": full quality always;
-            "auto": "flat" where a full-quality frame takes longer than ``PREVIEW_ABOVE_S``.
-        budget: about this many splats at most in the preview (0: all). The default, with
-            ``flat`` at 1280x720 drawn at 640x360, gives about 5-10 frames/s on llvmpipe with 2
-            cores; only used where full quality is slow, so a GPU usually never shows it.
-        scale: internal resolution of the preview, fraction of the window's, in (0, 1].
-    """
-
-    mode: Motion = "auto"
-    budget: int = 100_000
-    scale: float = 0.5
-
-    def __post_init__(self) -> None:
-        if self.mode not in MOTION_MODES:
-            raise InputError(f"motion must be one of {', '.join(map(repr, MOTION_MODES))}, got {self.mode!r}")
-        if not (0.0 < self.scale <= 1.0):
-            raise InputError(f"motion scale must be in (0, 1], got {self.scale}")
-        if int(self.budget) < 0:
-            raise InputError(f"motion budget must be >= 0 splats (0: all), got {self.budget}")
-
-
-@dataclass
-class ViewStats:
-    """What a :func:`view` session did.
-
-    Attributes:
-        frames: frames presented (scripted mode: the N asked for, unless the window was closed).
-        seconds: wall-clock time of those frames (rendering, presenting, HUD, swap), seconds.
-        fps: frames / seconds.
-        preview_frames, full_frames: how many renders were motion previews / full quality.
-        splats: splats in the model; preview_splats: splats drawn in a preview.
-        size: (width, height) of the framebuffer, pixels.
-        screenshot: the image written by the scripted mode, if any.
-    """
-
-    frames: int
-    seconds: float
-    fps: float
-    preview_frames: int
-    full_frames: int
-    splats: int
-    preview_splats: int
-    size: tuple[int, int]
-    screenshot: Path | None = None
-
-
-# -- inputs ----------------------------------------------------------------
-
-def technique_names() -> list[str]:
-    """The techniques in the order T cycles through them and 1..9 select them."""
-    return sorted(TECHNIQUES)
-
-
-def preview_cloud(hierarchy, budget: int) -> SplatCloud | None:
-    """At most ``budget`` splats standing in for the whole model while the camera moves.
-
-    The finest level-uniform cut of the LOD hierarchy that fits the budget
-    (:func:`~surfsplat.hierarchy.uniform_cut`): the nodes' representative splats,
-    whose ellipses cover their subtrees' disks (Pajarola 2003, sec. 3.4), so the
-    preview has no holes; fixed, so it does not flicker. None when the model has
-    no more than ``budget`` splats (or ``budget`` is 0): it is drawn whole.
-    """
-    if budget <= 0 or len(hierarchy.points) <= budget:
-        return None
-    return hierarchy.node_splats(uniform_cut(hierarchy, budget), lod_shading="flat")
-
-
-class LevelOfDetail:
-    """View-dependent level of detail for the viewer's full-quality frames (Pajarola 2003, sec. 5.1).
-
-    Holds the model's point-octree; per frame it selects the cut for the camera and
-    the screen tolerance tau (nodes whose projected ellipse is at most tau pixels are
-    drawn as one splat; frustum culling, and back-face culling when the render
-    options ask for it), gathers the splats and uploads them, replacing the previous
-    cut. A cut is reused while the camera, tau and culling stay the same.
-    """
-
-    def __init__(self, renderer, hierarchy, lod_shading: LodShading = DEFAULT_LOD_SHADING):
-        self.renderer, self.hierarchy, self.lod_shading = renderer, hierarchy, lod_shading
-        self._key = None
-        self._splats = None
-        self.count = 0
-        self.select_ms = 0.0
-
-    def __call__(self, camera: Camera, lod_tolerance: float, cull_backfaces: bool):
-        """(GpuSplats or None when nothing is visible, number of splats drawn)."""
-        key = (camera, float(lod_tolerance), bool(cull_backfaces))
-        if key != self._key:
-            start = time.perf_counter()
-            cloud, _ = lod_splats(self.hierarchy, camera, lod_tolerance, cull_backfaces=cull_backfaces,
-                                  lod_shading=self.lod_shading)
-            self.select_ms = 1000.0 * (time.perf_counter() - start)
-            self.release()
-            self._splats = self.renderer.upload(cloud) if len(cloud) else None
-            self.count, self._key = len(cloud), key
-        return self._splats, self.count
-
-    def release(self) -> None:
-        """Free the uploaded cut."""
-        if self._splats is not None:
-            self._splats.release()
-        self._splats, self._key, self.count = None, None, 0
-
-
-# -- the window ------------------------------------------------------------
-
-def open_window(width: int, height: int, title: str, visible: bool = True):
-    """Create a glfw window with an OpenGL 3.3 core context and a moderngl context on it.
-
-    Returns (glfw module, window, moderngl context). Raises RenderError with
-    :data:`NO_DISPLAY`'s advice when glfw is missing, finds no display or the
-    window (or its context) cannot be created.
-    """
-    try:
-        import glfw
-    except ImportError:
-        raise RenderError(NO_DISPLAY.format(why="the glfw package is not installed "
-                                            "(pip install 'surfsplat[viewer]')")) from None
-
-    errors: list[str] = []
-
-    def on_error(code, description):
-        text = description.decode(errors="replace") if isinstance(description, bytes) else str(description)
-        errors.append(text)
-
-    glfw.set_error_callback(on_error)
-
-    def fail(what: str):
-        why = what + (f" ({'; '.join(errors)})" if errors else "")
-        glfw.terminate()
-        glfw.set_error_callback(None)
-        return RenderError(NO_DISPLAY.format(why=why))
-
-    if not glfw.init():
-        raise fail("glfw found no display")
-    glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, 3)
-    glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, 3)
-    glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
-    glfw.window_hint(glfw.OPENGL_FORWARD_COMPAT, True)  # required on macOS, harmless elsewhere
-    glfw.window_hint(glfw.VISIBLE, visible)
-    window = glfw.create_window(int(width), int(height), title, None, None)
-    if not window:
-        raise fail("the window with an OpenGL 3.3 core context could not be created")
-    glfw.make_context_current(window)
-    try:
-        ctx = moderngl.create_context(require=330)
-    except Exception as exc:  # moderngl raises plain Exceptions from its loader
-        glfw.destroy_window(window)
-        raise fail(f"no OpenGL 3.3 context on the window: {exc}") from None
-    return glfw, window, ctx
-
-
-HELP = """\
-left drag\torbit around the target (fly mode: look around)
-right / middle drag\tpan
-wheel\tzoom (fly mode: move forward / back)
-arrows\torbit (fly mode: look)
-F\tfly mode on / off: W A S D move, Q E down / up, Shift faster
-R\treset the view (automatic framing)
-T, Shift+T\tnext / previous technique
-1 .. 9\t{numbers}
-P\tEWA prefilter on / off
-L\tlighting on / off
-B\tback-face culling on / off
-+ / -\tLOD screen tolerance (pixels)
-S, Ctrl+S\tscreenshot surfsplat-<time>.png (fly mode: Ctrl+S)
-H\tthis help
-Esc, Q\tquit (fly mode: Esc)"""
-
-
-class Viewer:
+class Viewer(ViewerInput):
     """The window, its input state and its frame loop (see the module docstring).
 
     Built by :func:`view`; usable directly for tests that drive it frame by frame.
@@ -263,7 +87,8 @@ class Viewer:
     def __init__(self, glfw, window, ctx, model, camera: Camera | CameraSpec | None, *, technique: TechniqueName,
                  lights: Lights, options: RenderOptions, background, lod_tolerance: float,
                  lod_shading: LodShading = DEFAULT_LOD_SHADING, motion: MotionOptions = MotionOptions(),
-                 hud: bool = True, source_options: SourceOptions | None = None):
+                 hud: bool = True, source_options: SourceOptions | None = None, point_budget: int | None = None,
+                 hybrid: bool = False, record: Path | None = None):
         self.glfw, self.window, self.ctx = glfw, window, ctx
         self.renderer = Renderer(ctx)
         self.techniques = technique_names()
@@ -271,15 +96,23 @@ class Viewer:
         self.lights, self.options, self.background = lights, options, tuple(background)
         self.lod_tolerance = float(lod_tolerance)
         self.motion, self.motion_scale = motion.mode, float(motion.scale)
+        # progressive refinement of a still view under a point budget: budgets[refine] is drawn
+        self.point_budget, self.hybrid = point_budget, bool(hybrid)
+        self.budgets, self.refine = refinement_budgets(point_budget), 0
 
         # built on loading when the model is a cloud (a mesh's surface sampled for the window's width)
         hierarchy = as_hierarchy(model, source_options, image_size=max(glfw.get_framebuffer_size(window)))
         cloud = hierarchy.points
-        self.lod = LevelOfDetail(self.renderer, hierarchy, lod_shading)
+        self.lod = LevelOfDetail(self.renderer, hierarchy, lod_shading, model=model)
         self.model_splats = len(cloud)
-        small = preview_cloud(hierarchy, int(motion.budget)) if motion.mode != "off" else None
-        with progress.stage(f"uploading {len(small or cloud):,} preview splats"):
-            self.preview_splats = self.renderer.upload(small if small is not None else cloud)
+        self.motion_budget = int(motion.budget)
+        # colour by (C): the points with their attributes, in the hierarchy's order
+        self._colored_points = (model, hierarchy.order) if isinstance(model, SplatCloud) else (cloud, None)
+        self.color_modes = ["own colours", "elevation"] + [name for name in sorted(
+            self._colored_points[0].attributes or {}) if name != NONPLANAR]
+        self.color_index, self._own_colors = 0, cloud.colors
+        self.preview_splats = None
+        self._upload_preview()
 
         fb_w, fb_h = glfw.get_framebuffer_size(window)
         fb_w, fb_h = max(fb_w, 1), max(fb_h, 1)
@@ -321,6 +154,7 @@ class Viewer:
         self.last_render_s = {"preview": 0.0, "full": 0.0}
         self._fps_window_start, self._fps_count, self.fps = time.perf_counter(), 0, None
         self._message: tuple[str, float] | None = None
+        self.recorder = Recorder(record) if record is not None else None
         self._install_callbacks()
 
     # -- resources -----------------------------------------------------------
@@ -330,174 +164,60 @@ class Viewer:
         ctx = self.ctx
         if self._targets is not None:
             ctx.screen.use()  # park on the default framebuffer while freeing (see Renderer)
-            for name in ("full_fbo", "preview_fbo", "full", "preview"):
+            for name in TARGETS:
                 self._targets[name].release()
         w, h = self.size
         pw, ph = max(1, round(w * self.motion_scale)), max(1, round(h * self.motion_scale))
         full, preview = ctx.texture((w, h), 4), ctx.texture((pw, ph), 4)
         full.filter = (moderngl.NEAREST, moderngl.NEAREST)  # shown 1:1
         preview.filter = (moderngl.LINEAR, moderngl.LINEAR)  # bilinear upscaling of a lower resolution
-        self._targets = {"full": full, "preview": preview, "preview_size": (pw, ph),
-                         "full_fbo": ctx.framebuffer([full]), "preview_fbo": ctx.framebuffer([preview])}
+        previous = ctx.texture((w, h), 4)   # the last refinement step, faded out under the next
+        previous.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self._targets = {"full": full, "preview": preview, "previous": previous, "preview_size": (pw, ph),
+                         "full_fbo": ctx.framebuffer([full]), "preview_fbo": ctx.framebuffer([preview]),
+                         "previous_fbo": ctx.framebuffer([previous])}
+        self.fade_source = "preview"
 
     def release(self) -> None:
         """Free every GPU resource the viewer made (the window itself is :func:`view`'s)."""
         self.ctx.screen.use()
-        for name in ("full_fbo", "preview_fbo", "full", "preview"):
+        for name in TARGETS:
             self._targets[name].release()
+        if self.recorder is not None:
+            path = self.recorder.close()
+            if path is not None:
+                progress.message(f"recorded {self.recorder.frames} frames -> {path}")
         self.preview_splats.release()
         self.lod.release()
         if self.hud is not None:
             self.hud.release()
 
-    # -- input -----------------------------------------------------------------
+    def _upload_preview(self) -> None:
+        """(Re)upload the motion preview (:func:`preview_cloud`, or the whole model)."""
+        if self.preview_splats is not None:
+            self.preview_splats.release()
+        hierarchy = self.lod.hierarchy
+        small = preview_cloud(hierarchy, self.motion_budget) if self.motion != "off" else None
+        with progress.stage(f"uploading {len(small or hierarchy.points):,} preview splats"):
+            self.preview_splats = self.renderer.upload(small if small is not None else hierarchy.points)
 
-    def _install_callbacks(self) -> None:
-        glfw, win = self.glfw, self.window
-        glfw.set_key_callback(win, self._on_key)
-        glfw.set_char_callback(win, self._on_char)
-        glfw.set_mouse_button_callback(win, self._on_button)
-        glfw.set_cursor_pos_callback(win, self._on_cursor)
-        glfw.set_scroll_callback(win, self._on_scroll)
-        glfw.set_framebuffer_size_callback(win, self._on_framebuffer_size)
-
-    def _on_key(self, window, key, scancode, action, mods) -> None:
-        glfw = self.glfw
-        if action != glfw.PRESS:
-            return
-        fly = self.controller.mode == "fly"
-        ctrl = bool(mods & glfw.MOD_CONTROL)
-        if key == glfw.KEY_ESCAPE or (key == glfw.KEY_Q and not fly):
-            self._actions.append(("quit",))
-        elif key == glfw.KEY_S and (ctrl or not fly):
-            self._actions.append(("screenshot",))
-        elif fly and key in (glfw.KEY_W, glfw.KEY_A, glfw.KEY_S, glfw.KEY_D, glfw.KEY_Q, glfw.KEY_E):
-            return  # movement keys are read each frame (held down)
-        elif key == glfw.KEY_F:
-            # at once, not queued: the mode decides what the next keys mean (Q, S)
-            mode = self.controller.toggle_mode()
-            self._message = (f"{mode} mode", time.perf_counter() + 2.0)
-        elif key == glfw.KEY_R:
-            self._actions.append(("reset",))
-        elif key == glfw.KEY_T:
-            self._actions.append(("technique", -1 if mods & glfw.MOD_SHIFT else 1))
-        elif glfw.KEY_1 <= key <= glfw.KEY_9:
-            self._actions.append(("technique_index", key - glfw.KEY_1))
-        elif key == glfw.KEY_P:
-            self._actions.append(("prefilter",))
-        elif key == glfw.KEY_L:
-            self._actions.append(("lighting",))
-        elif key == glfw.KEY_B:
-            self._actions.append(("cull",))
-        elif key == glfw.KEY_H:
-            self._actions.append(("help",))
-
-    def _on_char(self, window, codepoint) -> None:
-        # +/- come as characters: the same on every keyboard layout and on the keypad
-        char = chr(codepoint)
-        if char in "+=":
-            self._actions.append(("tolerance", 1))
-        elif char in "-_":
-            self._actions.append(("tolerance", -1))
-
-    def _on_button(self, window, button, action, mods) -> None:
-        glfw = self.glfw
-        name = {glfw.MOUSE_BUTTON_LEFT: "left", glfw.MOUSE_BUTTON_RIGHT: "right",
-                glfw.MOUSE_BUTTON_MIDDLE: "middle"}.get(button)
-        if name is None:
-            return
-        if action == glfw.PRESS:
-            self._buttons.add(name)
-            self._cursor = glfw.get_cursor_pos(window)
+    def cycle_colors(self) -> str:
+        """Colour the model by the next of :attr:`color_modes` (its own colours, elevation along the
+        view's up axis, each attribute: ASPRS classes for ``classification``, else viridis over the
+        2nd-98th percentiles, :func:`surfsplat.colors.colorize`); returns the mode's name."""
+        self.color_index = (self.color_index + 1) % len(self.color_modes)
+        name = self.color_modes[self.color_index]
+        if self.color_index == 0:
+            colors = self._own_colors
         else:
-            self._buttons.discard(name)
-
-    def _on_cursor(self, window, x, y) -> None:
-        if not self._buttons or self._cursor is None:
-            self._cursor = (x, y)
-            return
-        # cursor positions are in screen coordinates; the camera works in framebuffer pixels (HiDPI)
-        win_w, _ = self.glfw.get_window_size(window)
-        ratio = self.size[0] / max(win_w, 1)
-        dx, dy = (x - self._cursor[0]) * ratio, (y - self._cursor[1]) * ratio
-        self._cursor = (x, y)
-        button = "left" if "left" in self._buttons else ("right" if "right" in self._buttons else "middle")
-        self.controller.drag(button, dx, dy)
-
-    def _on_scroll(self, window, dx, dy) -> None:
-        self.controller.scroll(dy)
-
-    def _on_framebuffer_size(self, window, width, height) -> None:
-        self._pending_size = (width, height)
-
-    def _held_keys(self, dt: float) -> bool:
-        """Keyboard motion for ``dt`` seconds (fly keys, arrows); returns whether any key is held."""
-        glfw, win = self.glfw, self.window
-
-        def down(key) -> int:
-            return 1 if glfw.get_key(win, key) == glfw.PRESS else 0
-
-        turn = (down(glfw.KEY_LEFT) - down(glfw.KEY_RIGHT), down(glfw.KEY_UP) - down(glfw.KEY_DOWN))
-        if self.controller.mode == "fly":
-            move = (down(glfw.KEY_W) - down(glfw.KEY_S), down(glfw.KEY_D) - down(glfw.KEY_A),
-                    down(glfw.KEY_E) - down(glfw.KEY_Q))
-        else:
-            move = (0, 0, 0)
-        fast = bool(down(glfw.KEY_LEFT_SHIFT) or down(glfw.KEY_RIGHT_SHIFT))
-        return self.controller.keys(move, turn, dt, fast)
-
-    def _apply(self, action: tuple) -> None:
-        kind = action[0]
-        if kind == "quit":
-            self.should_quit = True
-        elif kind == "screenshot":
-            path = save_image(self.full_image(), unique_screenshot_path(), exclusive=True)
-            progress.message(f"screenshot -> {path}")
-            self._message = (f"saved {path.name}", time.perf_counter() + 3.0)
-            return  # the image itself does not change
-        elif kind == "reset":
-            self.controller.reset()
-        elif kind in ("technique", "technique_index"):
-            names = self.techniques
-            if kind == "technique":
-                index = (names.index(self.technique) + action[1]) % len(names)
-            elif action[1] < len(names):
-                index = action[1]
-            else:
-                return
-            self.technique = names[index]
-        elif kind == "prefilter":
-            o = self.options
-            self.options = replace(o, filter=replace(o.filter, prefilter=not o.filter.prefilter))
-        elif kind == "lighting":
-            self.lights = replace(self.lights, enabled=not self.lights.enabled)
-        elif kind == "cull":
-            o = self.options
-            self.options = replace(o, visibility=replace(o.visibility, cull_backfaces=not o.visibility.cull_backfaces))
-        elif kind == "tolerance":
-            lo, hi = TOLERANCE_RANGE
-            self.lod_tolerance = float(np.clip(self.lod_tolerance * TOLERANCE_STEP ** action[1], lo, hi))
-        elif kind == "help":
-            if self.hud is not None:
-                self.hud.show_help = not self.hud.show_help
-            return  # the image itself does not change
-        self.version += 1
-
-    def _process_input(self, now: float) -> None:
-        actions, self._actions = self._actions, []
-        for action in actions:
-            self._apply(action)
-        if self._pending_size is not None:
-            w, h = self._pending_size
-            self._pending_size = None
-            if w > 0 and h > 0 and (w, h) != self.size:  # 0 x 0 while minimized: keep the old targets
-                self.size = (w, h)
-                self.controller.resize(w, h)
-                self._make_targets()
-        if self.controller.camera != self._rendered_camera:
-            self._rendered_camera = self.controller.camera
-            self.moved_at = now
-            self.version += 1
+            points, order = self._colored_points
+            colors = colorize(points, name, up=tuple(self.controller.up)).colors
+            colors = colors if order is None else colors[order]
+        recolor(self.lod.hierarchy, colors)
+        self.lod.release()
+        self._upload_preview()
+        self.preview_version = 0
+        return name
 
     # -- rendering -------------------------------------------------------------
 
@@ -513,7 +233,8 @@ class Viewer:
         """Render the current view off-screen: full quality, or the motion preview."""
         camera = self.controller.camera
         if full:
-            splats, self.drawn = self.lod(camera, self.lod_tolerance, self.options.visibility.cull_backfaces)
+            splats, self.drawn = self.lod(camera, self.lod_tolerance, self.options.visibility.cull_backfaces,
+                                          self.budgets[self.refine], self.hybrid)
             technique, fbo = self.technique, self._targets["full_fbo"]
         else:
             splats, self.drawn = self.preview_splats, self.preview_splats.count
@@ -524,6 +245,11 @@ class Viewer:
         if splats is None:  # nothing in view
             fbo.use()
             fbo.clear(*self.background, 0.0)
+        elif full and self.options.edl is not None:
+            # eye-dome lighting needs the depth: the Frame path (read back, EDL in NumPy, written back)
+            frame = self.renderer.render(splats, camera, technique, self.lights, self.options, self.background)
+            rgba = np.concatenate([frame.image(), np.full(frame.alpha.shape + (1,), 255, np.uint8)], axis=2)
+            self._targets["full"].write(np.ascontiguousarray(rgba[::-1]).tobytes())
         else:
             self.renderer.draw(splats, camera, technique, self.lights, self.options, self.background, output=fbo)
         self.ctx.finish()  # llvmpipe works asynchronously: wait, so frame times are real
@@ -545,9 +271,13 @@ class Viewer:
         return np.ascontiguousarray(data[::-1, :, :3])  # GL rows start at the bottom
 
     def screen_image(self) -> np.ndarray:
-        """(H, W, 3) uint8 of what the window's back buffer shows (image and HUD), for tests."""
+        """(H, W, 3) uint8 of what the window's back buffer shows (image and HUD): tests, recordings."""
         w, h = self.size
         data = np.frombuffer(self.ctx.screen.read(viewport=(0, 0, w, h), components=3), dtype=np.uint8)
+        # moderngl names GL_COLOR_ATTACHMENT0 as the window's read buffer, which GL refuses
+        # (GL_INVALID_OPERATION; the back buffer is read all the same): clear the flag, or the
+        # renderer's next error check would report it
+        _ = self.ctx.error
         return np.ascontiguousarray(data.reshape(h, w, 3)[::-1])
 
     def present(self, mix: float) -> None:
@@ -556,7 +286,7 @@ class Viewer:
         screen.viewport = (0, 0, *self.size)
         screen.use()
         program = self.present_program
-        self._targets["preview"].use(location=0)
+        self._targets[self.fade_source].use(location=0)
         self._targets["full"].use(location=1)
         program["u_preview"].value, program["u_full"].value = 0, 1
         program["u_mix"].value = float(mix)
@@ -565,6 +295,8 @@ class Viewer:
         if self.hud is not None and self.show_hud:
             self.hud.update(self.status_text(), self.help_text())
             self.hud.draw(self.size)
+        if self.recorder is not None:
+            self.recorder.add(self.screen_image)
 
     # -- HUD text ---------------------------------------------------------------
 
@@ -576,16 +308,18 @@ class Viewer:
 
     def status_text(self) -> str:
         """The HUD's status panel (changes only when a shown value changes)."""
-        on = {True: "on", False: "off"}
+        on = {True: "on", False: "off", None: "auto"}   # culling None: automatic (closed meshes)
         preview = self.showing_preview
         ms = 1000.0 * self.last_render_s["preview" if preview else "full"]
         rate = f"{self.fps:.1f} fps" if self.fps is not None else "idle"
         quality = (f"moving: preview ({'flat' if self.motion != 'same' else self.technique}, "
                    f"{self.preview_splats.count:,} splats)" if preview else "full quality")
         lines = [
-            f"{self.technique}   {self.drawn:,} splats   {rate}   ({ms:.0f} ms/frame)",
+            f"{self.technique}{'   hybrid' if self.hybrid else ''}   {self.drawn:,} splats"
+            f"{self._budget_text()}   {rate}   ({ms:.0f} ms/frame)",
             f"prefilter {on[self.options.filter.prefilter]}   lighting {on[self.lights.enabled]}   "
-            f"culling {on[self.options.visibility.cull_backfaces]}   LOD tolerance {self.lod_tolerance:.3g} px "
+            f"culling {on[self.options.visibility.cull_backfaces]}   EDL {on[self.options.edl is not None]}   "
+            f"LOD tolerance {self.lod_tolerance:.3g} px "
             f"({self.lod.select_ms:.0f} ms to select)",
             f"{self.controller.mode} mode   {quality}   H: help",
         ]
@@ -595,6 +329,12 @@ class Viewer:
             else:
                 self._message = None
         return "\n".join(lines)
+
+    def _budget_text(self) -> str:
+        if self.point_budget is None:
+            return ""
+        step = f", refining {self.refine + 1}/{len(self.budgets)}" if self.refine + 1 < len(self.budgets) else ""
+        return f" (budget {self.budgets[self.refine]:,}{step})"
 
     def help_text(self) -> str:
         """The key list shown on H."""
@@ -630,10 +370,14 @@ class Viewer:
                 self.render(full=False)
                 self.showing_preview, self.fade_from = True, None
         elif self.full_version != self.version:
+            self.refine = 0
             self.render(full=True)
             if self.showing_preview:
+                self.fade_source = "preview"
                 self.fade_from = time.perf_counter()  # cross-fade preview -> full, no pop
             self.showing_preview = False
+        elif self.fade_from is None and self.refine + 1 < len(self.budgets):
+            self._refine_step()
         mix = 0.0 if self.showing_preview else 1.0
         if self.fade_from is not None:
             mix = min(1.0, (time.perf_counter() - self.fade_from) / FADE_S)
@@ -652,6 +396,16 @@ class Viewer:
             glfw.wait_events_timeout(FPS_INTERVAL_S)
         return True
 
+    def _refine_step(self) -> None:
+        """Draw the still view with the next budget of the refinement and cross-fade it in from
+        the previous step (kept in the ``previous`` target): no popping."""
+        t = self._targets
+        t["full"], t["previous"] = t["previous"], t["full"]
+        t["full_fbo"], t["previous_fbo"] = t["previous_fbo"], t["full_fbo"]
+        self.refine += 1
+        self.render(full=True)
+        self.fade_source, self.fade_from = "previous", time.perf_counter()
+
     def run_scripted(self, frames: int, orbit_deg: float, screenshot: Path | None) -> ViewStats:
         """Render ``frames`` frames, turning the eye ``orbit_deg`` degrees about the up axis before
         each; save the last view at full quality (no HUD) to ``screenshot``.
@@ -666,6 +420,9 @@ class Viewer:
         # the script alone moves the camera: mouse input would make the result depend on the user
         glfw.set_cursor_pos_callback(win, None)
         glfw.set_scroll_callback(win, None)
+        self.refine = len(self.budgets) - 1   # scripted frames draw the whole budget at once
+        if self.recorder is not None:
+            self.recorder.realtime = False   # one video frame per scripted frame
         self.render(full=True)
         if self.use_preview:
             self.render(full=False)
@@ -704,7 +461,8 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
          options: RenderOptions | None = None, lod_tolerance: float = DEFAULT_LOD_TOLERANCE,
          lod_shading: LodShading = DEFAULT_LOD_SHADING, motion: MotionOptions | None = None, hud: bool = True,
          frames: int | None = None, orbit: float = 0.0, screenshot=None, title: str | None = None,
-         source_options: SourceOptions | None = None) -> ViewStats:
+         source_options: SourceOptions | None = None, point_budget: int | None = None, hybrid: bool | None = None,
+         record=None) -> ViewStats:
     """Open an interactive window on a splat model (press H in it for the keys).
 
     Args:
@@ -732,6 +490,13 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
         title: window title (default: the input's name).
         source_options: how the source becomes splats (:class:`~surfsplat.api.SourceOptions`:
             raw points preprocessed, a mesh's surface sampled once on loading for the window's size).
+        point_budget: at most this many splats per frame (Potree's priority, see
+            :func:`surfsplat.hierarchy.select`); a still view is refined progressively, from a
+            sixteenth of the budget up, each step cross-faded in (:data:`~.detail.REFINE_STEPS`).
+        hybrid: non-planar points (vegetation, wires) as round points facing the eye, planar ones
+            as surface splats (:func:`surfsplat.api.hybrid_splats`); None: on for LAS/LAZ files.
+        record: write the frames the window shows to this .gif, .mp4 or .webm
+            (:mod:`~surfsplat.viewer.recorder`; scripted mode: one video frame per frame).
 
     Returns:
         :class:`ViewStats` (frames, seconds, frame rate, ...).
@@ -751,6 +516,13 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
     width, height = (int(x) for x in size)
     if not (1 <= width <= 16384 and 1 <= height <= 16384):
         raise InputError(f"window size must be within 1..16384 pixels, got {width}x{height}")
+    if point_budget is not None:
+        point_budget = check_point_budget(point_budget)
+    if record is not None:
+        record = check_video_path(record)
+        if record.exists():
+            raise InputError(f"{record}: exists; choose another name for the recording")
+    hybrid = is_lidar(source) if hybrid is None else bool(hybrid)
     if screenshot is not None:
         screenshot = check_image_path(screenshot)
         frames = 1 if frames is None else frames
@@ -779,7 +551,8 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
         model = load_model(source, source_options)
         viewer = Viewer(glfw, window, ctx, model, camera, technique=technique, lights=lights or Lights(),
                         options=options, background=background, lod_tolerance=lod_tolerance,
-                        lod_shading=lod_shading, motion=motion, hud=hud, source_options=source_options)
+                        lod_shading=lod_shading, motion=motion, hud=hud, source_options=source_options,
+                        point_budget=point_budget, hybrid=hybrid, record=record)
         if frames is None:
             stats = viewer.run_interactive()
         else:

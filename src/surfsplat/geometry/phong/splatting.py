@@ -147,7 +147,7 @@ def phong_fit(cloud: SplatCloud, error: float | None = None, *, count: int | Non
                 # a cover overlaps ~2x, and anisotropic candidates use ~1/4 of their neighbourhood
                 k = int(np.clip(8 * n // count, MAX_NEIGHBOURS, MAX_COUNT_NEIGHBOURS))
             error, splats = search_count(samples, count, k, relax, source)
-        out = _to_cloud(samples, splats)
+        out = _to_cloud(samples, splats, cloud.origin)
         report.message(f"  {len(out):,} Phong splats for {n:,} samples (error {error:.4g}, "
                        f"{n / len(out):.1f} samples per splat)")
     # members in the order of the validated input
@@ -179,11 +179,12 @@ def _check_arguments(error, count, k, relax, sharp_angle, margin):
     return error, count, None if k is None else int(k), int(relax), sharp_angle, float(margin)
 
 
-def _to_cloud(samples: Samples, splats: Splats) -> SplatCloud:
-    """The float32 :class:`SplatCloud` of the fitted splats (axes scaled to model units)."""
+def _to_cloud(samples: Samples, splats: Splats, origin: np.ndarray) -> SplatCloud:
+    """The float32 :class:`SplatCloud` of the fitted splats (axes scaled to model units), positions
+    relative to ``origin`` (the input cloud's, (3,) float64)."""
     u = splats.u_hat * splats.a[:, None]
     v = splats.v_hat * splats.b[:, None]
     return SplatCloud(positions=splats.center.astype(np.float32), normals=splats.center_normal.astype(np.float32),
                       colors=None if splats.colors is None else splats.colors.astype(np.float32),
                       u=u.astype(np.float32), v=v.astype(np.float32), normal_field=splats.field.astype(np.float32),
-                      clip_lines=splats.lines)
+                      clip_lines=splats.lines, origin=origin)
