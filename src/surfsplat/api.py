@@ -196,19 +196,24 @@ def load_model(source, source_options: SourceOptions | None = None) -> Model:
 def colored(model: Model, source_options: SourceOptions | None, up=(0.0, 1.0, 0.0)) -> Model:
     """A SplatCloud coloured by ``source_options.color`` along ``up``
     (:func:`surfsplat.colors.colorize`; a hierarchy built from it averages those colours per
-    node); a mesh is coloured when its surface is sampled; without ``color`` the model as it
-    is. A loaded Hierarchy (``.npz``) keeps no attributes: an InputError."""
+    node); a Hierarchy (object or ``.npz``) coloured the same from its points' attributes, its
+    nodes by their majority class or mean colour (:meth:`Hierarchy.colorized`); a mesh is
+    coloured when its surface is sampled; without ``color`` the model as it is. A chunked
+    hierarchy is an InputError."""
     color = source_options.color if source_options is not None else None
     if color is None or isinstance(model, Mesh):
         return model
-    if isinstance(model, (Hierarchy, ChunkedHierarchy)):
-        raise InputError("--color-by needs the points: hierarchy files keep no attributes; render the "
-                         "point file with --lod-tolerance instead")
+    if isinstance(model, ChunkedHierarchy):
+        raise InputError("--color-by needs the points: chunked hierarchies keep no attributes; render the "
+                         "point file or a one-file hierarchy (`surfsplat build` without --chunked) instead")
     value_range = color.value_range
-    if value_range is not None and color.by.lower() == ELEVATION and model.origin.any():
+    origin = model_points(model).origin
+    if value_range is not None and color.by.lower() == ELEVATION and origin.any():
         # colorize reads the local positions: a range in world elevations moves by the origin's
-        shift = float(model.origin @ np.asarray(up, dtype=np.float64)) / float(np.linalg.norm(up))
+        shift = float(origin @ np.asarray(up, dtype=np.float64)) / float(np.linalg.norm(up))
         value_range = (value_range[0] - shift, value_range[1] - shift)
+    if isinstance(model, Hierarchy):
+        return model.colorized(color.by, color.colormap, value_range, up=up)
     return colorize(model, color.by, color.colormap, value_range, up=up)
 
 

@@ -146,21 +146,39 @@ def colorize(cloud: SplatCloud, by: str, colormap: str | None = None, value_rang
     Non-finite values are drawn in the colormap's lowest colour (class palette: gray).
     """
     name, values = attribute_values(cloud, by, up)
-    if colormap is None:
-        colormap = ASPRS if name.lower() == "classification" else DEFAULT_COLORMAP
+    colormap = resolve_colormap(name, colormap)
     if colormap.lower() == ASPRS:
-        codes = np.asarray(values, dtype=np.float64)
-        ok = np.isfinite(codes) & (codes >= 0) & (codes <= 255)
-        index = np.where(ok, codes, 255).astype(np.int64)
-        colors = asprs_palette()[index]
-        colors[~ok] = np.asarray(OTHER_CLASS, dtype=np.float32) / 255.0
-        return cloud.replace(colors=colors)
+        return cloud.replace(colors=class_colors(values))
     if value_range is None:
         lo, hi = robust_range(values)
     else:
         lo, hi = ColorOptions(by, colormap, value_range).value_range
     t = (np.asarray(values, dtype=np.float64) - lo) / (hi - lo)
     return cloud.replace(colors=colormap_colors(colormap, np.nan_to_num(t, nan=0.0)))
+
+
+def resolve_colormap(name: str, colormap: str | None) -> str:
+    """The colormap :func:`colorize` uses for attribute ``name``: ``colormap``, or when None
+    ``asprs`` for ``classification`` and :data:`DEFAULT_COLORMAP` for the rest."""
+    if colormap is None:
+        return ASPRS if name.lower() == "classification" else DEFAULT_COLORMAP
+    return colormap
+
+
+def is_class_palette(name: str, colormap: str | None) -> bool:
+    """Whether attribute ``name`` coloured with ``colormap`` (None: the default) is drawn with the
+    discrete ASPRS class palette (whose colours do not blend into meaningful ones)."""
+    return resolve_colormap(name, colormap).lower() == ASPRS
+
+
+def class_colors(values) -> np.ndarray:
+    """(N, 3) float32 ASPRS palette colours (:func:`asprs_palette`) of class codes; codes that are
+    not finite integers 0..255 are drawn gray (:data:`OTHER_CLASS`)."""
+    codes = np.asarray(values, dtype=np.float64)
+    ok = np.isfinite(codes) & (codes >= 0) & (codes <= 255)
+    colors = asprs_palette()[np.where(ok, codes, 255).astype(np.int64)]
+    colors[~ok] = np.asarray(OTHER_CLASS, dtype=np.float32) / 255.0
+    return colors
 
 
 def describe_attributes(cloud: SplatCloud) -> list[str]:
@@ -174,4 +192,5 @@ def describe_attributes(cloud: SplatCloud) -> list[str]:
 
 
 __all__ = ["ColorOptions", "colorize", "attribute_values", "robust_range", "asprs_palette", "colormap_colors",
-           "describe_attributes", "ASPRS_CLASSES", "ELEVATION", "ASPRS", "DEFAULT_COLORMAP"]
+           "describe_attributes", "resolve_colormap", "is_class_palette", "class_colors", "ASPRS_CLASSES",
+           "ELEVATION", "ASPRS", "DEFAULT_COLORMAP"]

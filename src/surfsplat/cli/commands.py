@@ -25,6 +25,7 @@ from ..geometry.preprocess import neighbour_spacing, preprocess
 from ..geometry.sampling import sample_mesh
 from ..cloud import SplatCloud
 from ..hierarchy import Hierarchy, build_hierarchy, load_hierarchy, save_hierarchy
+from ..hierarchy.nodes import is_majority_voted
 from ..colors import describe_attributes
 from ..io import load, load_mesh, save_ply
 from . import options as opt
@@ -294,7 +295,8 @@ def cmd_info(args) -> None:
 
 def hierarchy_info(path) -> None:
     """Print what ``surfsplat info`` says of a hierarchy file."""
-    d = load_hierarchy(path).describe()
+    hierarchy = load_hierarchy(path)
+    d = hierarchy.describe()
     print(f"file:       {path} (surfsplat LOD hierarchy, format {d['format_version']})")
     print(f"points:     {d['points']:,}")
     print(f"nodes:      {d['nodes']:,} in {d['levels']} levels ({d['leaves']:,} leaves, capacity "
@@ -304,6 +306,9 @@ def hierarchy_info(path) -> None:
     print(f"bounds:     min {np.array2string(lo, precision=4)}  max {np.array2string(hi, precision=4)}")
     present = [name for name in ("colors", "normal_field", "clip_lines") if d[f"has_{name}"]]
     print(f"properties: positions, normals, u, v{', ' + ', '.join(present) if present else ''}")
+    attributes = hierarchy.points.attributes or {}
+    for line, values in zip(describe_attributes(hierarchy.points), attributes.values()):
+        print(f"attribute:  {line}; nodes: {'majority vote' if is_majority_voted(values) else 'mean'}")
     print(f"memory:     {d['bytes'] / 2**20:.1f} MiB")
 
 

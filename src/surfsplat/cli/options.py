@@ -14,7 +14,7 @@ import dataclasses
 import math
 
 from ..api import DEFAULT_BACKGROUND, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec, SourceOptions, is_lidar
-from ..render.lod_auto import AUTO, AUTO_MIN_DENSITY
+from ..render.lod_auto import AUTO as LOD_AUTO, AUTO_MIN_DENSITY
 from ..camera import MAX_IMAGE_SIDE, MIN_FOV, Camera
 from ..colors import ColorOptions
 from ..errors import InputError
@@ -163,7 +163,7 @@ def add_force_option(p: argparse.ArgumentParser) -> None:
 def add_lod_options(p: argparse.ArgumentParser) -> None:
     """``--lod-tolerance`` and ``--lod-shading``."""
     pixels = number(float, low=0.0, what="pixels or auto")
-    p.add_argument("--lod-tolerance", type=lambda text: AUTO if text == AUTO else pixels(text), metavar="PX",
+    p.add_argument("--lod-tolerance", type=lambda text: LOD_AUTO if text == LOD_AUTO else pixels(text), metavar="PX",
                    help=f"level of detail: draw hierarchy nodes whose projected size is at most PX pixels as "
                         f"one splat (default {DEFAULT_LOD_TOLERANCE:g} for a hierarchy MODEL.npz; a point file given "
                         f"PX gets its hierarchy built first; 0: every original splat; auto: one pixel of the "

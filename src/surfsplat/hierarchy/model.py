@@ -15,13 +15,16 @@ of index ranges.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Literal, get_args
 
 import numpy as np
 
 from ..cloud import SplatCloud
+from ..colors import attribute_values, class_colors, colorize, is_class_palette
 from ..errors import InputError
+from .nodes import is_majority_voted, range_sums
 
 #: Default largest number of points in a leaf.
 LEAF_CAPACITY = 8
@@ -158,6 +161,11 @@ class Hierarchy:
         node_child_start: (M,) int64 global index of the first child.
         node_child_count: (M,) int64 number of children (0 for a leaf).
         leaf_capacity, max_depth: the build parameters.
+        node_attributes: ``{name: (M,) array}``, each node's value of each of the points'
+            attributes (``points.attributes``, in the points' order) over its subtree's points,
+            or None: integer and boolean columns (classes, flags, counts) by majority vote (ties
+            to the smallest value), floating-point columns as the mean of the finite values
+            (:func:`~surfsplat.hierarchy.nodes.node_attribute_values`); dtypes kept.
     """
 
     points: SplatCloud
@@ -180,6 +188,7 @@ class Hierarchy:
     node_child_count: np.ndarray
     leaf_capacity: int = LEAF_CAPACITY
     max_depth: int = MAX_DEPTH
+    node_attributes: dict[str, np.ndarray] | None = None
     _cache: dict = field(default_factory=dict, repr=False)
 
     # -- structure -----------------------------------------------------------
@@ -304,6 +313,45 @@ class Hierarchy:
         return SplatCloud(positions=positions, normals=normals, colors=colors, u=u, v=v,
                           normal_field=normal_field, clip_lines=clip_lines)
 
+    # -- colours -----------------------------------------------------------------
+
+    def set_colors(self, colors: np.ndarray | None, node_colors: np.ndarray | None = None) -> None:
+        """Give the hierarchy (in place) new point colours ((N,) rows in its point order, linear
+        RGB in [0, 1], or None) and node colours: ``node_colors`` ((M, 3)) as given, or None for the
+        mean of each node's point colours, as building averages them (Pajarola 2003, sec. 3.4)."""
+        if colors is None:
+            self.points = self.points.replace(colors=None)
+            self.node_colors = None
+            return
+        colors = np.asarray(colors, dtype=np.float32)
+        if node_colors is None:
+            mean = range_sums(colors, self.node_point_start, self.node_point_count)
+            mean /= np.maximum(self.node_point_count, 1)[:, None]
+            node_colors = np.clip(mean, 0.0, 1.0)
+        self.points = self.points.replace(colors=colors)
+        self.node_colors = np.asarray(node_colors, dtype=np.float32)
+
+    def colorized(self, by: str, colormap: str | None = None, value_range=None, *,
+                  up=(0.0, 0.0, 1.0)) -> "Hierarchy":
+        """A copy coloured by the scalar ``by`` (``elevation`` or one of ``points.attributes``;
+        arguments as :func:`surfsplat.colors.colorize`, which colours the points).
+
+        Node colours: with a class palette (``asprs``, the default for ``classification``) and
+        a majority-voted (integer) attribute, the palette colour of the node's majority value,
+        so coarse levels show crisp class colours; otherwise the mean of the node's point
+        colours (a continuous colormap's blend). An unknown name is an InputError listing the
+        hierarchy's attributes.
+        """
+        name, _ = attribute_values(self.points, by, up)
+        points = colorize(self.points, by, colormap, value_range, up=up)
+        nodes = (self.node_attributes or {}).get(name)
+        node_colors = None
+        if nodes is not None and is_majority_voted(nodes) and is_class_palette(name, colormap):
+            node_colors = class_colors(nodes)
+        out = dataclasses.replace(self, _cache=dict(self._cache))
+        out.set_colors(points.colors, node_colors)
+        return out
+
     # -- summaries -------------------------------------------------------------
 
     def describe(self) -> dict:
@@ -313,8 +361,9 @@ class Hierarchy:
         (list), ``leaf_capacity``, ``max_depth``, ``max_leaf_points``,
         ``mean_leaf_points``, ``bounds`` (``[[min x, y, z], [max x, y, z]]``,
         splat centers), ``root_radius`` (model units), ``has_colors``,
-        ``has_normal_field``, ``has_clip_lines`` (of the points), ``bytes``
-        (memory of all arrays), ``format_version``.
+        ``has_normal_field``, ``has_clip_lines`` (of the points), ``attributes``
+        (``{name: dtype name}`` of the points' attributes), ``bytes`` (memory of all arrays),
+        ``format_version``.
         """
         leaf = self.is_leaf
         lo, hi = self.bounds()
@@ -334,12 +383,14 @@ class Hierarchy:
             "has_colors": self.points.colors is not None,
             "has_normal_field": self.points.normal_field is not None,
             "has_clip_lines": self.points.clip_lines is not None,
+            "attributes": {name: str(values.dtype) for name, values in (self.points.attributes or {}).items()},
             "bytes": int(sum(a.nbytes for a in self.arrays().values())),
             "format_version": FORMAT_VERSION,
         }
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """Every stored array by name (the file's members, less the format fields)."""
+        """Every stored array by name (the file's members, less the format fields); attributes as
+        ``point_attribute:NAME`` and ``node_attribute:NAME``."""
         out = {"order": self.order, "level_offsets": self.level_offsets, "origin": self.origin}
         for name in NODE_ARRAYS:
             value = getattr(self, name)
@@ -349,6 +400,10 @@ class Hierarchy:
             value = getattr(self.points, name)
             if value is not None:
                 out["point_" + name] = value
+        for name, value in (self.points.attributes or {}).items():
+            out[POINT_ATTRIBUTE + name] = value
+        for name, value in (self.node_attributes or {}).items():
+            out[NODE_ATTRIBUTE + name] = value
         return out
 
 
@@ -359,6 +414,9 @@ NODE_ARRAYS = ("node_positions", "node_normals", "node_colors", "node_u", "node_
 
 #: SplatCloud arrays of the points (all but positions may be None).
 POINT_ARRAYS = ("positions", "normals", "colors", "u", "v", "normal_field", "clip_lines")
+
+#: Name prefixes of the attribute arrays in :meth:`Hierarchy.arrays`.
+POINT_ATTRIBUTE, NODE_ATTRIBUTE = "point_attribute:", "node_attribute:"
 
 
 def check_lod_shading(lod_shading: str) -> None:

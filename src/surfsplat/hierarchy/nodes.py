@@ -301,3 +301,130 @@ def cone_angle(max_chord2) -> np.ndarray:
     chord = np.sqrt(np.maximum(np.asarray(max_chord2, dtype=np.float64), 0.0))
     theta = 2.0 * np.arcsin(np.minimum(chord / 2.0, 1.0))
     return np.where(theta < 0.5 * np.pi, theta, np.pi)
+
+
+# -- per-point attributes carried to the nodes ----------------------------------------
+
+
+def range_sums(values, start, count) -> np.ndarray:
+    """Sums of ``values`` ((N,) or (N, k)) over the index ranges ``[start, start + count)``, float64.
+
+    Prefix sums: one cumulative sum, two gathers per range (ranges may nest or overlap).
+    """
+    v = np.asarray(values, dtype=np.float64)
+    total = np.zeros((len(v) + 1,) + v.shape[1:])
+    np.cumsum(v, axis=0, out=total[1:])
+    start = np.asarray(start, dtype=np.int64)
+    return total[start + np.asarray(count, dtype=np.int64)] - total[start]
+
+
+def range_means(values, start, count) -> np.ndarray:
+    """(M,) float64 mean of the finite ``values`` ((N,)) over each range ``[start, start + count)``.
+
+    Non-finite values are left out of both sum and count; a range without a
+    finite value gets NaN.
+    """
+    v = np.asarray(values, dtype=np.float64)
+    finite = np.isfinite(v)
+    # prefix sums of the offsets from the overall mean: values far from zero (GPS times) keep their digits
+    ref = float(v[finite].mean()) if finite.any() else 0.0
+    sums = range_sums(np.where(finite, v - ref, 0.0), start, count)
+    counts = range_sums(finite, start, count)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(counts > 0, sums / np.maximum(counts, 1.0) + ref, np.nan)
+
+
+def _dense_codes(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(codes, distinct)``: int64 codes 0..K-1 in value order with ``distinct[codes] == values``.
+    Integers of 1-2 bytes map to ``value - min`` directly (no sort)."""
+    if values.dtype.kind in "biu" and values.dtype.itemsize <= 2 and len(values):
+        lo, hi = int(values.min()), int(values.max())
+        return values.astype(np.int64) - lo, np.arange(lo, hi + 1).astype(values.dtype)
+    distinct, codes = np.unique(values, return_inverse=True)
+    return codes.reshape(-1).astype(np.int64), distinct
+
+
+def _runs(key: np.ndarray, count: np.ndarray | None, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(distinct keys in order, summed counts)`` of keys in ``[lo, hi)`` (each counts 1 without
+    ``count``): a histogram where the key range is small, else a sort and run lengths."""
+    if hi - lo <= 4 * len(key) + 1024:
+        hist = np.bincount(key - lo, weights=count, minlength=hi - lo)
+        present = np.flatnonzero(hist)
+        return present + lo, hist[present].astype(np.int64)
+    if count is None:
+        key = np.sort(key)
+        first = np.flatnonzero(np.concatenate([[True], key[1:] != key[:-1]]))
+        return key[first], np.diff(np.append(first, len(key)))
+    order = np.argsort(key, kind="stable")
+    key = key[order]
+    first = np.flatnonzero(np.concatenate([[True], key[1:] != key[:-1]]))
+    return key[first], np.add.reduceat(count[order], first)
+
+
+def node_majority(values, point_start, point_count, child_count, level_offsets) -> np.ndarray:
+    """(M,) the most frequent of the integer ``values`` ((N,), in the points' order) over each node's
+    points; ties go to the smallest of the tied values. Same dtype as ``values``.
+
+    The tree's layout is :class:`~surfsplat.hierarchy.model.Hierarchy`'s (levels concatenated,
+    children contiguous, leaves tiling the points). Vectorized bottom-up: the counts of each
+    ``(leaf, value)`` come from one histogram (or sort) of the points by that key; a node's counts
+    are its children's summed per value (the runs of one level at a time, few where the values
+    are few), plus its own when it is a leaf. Of each node's ``(value, count)`` runs, in value
+    order, the first with the largest count wins.
+    """
+    v = np.asarray(values)
+    codes, distinct = _dense_codes(v)
+    k = max(len(distinct), 1)
+    start, cnt = np.asarray(point_start, dtype=np.int64), np.asarray(point_count, dtype=np.int64)
+    children = np.asarray(child_count, dtype=np.int64)
+    m = len(children)
+    leaves = np.flatnonzero(children == 0)
+    leaves = leaves[np.argsort(start[leaves], kind="stable")]
+    key = np.repeat(leaves, cnt[leaves]) * k
+    key += codes
+    leaf_key, leaf_count = _runs(key, None, 0, m * k)
+    offsets = np.asarray(level_offsets, dtype=np.int64)
+    cut = np.searchsorted(leaf_key, offsets * k)
+    parent = np.zeros(m, dtype=np.int64)
+    parent[1:] = np.repeat(np.arange(m, dtype=np.int64), children)
+    out = np.empty(m, dtype=v.dtype)
+    below_key = below_count = None
+    for level in range(len(cut) - 2, -1, -1):
+        run_key, run_count = leaf_key[cut[level]:cut[level + 1]], leaf_count[cut[level]:cut[level + 1]]
+        if below_key is not None:
+            # EQ 4 for counts: a node's histogram is the sum of its children's
+            up = parent[below_key // k] * k + below_key % k
+            run_key, run_count = _runs(np.concatenate([run_key, up]), np.concatenate([run_count, below_count]),
+                                       int(offsets[level]) * k, int(offsets[level + 1]) * k)
+        node = run_key // k
+        first = np.flatnonzero(np.concatenate([[True], node[1:] != node[:-1]]))
+        longest = np.maximum.reduceat(run_count, first)
+        pick = np.flatnonzero(run_count == np.repeat(longest, np.diff(np.append(first, len(node)))))
+        pick = pick[np.concatenate([[True], node[pick[1:]] != node[pick[:-1]]])]
+        out[node[pick]] = distinct[run_key[pick] % k]
+        below_key, below_count = run_key, run_count
+    return out
+
+
+def is_majority_voted(values) -> bool:
+    """Whether an attribute column is carried to the nodes by majority vote (integer and boolean
+    dtypes: classes, flags, counts) rather than averaged (floating-point dtypes)."""
+    return np.asarray(values).dtype.kind in "biu"
+
+
+def node_attribute_values(attributes, point_start, point_count, child_count,
+                          level_offsets) -> dict[str, np.ndarray]:
+    """Each node's value of each per-point attribute over its points ``[point_start, + point_count)``.
+
+    Integer and boolean columns (classification, return_number, scan, nonplanar, ...): the
+    majority vote (:func:`node_majority`; ties to the smallest value), same dtype.
+    Floating-point columns: the mean of the finite values (:func:`range_means`; NaN where
+    none), same dtype. The tree as in :func:`node_majority`.
+    """
+    out = {}
+    for name, values in (attributes or {}).items():
+        if is_majority_voted(values):
+            out[name] = node_majority(values, point_start, point_count, child_count, level_offsets)
+        else:
+            out[name] = range_means(values, point_start, point_count).astype(np.asarray(values).dtype)
+    return out

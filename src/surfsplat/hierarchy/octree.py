@@ -24,6 +24,9 @@ a level (no Python call per node):
    subtree's disks and the normal cone of its normals (sec. 3.2), both exact
    over the subtree's points; a linear normal field fitted to the normals
    (Botsch 2004, eq. 3-4).
+4. Attributes: the points keep theirs (reordered with them); each node gets
+   the majority value of integer columns and the mean of floating-point ones
+   over its points (:func:`~surfsplat.hierarchy.nodes.node_attribute_values`).
 
 The result's layout is described in :mod:`surfsplat.hierarchy.model`.
 """
@@ -100,11 +103,16 @@ def build_hierarchy(cloud: SplatCloud, leaf_capacity: int = LEAF_CAPACITY, *, ma
         sums = _node_sums(points, topo, origin)
     with progress.stage("node splats, spheres, cones (sec. 3.4)", n):
         node = _node_splats(points, topo, origin, sums, float(max_anisotropy))
+    node_attributes = None
+    if points.attributes:
+        with progress.stage("node attributes (means, majority votes)", n):
+            node_attributes = nm.node_attribute_values(points.attributes, topo["point_start"], topo["point_count"],
+                                                       topo["child_count"], topo["level_offsets"])
     return Hierarchy(points=points, order=topo["order"], level_offsets=topo["level_offsets"], origin=origin,
                      node_covariance=sums["covariance"], node_point_start=topo["point_start"],
                      node_point_count=topo["point_count"], node_child_start=topo["child_start"],
                      node_child_count=topo["child_count"], leaf_capacity=int(leaf_capacity),
-                     max_depth=int(max_depth), **node)
+                     max_depth=int(max_depth), node_attributes=node_attributes, **node)
 
 
 def _exclusive_cumsum(count: np.ndarray) -> np.ndarray:
@@ -182,10 +190,12 @@ def octree_topology(positions: np.ndarray, leaf_capacity: int, max_depth: int) -
 
 
 def _reordered(cloud: SplatCloud, order: np.ndarray) -> SplatCloud:
-    """The cloud's rows in ``order`` (``np.take`` of whole rows: ~3x faster than fancy indexing)."""
+    """The cloud's rows in ``order`` (``np.take`` of whole rows: ~3x faster than fancy indexing), attributes too."""
     fields = {name: None if getattr(cloud, name) is None else np.take(getattr(cloud, name), order, axis=0)
               for name in POINT_ARRAYS}
-    return SplatCloud(**fields, origin=cloud.origin)
+    attributes = None if cloud.attributes is None else {
+        name: np.take(values, order) for name, values in cloud.attributes.items()}
+    return SplatCloud(**fields, attributes=attributes, origin=cloud.origin)
 
 
 def _node_chunks(count: np.ndarray, parts: int) -> np.ndarray:

@@ -20,6 +20,12 @@ float32, optional ``point_colors`` (N, 3), ``point_normal_field`` (N, 2),
 ``point_clip_lines`` (N, 2, 3) float32; ``point_origin`` (3,) float64, the world position of
 the points' zero (world coordinates are ``point_origin + point_positions``; files without it,
 written before it existed, load with the origin at zero).
+
+Per-point attributes (LAS dimensions, extra PLY properties, ``nonplanar``), optional: for each
+attribute NAME, ``point_attribute:NAME`` (N,) in the points' order and ``node_attribute:NAME``
+(M,), both of the attribute's numeric dtype (the node values: majority vote of integer columns,
+mean of floating-point ones, see :class:`~surfsplat.hierarchy.model.Hierarchy`). Files written
+before attributes were kept have none and load without them; older readers ignore them.
 """
 
 from __future__ import annotations
@@ -33,7 +39,7 @@ import numpy as np
 from ..cloud import SplatCloud
 from ..errors import InputError
 from ..io.atomic import atomic_path, check_readable, memory_limit
-from .model import FORMAT_VERSION, Hierarchy
+from .model import FORMAT_VERSION, NODE_ATTRIBUTE, POINT_ATTRIBUTE, Hierarchy
 
 #: Value of the ``format`` member. The layout's version, :data:`FORMAT_VERSION`, is
 #: defined with the arrays in :mod:`~surfsplat.hierarchy.model`.
@@ -207,11 +213,34 @@ def _from_members(members: dict[str, np.ndarray], source: str) -> Hierarchy:
             raise InputError(f"{source}: array '{name}' has non-finite values")
         arrays[name] = value
     _check_structure(arrays, source)
+    point_attributes, node_attributes = _attributes(members, sizes, source)
     points = SplatCloud(**{name: arrays["point_" + name] for name in
-                           ("positions", "normals", "colors", "u", "v", "normal_field", "clip_lines", "origin")})
+                           ("positions", "normals", "colors", "u", "v", "normal_field", "clip_lines", "origin")},
+                        attributes=point_attributes)
     return Hierarchy(points=points, order=arrays["order"], level_offsets=arrays["level_offsets"],
                      origin=arrays["origin"], leaf_capacity=int(leaf_capacity), max_depth=int(max_depth),
+                     node_attributes=node_attributes,
                      **{name: arrays[name] for name in _SPEC if name.startswith("node_")})
+
+
+def _attributes(members: dict, sizes: dict, source: str) -> tuple[dict | None, dict | None]:
+    """The ``point_attribute:NAME`` and ``node_attribute:NAME`` members as two dicts (None when the
+    file has none): the same names in both, numeric 1-D arrays of one dtype per name, a row per
+    point and per node."""
+    point = {k[len(POINT_ATTRIBUTE):]: v for k, v in members.items() if k.startswith(POINT_ATTRIBUTE)}
+    node = {k[len(NODE_ATTRIBUTE):]: v for k, v in members.items() if k.startswith(NODE_ATTRIBUTE)}
+    if set(point) != set(node):
+        missing = sorted(set(point) ^ set(node))
+        raise InputError(f"{source}: attribute(s) {', '.join(missing)} stored for the points or the nodes only")
+    for name in point:
+        for what, value, rows in (("point", point[name], sizes["points"]), ("node", node[name], sizes["nodes"])):
+            if value.dtype.kind not in "uif" or value.shape != (rows,):
+                raise InputError(f"{source}: array '{what}_attribute:{name}' has dtype {value.dtype} and shape "
+                                 f"{value.shape}, expected a numeric ({rows},)")
+        if point[name].dtype != node[name].dtype:
+            raise InputError(f"{source}: attribute {name!r} has dtype {point[name].dtype} for the points "
+                             f"but {node[name].dtype} for the nodes")
+    return point or None, node or None
 
 
 def _check_structure(a: dict[str, np.ndarray], source: str) -> None:

@@ -29,11 +29,7 @@ an :class:`~surfsplat.errors.InputError` naming the file.
 from __future__ import annotations
 
 import os
-import signal
 import struct
-import subprocess
-import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +37,7 @@ import numpy as np
 from ..cloud import DEFAULT_ALBEDO, SplatCloud
 from ..errors import InputError
 from .atomic import memory_limit
+from .child import decoded_in_child
 
 #: The first bytes of every E57 file.
 E57_SIGNATURE = b"ASTM-E57"
@@ -252,34 +249,7 @@ def _scan(data: dict, i: int, source: str) -> tuple[np.ndarray, np.ndarray | Non
 
 
 def _decode(path: Path, source: str) -> list[tuple[np.ndarray, np.ndarray | None, np.ndarray | None]]:
-    """Every scan of the file (see :func:`_scan`), decoded by :data:`_E57_CHILD` in a child process; its
-    crash, abort, failure or hang is an InputError."""
-    timeout = 60.0 + os.stat(path).st_size / 1e6  # generous: about a second per megabyte
-    with tempfile.TemporaryDirectory(prefix="surfsplat-e57-") as folder:
-        out = Path(folder) / "scans.npz"
-        try:
-            done = subprocess.run([sys.executable, "-c", _E57_CHILD, str(path), str(out), str(memory_limit())],
-                                  capture_output=True, timeout=timeout, stdin=subprocess.DEVNULL)
-        except subprocess.TimeoutExpired:
-            raise InputError(f"{source}: cannot read E57 file: decoding did not finish in {timeout:.0f} s") from None
-        except OSError as exc:
-            raise InputError(f"{source}: cannot read E57 file: cannot start a decoder: {exc}") from exc
-        if done.returncode != 0:
-            if done.returncode < 0:
-                try:
-                    name = signal.Signals(-done.returncode).name
-                except ValueError:
-                    name = f"signal {-done.returncode}"
-                problem = f"the decoder crashed ({name}); the file is corrupt"
-            else:
-                lines = [line for line in done.stderr.decode("utf-8", "replace").splitlines()
-                         if line.startswith("ERROR: ")]
-                problem = lines[-1][7:] if lines else f"the decoder failed (exit status {done.returncode})"
-            raise InputError(f"{source}: cannot read E57 file: {problem}")
-        try:
-            with np.load(out, allow_pickle=False) as data:
-                return [_scan(data, i, source) for i in range(int(data["scans"]))]
-        except InputError:
-            raise
-        except (OSError, ValueError, KeyError) as exc:
-            raise InputError(f"{source}: cannot read E57 file: {exc}") from exc
+    """Every scan of the file (see :func:`_scan`), decoded by :data:`_E57_CHILD` in a child process
+    (:func:`surfsplat.io.child.decoded_in_child`); its crash, abort, failure or hang is an InputError."""
+    with decoded_in_child(_E57_CHILD, Path(path), source, "E57 file", args=(memory_limit(),)) as data:
+        return [_scan(data, i, source) for i in range(int(data["scans"]))]

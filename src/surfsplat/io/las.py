@@ -23,11 +23,7 @@ takes down the child only and is an InputError naming the file.
 from __future__ import annotations
 
 import os
-import signal
 import struct
-import subprocess
-import sys
-import tempfile
 import warnings
 from pathlib import Path
 
@@ -36,6 +32,7 @@ import numpy as np
 from ..cloud import SplatCloud
 from ..errors import InputError
 from .atomic import memory_limit
+from .child import decoded_in_child
 
 
 class CoordinatePrecisionWarning(UserWarning):
@@ -185,33 +182,9 @@ def las_attributes(las) -> dict[str, np.ndarray]:
 
 def _decode_laz(path: Path, source: str) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, dict]:
     """``(xyz (N, 3) float64, rgb (N, 3) uint16 or None, scales (3,), attributes)`` of a LAZ file, decoded by
-    :data:`_LAZ_CHILD` in a child process; its crash, abort, failure or hang is an InputError."""
-    timeout = 60.0 + os.stat(path).st_size / 1e6  # generous: about a second per megabyte
-    with tempfile.TemporaryDirectory(prefix="surfsplat-laz-") as folder:
-        out = Path(folder) / "points.npz"
-        try:
-            done = subprocess.run([sys.executable, "-c", _LAZ_CHILD, str(path), str(out)],
-                                  capture_output=True, timeout=timeout, stdin=subprocess.DEVNULL)
-        except subprocess.TimeoutExpired:
-            raise InputError(f"{source}: cannot read LAZ file: decompression did not finish in "
-                             f"{timeout:.0f} s") from None
-        except OSError as exc:
-            raise InputError(f"{source}: cannot read LAZ file: cannot start a decoder: {exc}") from exc
-        if done.returncode != 0:
-            if done.returncode < 0:
-                try:
-                    name = signal.Signals(-done.returncode).name
-                except ValueError:
-                    name = f"signal {-done.returncode}"
-                problem = f"the decompressor crashed ({name}); the file is corrupt"
-            else:
-                lines = done.stderr.decode("utf-8", "replace").strip().splitlines()
-                problem = lines[-1] if lines else f"the decoder failed (exit status {done.returncode})"
-            hint = " (LAZ needs a backend: `pip install lazrs`)" if "backend" in problem.lower() else ""
-            raise InputError(f"{source}: cannot read LAZ file: {problem}{hint}")
-        try:
-            with np.load(out, allow_pickle=False) as data:
-                attributes = {key[5:]: data[key] for key in data.files if key.startswith("attr:")}
-                return data["xyz"], (data["rgb"] if "rgb" in data.files else None), data["scales"], attributes
-        except (OSError, ValueError, KeyError) as exc:
-            raise InputError(f"{source}: cannot read LAZ file: {exc}") from exc
+    :data:`_LAZ_CHILD` in a child process (:func:`surfsplat.io.child.decoded_in_child`); its crash,
+    abort, failure or hang is an InputError."""
+    hint = lambda problem: " (LAZ needs a backend: `pip install lazrs`)" if "backend" in problem.lower() else ""  # noqa: E731
+    with decoded_in_child(_LAZ_CHILD, Path(path), source, "LAZ file", hint=hint) as data:
+        attributes = {key[5:]: data[key] for key in data.files if key.startswith("attr:")}
+        return data["xyz"], (data["rgb"] if "rgb" in data.files else None), data["scales"], attributes

@@ -12,21 +12,13 @@ with a plain z-buffer at the point's center depth, like ``flat``; lit by the poi
 it has one (a zero normal: unlit color); ``deferred`` lights in the normalization pass.
 With ``supersample`` K the clamp is in output pixels (K sub-pixels per output pixel).
 
-Design: instanced quads, not ``GL_POINTS`` with ``gl_PointSize``.
-
-* Tiles: OpenGL clips a point by its center, so a wide point whose center lies in the next tile
-  is dropped from this one (a seam along every tile border), and ``GL_POINT_SIZE_RANGE`` caps
-  the size (64 px times K = 8 exceeds many drivers' limit). A quad is clipped to the tile like
-  any triangle, and each tile evaluates the same full-image test (``FRAG_PX``): tiled and untiled
-  images are identical bit for bit (``tests/test_points.py``).
-* Speed, measured on Mesa llvmpipe (LLVM 15, 2 cores), 1M random points in a 1024 x 1024 view,
-  mean of 3 frames: ~1.6 px points, quads 1337 ms per frame (the whole ``Renderer.draw``, with
-  its clears and normalization pass) against 508 ms for a bare GL_POINTS draw; ~4.8 px points,
-  1348 ms against 796 ms. GL_POINTS is 1.7-2.6x faster there (llvmpipe rasterizes a point as
-  one primitive, a quad as two triangles); it is the way to go for a window drawing one tile
-  (with a viewport enlarged by the largest radius and a scissor it could tile too), not measured
-  on a GPU.
-* It reuses the renderer's instanced quad path unchanged (one draw call per pass).
+Primitive: like every technique, small points (a window box of at most 64 sub-pixels) are drawn
+as ``GL_POINTS`` and the others as instanced quads (``renderer.point_radius``,
+``glsl/splat_primitive.glsl``). A point sits at the centre of its window box clipped to the tile,
+so a wide point whose centre lies in the next tile is not lost (OpenGL clips a point by its
+centre) and ``GL_POINT_SIZE_RANGE`` never binds; every fragment runs the same full-image test
+(``FRAG_PX``), so tiled and untiled images are identical bit for bit (``tests/test_points.py``).
+GL_POINTS measured 1.7-2.6x faster than quads on llvmpipe (one primitive instead of two triangles).
 """
 
 from .technique import Technique

@@ -8,13 +8,21 @@
 
 Opaque techniques draw once with a plain z-buffer and share pass 3.
 
+Speed and memory (benchmarks/bench_render.py): splats are uploaded ordered by radius class, so each
+frame draws the large ones as instanced quads (tight boxes) and the small ones as GL_POINTS, one vertex
+per splat (``point_radius``, ``splat_primitive.glsl``), in draw calls of ``draw_batch`` splats; the
+read-back is the normalization pass's color, weight and depth sum only (20 bytes per sub-pixel), read
+into reused buffers and written straight into the Frame's top-down rows.
+
 The process-wide renderer of the headless context is :func:`default_renderer`
 (created on first use); :func:`reset_default_renderer` releases it and the context.
 """
 
 from __future__ import annotations
 
+import itertools
 import warnings
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Sequence
@@ -30,7 +38,9 @@ from ..lighting import MAX_LIGHTS, Lights
 from .context import headless_context, reset_headless_context
 from .edl import apply_edl
 from .frame import Frame
+from ..reference import prefilter_variance
 from .options import RenderOptions
+from .points import POINT_SIZE_RANGE
 from .shaders import PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBILITY, BuiltProgram, build_program, undeclared
 from .technique import Technique
 from .tiles import MAX_SUPERSAMPLE, MAX_TILE, SubPixels, box_reduce, tile_rects, tile_side
@@ -49,13 +59,13 @@ OPTIONAL_FRAME_UNIFORMS = frozenset({"u_depth_epsilon", "u_cull_backfaces", "u_d
 TILE_MARGIN = 1
 #: Texture unit of the side target during the accumulation pass (units 0 and 1 serve pass 3).
 SIDE_TEXTURE_UNIT = 2
-#: Memory a render holds per splat (host copies and the driver's buffers; measured on llvmpipe: about 93 B per
-#: splat, 145 B per pixel at 1024x1024, 400 MB for 1M splats at 1024x1024; these add margin),
-#: per output pixel (the Frame, its flipped copies, the image written) and per sub-pixel of a tile
-#: (the float targets, their read-back): :func:`render_memory`.
-BYTES_PER_SPLAT = 320
+#: Memory a render holds per splat (the upload's sorting and copies, the driver's buffers and one draw
+#: call's primitives; measured on llvmpipe by benchmarks/bench_render.py --memory: 31-83 B per splat,
+#: 1M and 5M splats; these add margin), per output pixel (the Frame, the image a caller writes) and per
+#: sub-pixel of a tile (the targets, 64 B, and the read-back buffers, 20 B): :func:`render_memory`.
+BYTES_PER_SPLAT = 160
 BYTES_PER_PIXEL = 100
-BYTES_PER_SUBPIXEL = 80
+BYTES_PER_SUBPIXEL = 100
 
 
 def render_memory(splats: int, width: int, height: int, supersample: int = 1, max_tile: int = MAX_TILE) -> int:
@@ -75,29 +85,69 @@ def check_render_memory(splats: int, width: int, height: int, supersample: int =
                          f"image, fewer splats (a hierarchy with --lod-tolerance) or free memory")
 
 
+#: Splats whose window box is at most this many sub-pixels wide (estimated per frame from their radius
+#: class and the nearest depth of the cloud's bounds) are drawn as one GL_POINTS point each, the
+#: others as instanced quads (tight bounds for large or slanted splats). A point runs the vertex
+#: shader once per splat instead of four times; its square covers the box, so a slanted splat costs
+#: at most this squared in fragments. Measured on llvmpipe (random spheres at 1024x1024, CPU time per
+#: frame, all quads against this limit): 12 px splats 338 -> 263 ms (ewa), 38 px splats 163 -> 158 ms;
+#: a limit of 128 made the 38 px ones slower (186 ms).
+POINT_SPLAT_PX = 64.0
+#: Splats per draw call, each followed by a glFinish: Mesa llvmpipe bins every primitive of a frame
+#: until the frame is flushed (measured: 180 bytes per splat drawn as quads, 300 as points, 1M splats),
+#: so the splats are drawn in batches and the driver holds one batch's primitives at a time.
+DRAW_BATCH = 1 << 17
+#: Vertex shaders that emit GL_POINTS for the small splats (``splat_primitive.glsl``, POINT_PRIMITIVE).
+POINT_SHADERS = frozenset({"ewa.vert", "disk.vert", "points.vert"})
+#: Radius classes per octave: the splats are uploaded ordered by class, largest first, so the quads
+#: and the points of a frame are two contiguous ranges.
+CLASSES_PER_OCTAVE = 4
+#: Classes kept apart (32 octaves below the largest radius); smaller splats share the last one.
+MAX_CLASSES = 128
+#: Splats checked and converted per step of :meth:`Renderer.upload` (bounds its temporary memory).
+UPLOAD_CHUNK = 1 << 20
+
+
 @dataclass
 class GpuSplats:
     """A SplatCloud uploaded to the GPU: one buffer per attribute, float32.
 
-    The buffers hold the cloud's local coordinates times ``scale`` (a power of two, see
-    :func:`gpu_scale`); ``origin`` (float64) is the cloud's world position of its zero, ``bounds``
-    and ``max_radius`` are in world units. Cameras given to the renderer are world cameras:
-    :meth:`local_camera` is the view the GPU draws with.
+    The splats are stored ordered by radius class, largest first: ``class_radius[i]`` is the
+    largest radius (GPU units) of the splats from ``class_start[i]`` on.
+
+    The buffers hold the cloud's positions relative to its float64 ``origin``, times ``scale`` (a
+    power of two, :func:`gpu_scale`: GPU units); ``bounds`` and ``max_radius`` are in world units.
+    Cameras given to the renderer are world cameras; :meth:`local_camera` is the one the GPU draws with.
     """
 
     buffers: dict[str, moderngl.Buffer]
     count: int
     bounds: tuple[np.ndarray, np.ndarray]
     max_radius: float
+    _vaos: dict = field(default_factory=dict)
+    class_start: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64))
+    class_radius: np.ndarray = field(default_factory=lambda: np.full(1, np.inf))
     origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
     scale: float = 1.0
-    _vaos: dict = field(default_factory=dict)
 
     def local_camera(self, camera: Camera) -> Camera:
         """The world ``camera`` in the buffers' frame: eye and target moved by ``-origin`` in float64,
-        then scaled by ``scale`` (exact: a power of two), so the GPU composes its float32 transform
-        from numbers of the size of the model wherever it sits."""
+        then scaled by ``scale`` (exact: a power of two), so that the GPU composes its float32
+        transform from numbers of the size of the model wherever it sits."""
         return camera.translated(-self.origin).scaled(self.scale)
+
+    @property
+    def gpu_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """The bounds in GPU units (relative to ``origin``, times ``scale``)."""
+        return tuple((np.asarray(b, dtype=np.float64) - self.origin) * self.scale for b in self.bounds)
+
+    def quad_count(self, point_radius: float) -> int:
+        """Number of leading splats drawn as quads when splats of radius <= ``point_radius`` (model
+        units) may be points: those of every class whose largest radius exceeds it."""
+        if not point_radius > 0:   # no points (0: none allowed; degenerate radii draw as quads too)
+            return self.count
+        big = int(np.count_nonzero(self.class_radius > point_radius))   # a prefix: radii descend
+        return self.count if big == len(self.class_radius) else int(self.class_start[big])
 
     def release(self) -> None:
         """Free the GPU buffers."""
@@ -139,17 +189,71 @@ def _check_gpu_values(arrays: dict[str, np.ndarray]) -> None:
     beyond :data:`MAX_COORDINATE` (``SplatCloud.validated`` drops the first two kinds)."""
     for name, values in arrays.items():
         values = np.asarray(values)
-        with np.errstate(invalid="ignore", over="ignore"):
-            bad = ~np.isfinite(values).all(axis=-1)
-            if name in ("position", "u", "v"):
-                bad |= (np.abs(values) > MAX_COORDINATE).any(axis=-1)
-            if name == "normal":
-                bad |= ~(np.einsum("ij,ij->i", values, values) > 0)
-        if bad.any():
+        bad = 0
+        for start in range(0, len(values), UPLOAD_CHUNK):   # temporaries of one chunk at a time
+            chunk = values[start:start + UPLOAD_CHUNK]
+            with np.errstate(invalid="ignore", over="ignore"):
+                wrong = ~np.isfinite(chunk).all(axis=-1)
+                if name in ("position", "u", "v"):
+                    wrong |= (np.abs(chunk) > MAX_COORDINATE).any(axis=-1)
+                if name == "normal":
+                    wrong |= ~(np.einsum("ij,ij->i", chunk, chunk) > 0)
+            bad += int(np.count_nonzero(wrong))
+        if bad:
             limit = f" or beyond +-{MAX_COORDINATE:g}" if name in ("position", "u", "v") else ""
-            raise InputError(f"{int(bad.sum()):,} splats have non-finite{limit} {name} values"
+            raise InputError(f"{bad:,} splats have non-finite{limit} {name} values"
                              f"{' (or zero normals)' if name == 'normal' else ''}; SplatCloud.validated() drops "
                              f"invalid splats")
+
+
+def radius_classes(radii: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Splats ordered by radius class, largest first: (order, first index of each non-empty class,
+    the largest radius a splat of that class may have). Class ``c`` holds the radii in
+    ``(top 2^-(c+1)/k, top 2^-c/k]`` (k = :data:`CLASSES_PER_OCTAVE`); a stable counting sort."""
+    radii = np.asarray(radii, dtype=np.float32)
+    top = float(radii.max())
+    with np.errstate(divide="ignore", invalid="ignore"):
+        octaves = np.log2(np.float32(top) / radii) if top > 0 else np.zeros_like(radii)
+    key = np.nan_to_num(np.floor(octaves * CLASSES_PER_OCTAVE), nan=0.0, posinf=MAX_CLASSES - 1)
+    key = np.clip(key, 0, MAX_CLASSES - 1).astype(np.uint8)
+    del octaves
+    order = np.argsort(key, kind="stable")
+    counts = np.bincount(key, minlength=MAX_CLASSES)
+    present = np.flatnonzero(counts)
+    starts = (np.cumsum(counts) - counts)[present]
+    return order, starts, top * 2.0 ** (-present / CLASSES_PER_OCTAVE)
+
+
+def point_radius(camera: Camera, splats: GpuSplats, technique: Technique, options: RenderOptions,
+                 supersample: int = 1, point_px: float = POINT_SPLAT_PX) -> float:
+    """Largest splat radius (model units) drawn as a GL_POINTS point in this frame: its window box is at
+    most ``point_px`` sub-pixels wide anywhere in the view (0: every splat is a quad).
+
+    The box of a splat of radius r at depth z is at most ``2 sqrt(2) r f / (z cos phi)`` wide (the
+    parallelogram's corners; phi the largest angle off the axis in the image) plus a pixel of rounding;
+    EWA adds its prefilter (Guennebaud 2003, eq. 6: ``+ 2 sqrt(2 c h)``); the depth is at least the
+    near plane's and the bounds' nearest corner's. The estimate only selects the primitive: a point's
+    fragments are tested as exactly as a quad's.
+    """
+    if technique.vertex not in POINT_SHADERS or point_px <= 0:
+        return 0.0
+    lo, hi = splats.gpu_bounds   # ``camera`` is the GPU frame's (GpuSplats.local_camera)
+    lo, hi = lo - splats.max_radius * splats.scale, hi + splats.max_radius * splats.scale
+    corners = np.array(list(itertools.product(*zip(lo, hi))))
+    view = camera.view_matrix
+    depth = -(corners @ view[:3, :3].T + view[:3, 3])[:, 2]
+    z = max(float(camera.near), float(depth.min()))
+    f = float(camera.focal_px)
+    stretch = float(np.hypot(1.0, np.hypot(camera.width, camera.height) / (2.0 * f)))   # 1 / cos(phi)
+    side = point_px - 1.0
+    if technique.vertex == "ewa.vert":
+        side -= 2.0 * np.sqrt(2.0 * options.filter.cutoff * prefilter_variance(options.filter.prefilter))
+    if technique.vertex == "points.vert":
+        side = point_px - 1.0   # the diameter 2 r f / z, clamped from below by the smallest size
+        if POINT_SIZE_RANGE[0] * supersample > side:
+            return 0.0
+        return side * z / (2.0 * f * stretch)
+    return max(side, 0.0) * z / (2.0 * np.sqrt(2.0) * f * stretch)
 
 
 def _with_clip_planes(camera: Camera, splats: GpuSplats) -> Camera:
@@ -169,10 +273,18 @@ class Renderer:
         ctx: the OpenGL context; default :func:`~surfsplat.render.context.headless_context`.
         search_path: folders searched for shader files before the package's
             ``glsl/`` (custom or experimental shaders; tests).
+        point_px: splats whose window box is at most this many sub-pixels wide are drawn as
+            GL_POINTS (:data:`POINT_SPLAT_PX`; 0: every splat as an instanced quad).
+        draw_batch: splats per draw call (:data:`DRAW_BATCH`).
     """
 
-    def __init__(self, ctx: moderngl.Context | None = None, *, search_path: Sequence[Path] = ()):
+    def __init__(self, ctx: moderngl.Context | None = None, *, search_path: Sequence[Path] = (),
+                 point_px: float = POINT_SPLAT_PX, draw_batch: int = DRAW_BATCH):
         self.ctx = ctx or headless_context()
+        self.point_px = float(point_px)
+        self.draw_batch = max(1, int(draw_batch))
+        self._uploaded: GpuSplats | None = None   # the last SplatCloud render() drew, and its checksums
+        self._upload_key: tuple | None = None
         self.search_path = tuple(Path(p) for p in search_path)
         self._programs: dict[tuple, BuiltProgram] = {}
         self._built: dict[int, BuiltProgram] = {}   # id(program) -> its BuiltProgram
@@ -182,6 +294,7 @@ class Renderer:
         self._parking_rb = self.ctx.renderbuffer((1, 1))
         self._parking = self.ctx.framebuffer([self._parking_rb])
         self._fullscreen = self.ctx.vertex_array(self.program("fullscreen.vert", "normalize.frag"), [])
+        self._max_point = float(self.ctx.info["GL_POINT_SIZE_RANGE"][1])
 
     # -- resources ---------------------------------------------------------
 
@@ -225,6 +338,7 @@ class Renderer:
     def release(self) -> None:
         """Free the renderer's GPU objects (programs, targets, buffers); it is unusable afterwards.
         The context stays (it may be shared, e.g. the headless one)."""
+        self.forget_upload()
         self._release_targets()
         self._fullscreen.release()
         for built in self._programs.values():
@@ -238,7 +352,8 @@ class Renderer:
         self._parking_rb.release()
 
     def upload(self, cloud: SplatCloud) -> GpuSplats:
-        """Copy a preprocessed SplatCloud (normals and tangent axes present) to the GPU."""
+        """Copy a preprocessed SplatCloud (normals and tangent axes present) to the GPU: float32, the
+        positions relative to its origin, the splats ordered by radius class (:class:`GpuSplats`)."""
         if not cloud.has_splats:
             raise InputError("the SplatCloud has no normals or splat axes; run surfsplat.preprocess() first")
         if len(cloud) == 0:
@@ -254,20 +369,71 @@ class Renderer:
         if scale != 1.0:   # a power of two: exact
             for name in ("position", "u", "v"):
                 arrays[name] = arrays[name] * np.float32(scale)
-        arrays["color"] = np.clip(arrays["color"], 0.0, 1.0)
-        buffers = {name: self.ctx.buffer(np.ascontiguousarray(a, dtype="f4")) for name, a in arrays.items()}
-        return GpuSplats(buffers, len(cloud), cloud.bounds(), float(cloud.radii.max()),
+        order, class_start, class_radius = radius_classes(cloud.radii * np.float32(scale))
+        buffers = {}
+        for name, values in arrays.items():   # one attribute's copy at a time
+            values = np.asarray(values, dtype="f4")[order]
+            if name == "color":
+                np.clip(values, 0.0, 1.0, out=values)
+            buffers[name] = self.ctx.buffer(values)
+            del values
+        return GpuSplats(buffers, len(cloud), cloud.bounds(), float(class_radius[0]) / scale,
+                         class_start=class_start, class_radius=class_radius,
                          origin=np.asarray(cloud.origin, dtype=np.float64), scale=scale)
 
-    def _vao(self, splats: GpuSplats, program: moderngl.Program, technique: Technique) -> moderngl.VertexArray:
+    def _upload_cached(self, cloud: SplatCloud) -> GpuSplats:
+        """The GPU copy of ``cloud``: the last one :meth:`render` uploaded when its arrays hold the same
+        bytes (a CRC-32 of each, about 30 ms per million splats against several hundred for an upload:
+        the frames of a turntable or a batch upload a cloud once), else a new upload replacing it."""
+        arrays = [cloud.positions, cloud.normals, cloud.colors, cloud.u, cloud.v, cloud.clip_lines, cloud.normal_field]
+        key = tuple(None if a is None else (a.shape, zlib.crc32(np.ascontiguousarray(a).data)) for a in arrays)
+        key += (np.asarray(cloud.origin, dtype=np.float64).tobytes(),)
+        if self._upload_key != key or self._uploaded is None:
+            self.forget_upload()
+            self._uploaded = self.upload(cloud)
+            self._upload_key = key
+        return self._uploaded
+
+    def forget_upload(self) -> None:
+        """Free the GPU copy of the last SplatCloud :meth:`render` drew (kept for the next frame)."""
+        if self._uploaded is not None:
+            self._uploaded.release()
+        self._uploaded, self._upload_key = None, None
+
+    def _vao(self, splats: GpuSplats, program: moderngl.Program, technique: Technique,
+             points: bool = False) -> moderngl.VertexArray:
+        """The splats' vertex array for ``program``: one instance per splat of a quad's 4 corners, or
+        (``points``) one vertex per splat."""
         key = id(program)
         if key not in splats._vaos:
-            content = [(self._quad, "2f", "in_corner")]
+            step = "" if points else "/i"
+            content = [] if points else [(self._quad, "2f", "in_corner")]
             # attributes without a buffer keep OpenGL's default (0, 0, 0): no clip lines, no normal field
-            content += [(splats.buffers[name], "2f/i" if name == "normal_field" else "3f/i", f"in_{name}")
+            content += [(splats.buffers[name], ("2f" if name == "normal_field" else "3f") + step, f"in_{name}")
                         for name in technique.attributes if f"in_{name}" in program and name in splats.buffers]
             splats._vaos[key] = self.ctx.vertex_array(program, content)
         return splats._vaos[key]
+
+    def _draw_quads(self, splats: GpuSplats, program: moderngl.Program, technique: Technique, count: int) -> None:
+        """The first ``count`` splats as instanced quads, ``draw_batch`` instances per draw call (the
+        splat attributes re-bound at the batch's offset: OpenGL 3.3 has no base instance)."""
+        vao = self._vao(splats, program, technique)
+        batch = self.draw_batch
+        if count <= batch:
+            vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=count)
+            return
+        bound = [(program[f"in_{name}"].location, splats.buffers[name], 2 if name == "normal_field" else 3)
+                 for name in technique.attributes if f"in_{name}" in program and name in splats.buffers]
+
+        def bind(first: int) -> None:
+            for location, buffer, size in bound:
+                vao.bind(location, "f", buffer, f"{size}f", offset=4 * size * first, stride=4 * size, divisor=1)
+
+        for first in range(0, count, batch):
+            bind(first)
+            vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=min(batch, count - first))
+            self.ctx.finish()
+        bind(0)
 
     def _release_targets(self) -> None:
         if self._targets is not None:
@@ -286,15 +452,17 @@ class Renderer:
             accum = ctx.texture(size, 4, dtype="f4")
             aux = ctx.texture(size, 4, dtype="f4")
             depth = ctx.depth_texture(size)
-            out = ctx.texture(size, 4, dtype="f4")
+            out = ctx.texture(size, 4, dtype="f4")         # normalized color, weight (normalize.frag)
+            depth_sum = ctx.texture(size, 1, dtype="f4")   # weighted depth sum
             side = ctx.texture(size, 2, dtype="f4")   # side and offset depth of each pixel's nearest disk
-            for tex in (accum, aux, out, side):
+            for tex in (accum, aux, out, depth_sum, side):
                 tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
             self._targets = {
-                "size": size, "accum": accum, "aux": aux, "depth": depth, "out": out, "side": side,
+                "size": size, "accum": accum, "aux": aux, "depth": depth, "out": out, "depth_sum": depth_sum,
+                "side": side,
                 "fbo_visibility": ctx.framebuffer([side], depth),
                 "fbo_accum": ctx.framebuffer([accum, aux], depth),
-                "fbo_out": ctx.framebuffer([out]),
+                "fbo_out": ctx.framebuffer([out, depth_sum]),
             }
         return self._targets
 
@@ -353,7 +521,6 @@ class Renderer:
         (window pixels of the camera's image, y up) draws only that rectangle, into
         targets of its size (default: the whole image). ``supersample``: the sub-pixels per
         output pixel along each axis that ``camera`` is drawn at (``u_supersample``).
-        ``camera`` is a world camera (see :class:`GpuSplats`).
         """
         technique = get_technique(technique) if isinstance(technique, str) else technique
         camera = splats.local_camera(_with_clip_planes(camera, splats))   # world camera in, GPU frame out
@@ -372,9 +539,8 @@ class Renderer:
             targets["fbo_visibility"].clear(0.5, 0.0, 0.0, 0.0)   # side 0.5: none; depth is cleared above
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)
+        quads = splats.quad_count(point_radius(camera, splats, technique, options, supersample, self.point_px))
         for pass_id in passes:
-            program = self.program(technique.vertex, technique.fragment, {"PASS": pass_id})
-            self.set_uniforms(program, uniforms, optional)
             if pass_id == PASS_ACCUMULATION:
                 targets["side"].use(location=SIDE_TEXTURE_UNIT)
                 fbo = targets["fbo_accum"]
@@ -390,8 +556,20 @@ class Renderer:
                 fbo.depth_mask = True
                 ctx.depth_func = "<"
                 ctx.disable(moderngl.BLEND)
-            self._vao(splats, program, technique).render(moderngl.TRIANGLE_STRIP, vertices=4,
-                                                         instances=splats.count)
+            # the large splats (first in the buffers) as instanced quads, the small ones as points
+            if quads:
+                program = self.program(technique.vertex, technique.fragment, {"PASS": pass_id})
+                self.set_uniforms(program, uniforms, optional)
+                self._draw_quads(splats, program, technique, quads)
+            if quads < splats.count:
+                program = self.program(technique.vertex, technique.fragment, {"PASS": pass_id, "POINT_PRIMITIVE": 1})
+                self.set_uniforms(program, uniforms | {"u_max_point": self._max_point}, optional)
+                ctx.enable(moderngl.PROGRAM_POINT_SIZE)
+                vao = self._vao(splats, program, technique, points=True)
+                for first in range(quads, splats.count, self.draw_batch):
+                    vao.render(moderngl.POINTS, vertices=min(self.draw_batch, splats.count - first), first=first)
+                    ctx.finish()
+                ctx.disable(moderngl.PROGRAM_POINT_SIZE)
         targets["fbo_accum"].depth_mask = True
         ctx.disable(moderngl.BLEND)
         ctx.disable(moderngl.DEPTH_TEST)
@@ -406,23 +584,27 @@ class Renderer:
                           OPTIONAL_FRAME_UNIFORMS)
         self._fullscreen.render(moderngl.TRIANGLES, vertices=3)
 
-    def _read_tile(self, width: int, height: int) -> SubPixels:
-        """The tile's sub-pixels from the targets of the last :meth:`draw`."""
+    def _read_tile(self) -> SubPixels:
+        """The tile's sub-pixels from the targets of the last :meth:`draw` (the normalization pass's
+        two targets only: 20 bytes per sub-pixel), as views of buffers reused by the next tile."""
         targets = self._targets
-        color = np.frombuffer(targets["out"].read(), dtype="f4").reshape(height, width, 4)[..., :3]
-        accum = np.frombuffer(targets["accum"].read(), dtype="f4").reshape(height, width, 4)
-        aux = np.frombuffer(targets["aux"].read(), dtype="f4").reshape(height, width, 4)
-        weight = accum[..., 3].copy()
-        # non-finite accumulations (degenerate splats): normalize.frag shows the background there;
-        # they count as empty and are reported by render()
-        bad = ~(np.isfinite(accum).all(axis=-1) & np.isfinite(aux).all(axis=-1) & np.isfinite(color).all(axis=-1))
+        if "read_color" not in targets:   # read-back buffers, reused by every tile of this size
+            width, height = targets["size"]
+            targets["read_color"] = np.empty((height, width, 4), "f4")
+            targets["read_depth"] = np.empty((height, width), "f4")
+        rgbw, depth = targets["read_color"], targets["read_depth"]
+        targets["out"].read_into(rgbw)
+        targets["depth_sum"].read_into(depth)
+        color, weight = rgbw[..., :3], rgbw[..., 3]
+        # non-finite accumulations (degenerate splats, weight -1): normalize.frag shows the background
+        # there; they count as empty and are reported by render()
+        bad = weight < 0
         if bad.any():
-            self._non_finite += int(bad.sum())
+            self._non_finite += int(np.count_nonzero(bad))
             weight[bad] = 0.0
-            color = color.copy()
-            color[bad] = self._background
         with np.errstate(divide="ignore", invalid="ignore"):
-            depth = np.where(weight > 0, aux[..., 0] / weight, np.inf).astype("f4")
+            np.divide(depth, weight, out=depth)
+        depth[~(weight > 0)] = np.inf
         return SubPixels(color, weight, depth)
 
     def render(self, splats: GpuSplats | SplatCloud, camera: Camera, technique: Technique | str = "ewa",
@@ -439,45 +621,38 @@ class Renderer:
             raise InputError(f"supersample must be an integer in 1..{MAX_SUPERSAMPLE}, got {supersample!r}")
         check_render_memory(len(splats) if isinstance(splats, SplatCloud) else splats.count, camera.width,
                             camera.height, k, max_tile)
-        uploaded = None
         if isinstance(splats, SplatCloud):
-            splats = uploaded = self.upload(splats)
+            splats = self._upload_cached(splats)
         self._non_finite, self._background = 0, np.asarray(background, "f4")
-        try:
-            camera = _with_clip_planes(camera, splats)
-            big = camera.resized(camera.width * k, camera.height * k)
-            m = TILE_MARGIN   # pixels drawn around each tile and cropped: fringe clipping reads neighbours
-            side = tile_side(self.ctx, k, max_tile, margin=m)
-            w, h = camera.width, camera.height
-            color = np.empty((h, w, 3), "f4")
-            weight = np.empty((h, w), "f4")
-            depth = np.empty((h, w), "f4")
-            alpha = np.empty((h, w), "f4")
-            for x0, y0, tw, th in tile_rects(big.width, big.height, side):
-                self.draw(splats, big, technique, lights, options, background,
-                          tile=(x0 - m, y0 - m, tw + 2 * m, th + 2 * m), supersample=k)
-                block = np.s_[y0 // k:(y0 + th) // k, x0 // k:(x0 + tw) // k]
-                color[block], weight[block], depth[block], alpha[block] = box_reduce(
-                    self._read_tile(tw + 2 * m, th + 2 * m).cropped(m), k)
-            error = self.ctx.error
-            if error != "GL_NO_ERROR":
-                raise RenderError(f"OpenGL reported {error} while rendering")
-            if self._non_finite:
-                warnings.warn(f"{self._non_finite:,} sub-pixels got a non-finite splat weight, color or depth "
-                              f"(degenerate splats?) and show the background", RuntimeWarning, stacklevel=2)
-            if splats.scale != 1.0:
-                depth /= np.float32(splats.scale)   # the GPU drew the model scaled (gpu_scale)
-            if not (np.isfinite(color).all() and np.isfinite(weight).all() and np.isfinite(alpha).all()):
-                raise RenderError("the rendered image has non-finite pixels")
-            if options.edl is not None:   # after tiling: neighbours across tile borders (edl.py)
-                color = apply_edl(color, depth, alpha, background, options.edl)
-            flip = np.s_[::-1]   # window rows run bottom-up, Frame rows top-down
-            return Frame(np.ascontiguousarray(color[flip]), np.ascontiguousarray(depth[flip]),
-                         np.ascontiguousarray(weight[flip]), camera, alpha=np.ascontiguousarray(alpha[flip]),
-                         background=tuple(map(float, background)))
-        finally:
-            if uploaded is not None:
-                uploaded.release()
+        camera = _with_clip_planes(camera, splats)
+        big = camera.resized(camera.width * k, camera.height * k)
+        m = TILE_MARGIN   # pixels drawn around each tile and cropped: fringe clipping reads neighbours
+        side = tile_side(self.ctx, k, max_tile, margin=m)
+        w, h = camera.width, camera.height
+        # Frame orientation (row 0 at the top): each tile's window rows are written flipped
+        color = np.empty((h, w, 3), "f4")
+        weight = np.empty((h, w), "f4")
+        depth = np.empty((h, w), "f4")
+        alpha = np.empty((h, w), "f4")
+        for x0, y0, tw, th in tile_rects(big.width, big.height, side):
+            self.draw(splats, big, technique, lights, options, background,
+                      tile=(x0 - m, y0 - m, tw + 2 * m, th + 2 * m), supersample=k)
+            block = np.s_[h - (y0 + th) // k:h - y0 // k, x0 // k:(x0 + tw) // k]
+            flipped = (part[::-1] for part in box_reduce(self._read_tile().cropped(m), k))
+            color[block], weight[block], depth[block], alpha[block] = flipped
+        error = self.ctx.error
+        if error != "GL_NO_ERROR":
+            raise RenderError(f"OpenGL reported {error} while rendering")
+        if self._non_finite:
+            warnings.warn(f"{self._non_finite:,} sub-pixels got a non-finite splat weight, color or depth "
+                          f"(degenerate splats?) and show the background", RuntimeWarning, stacklevel=2)
+        if splats.scale != 1.0:
+            depth /= np.float32(splats.scale)   # the GPU drew the model scaled (gpu_scale)
+        if not (np.isfinite(color).all() and np.isfinite(weight).all() and np.isfinite(alpha).all()):
+            raise RenderError("the rendered image has non-finite pixels")
+        if options.edl is not None:   # after tiling: neighbours across tile borders (edl.py)
+            color = apply_edl(color, depth, alpha, background, options.edl)
+        return Frame(color, depth, weight, camera, alpha=alpha, background=tuple(map(float, background)))
 
 
 _default: Renderer | None = None

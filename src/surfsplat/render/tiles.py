@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
-#: Largest tile side in sub-pixels: bounds GPU memory (about 60 bytes per sub-pixel of targets).
+#: Largest tile side in sub-pixels: bounds GPU memory (64 bytes per sub-pixel of targets, 20 of read-back).
 MAX_TILE = 2048
 #: Largest supersampling factor K accepted.
 MAX_SUPERSAMPLE = 8
@@ -65,6 +65,8 @@ def box_reduce(sub: SubPixels, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarr
     """Per output pixel of K x K sub-pixels: (color: mean, over the background where uncovered;
     weight: mean sub-pixel weight; depth: the nearest sub-pixel's, inf where none is covered;
     alpha: the fraction of covered sub-pixels). Window orientation kept."""
+    if k == 1:   # views: the caller copies them into its image
+        return sub.color, sub.weight, sub.depth, (sub.weight > 0).astype("f4")
     h, w = sub.weight.shape
     shape = (h // k, k, w // k, k)
     color = sub.color.reshape(*shape, 3).mean(axis=(1, 3), dtype=np.float64)

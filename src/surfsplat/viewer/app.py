@@ -51,10 +51,10 @@ from ..api import (DEFAULT_BACKGROUND, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANC
                    as_hierarchy, check_background, check_source, is_lidar, load_model, natural_up, resolve_camera)
 from ..camera import Camera
 from ..cloud import SplatCloud
-from ..colors import colorize
 from ..geometry.preprocess import NONPLANAR
 from ..errors import InputError
 from ..hierarchy import LodShading
+from ..hierarchy.chunked import ChunkedHierarchy, is_chunked_hierarchy
 from ..hierarchy.lod import check_point_budget
 from ..io.video import check_video_path
 from ..lighting import Lights
@@ -209,11 +209,11 @@ class Viewer(ViewerInput):
         name = self.color_modes[self.color_index]
         if self.color_index == 0:
             colors = self._own_colors
-        else:
-            points, order = self._colored_points
-            colors = colorize(points, name, up=tuple(self.controller.up)).colors
-            colors = colors if order is None else colors[order]
-        recolor(self.lod.hierarchy, colors)
+            node_colors = None   # averaged per node
+        else:   # the hierarchy's points carry the attributes; nodes by majority class or mean colour
+            colored = self.lod.hierarchy.colorized(name, up=tuple(self.controller.up))
+            colors, node_colors = colored.points.colors, colored.node_colors
+        recolor(self.lod.hierarchy, colors, node_colors)
         self.lod.release()
         self._upload_preview()
         self.preview_version = 0
@@ -538,6 +538,9 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
                                                           else type(source).__name__)
 
     check_source(source)
+    if isinstance(source, ChunkedHierarchy) or is_chunked_hierarchy(source):
+        raise InputError(f"{source}: the viewer cannot stream a chunked hierarchy yet; draw it with "
+                         f"`surfsplat render` (cells are read per view), or view the point file itself")
     if not isinstance(camera, Camera):
         spec = camera or CameraSpec()
         camera = spec if spec.up is not None else replace(spec, up=natural_up(source))

@@ -87,17 +87,8 @@ class LevelOfDetail:
         self._splats, self._key, self.count = None, None, 0
 
 
-def recolor(hierarchy, colors: np.ndarray | None) -> None:
+def recolor(hierarchy, colors: np.ndarray | None, node_colors: np.ndarray | None = None) -> None:
     """Give ``hierarchy`` (in place) new point colours ((P,) rows in its point order, or None) and
-    node colours averaged from them over each node's points, as building it averages them
-    (Pajarola 2003, sec. 3.4); prefix sums over the contiguous point ranges, no loop."""
-    if colors is None:
-        hierarchy.points = hierarchy.points.replace(colors=None)
-        hierarchy.node_colors = None
-        return
-    colors = np.asarray(colors, dtype=np.float32)
-    total = np.concatenate([np.zeros((1, 3)), np.cumsum(colors, axis=0, dtype=np.float64)])
-    start, count = hierarchy.node_point_start, hierarchy.node_point_count
-    mean = (total[start + count] - total[start]) / np.maximum(count, 1)[:, None]
-    hierarchy.points = hierarchy.points.replace(colors=colors)
-    hierarchy.node_colors = np.clip(mean, 0.0, 1.0).astype(np.float32)
+    node colours: ``node_colors`` as given, or None for the mean of each node's point colours
+    (:meth:`~surfsplat.hierarchy.Hierarchy.set_colors`)."""
+    hierarchy.set_colors(colors, node_colors)

@@ -18,7 +18,6 @@ import importlib.util
 import multiprocessing
 import re
 import shutil
-import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -264,7 +263,7 @@ def _save_preview(path: Path, previews: list) -> None:
 
 
 class _Runner:
-    """Runs one function over many argument tuples as Dask tasks and reports progress with an ETA."""
+    """Runs one function over many argument tuples as Dask tasks (local schedulers, a cluster's client)."""
 
     def __init__(self, scheduler, workers):
         if importlib.util.find_spec("dask") is None:
@@ -297,24 +296,23 @@ class _Runner:
                              f"(tcp://host:port) or a distributed.Client; got {scheduler!r}")
 
     def run(self, fn, calls: list, label: str) -> list:
-        """``[fn(*args) for args in calls]`` as Dask tasks, in order."""
+        """``[fn(*args) for args in calls]`` as Dask tasks, in order; progress (rate, time left) per
+        finished task. The tasks' own stages are silenced: they would interleave."""
         import dask
         tasks = [dask.delayed(fn, pure=False)(*args) for args in calls]
-        ticker = _Ticker(label, len(tasks), progress.is_enabled())
-        # the tasks' own stage messages would interleave: only the ticker reports
-        with progress.enabled(False):
+        with progress.stage(label, len(tasks), unit="cells", total=len(tasks)) as stage, progress.enabled(False):
             if self.client is not None:
                 import distributed
                 futures = self.client.compute(tasks)
                 for _ in distributed.as_completed(futures):
-                    ticker.tick()
+                    stage.update(1)
                 return self.client.gather(futures)
             from dask.callbacks import Callback
 
             class Ticks(Callback):
                 def _posttask(self, key, result, dsk, state, worker_id):
                     if isinstance(key, str) and key.startswith(fn.__name__):
-                        ticker.tick()
+                        stage.update(1)
 
             with Ticks():
                 extra = {"pool": self.pool} if self.pool is not None else {"num_workers": self.workers}
@@ -325,24 +323,3 @@ class _Runner:
             self.client.close()
         if self.pool is not None:
             self.pool.shutdown()
-
-
-class _Ticker:
-    """Progress of ``total`` tasks: a line at every tenth, with the rate and the time left."""
-
-    def __init__(self, label: str, total: int, show: bool):
-        self.label, self.total, self.done, self.show = label, total, 0, show
-        self.start = time.perf_counter()
-        self._say(f"  {label}: {total:,} tasks")
-
-    def _say(self, text: str) -> None:
-        if self.show:
-            print(text, file=sys.stderr, flush=True)
-
-    def tick(self) -> None:
-        self.done += 1
-        step = max(1, self.total // 10)
-        if self.done % step == 0 or self.done == self.total:
-            elapsed = time.perf_counter() - self.start
-            left = elapsed / self.done * (self.total - self.done)
-            self._say(f"    {self.done}/{self.total} {self.label}, {elapsed:.1f} s, about {left:.0f} s left")

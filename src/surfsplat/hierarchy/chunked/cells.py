@@ -1,7 +1,7 @@
 """The per-cell work of a chunked build, as plain functions of file paths (Dask tasks).
 
 1. :func:`preprocess_cell`: a cell's points plus a halo of its neighbours' points within
-   ``HALO_SPACINGS`` times its k-th-neighbour spacing are preprocessed together
+   ``HALO_SPACINGS`` times its k-th-neighbour spacing (:func:`_margin`) are preprocessed together
    (:func:`surfsplat.geometry.preprocess.preprocess`: duplicates, outliers, normals, orientation,
    ellipses, size bounds); the cell keeps its own points' results. With the halo, every
    neighbourhood a border point's splat depends on (its k or 2k neighbours, their
@@ -32,16 +32,19 @@ from ...geometry.preprocess import preprocess
 from ..lod import uniform_cut
 from ..model import Hierarchy
 from ..octree import build_hierarchy
-from .layout import CELLS, NODE_FILES, NODES
+from .layout import CELLS, COARSE, NODE_FILES, NODES
 
 #: The halo reaches this many times the cell's 99th percentile k-th-neighbour distance.
 HALO_SPACINGS = 4.0
 
-#: A cell of fewer than this many times k points takes a halo a whole cell wide.
+#: A cell of fewer than this many times k points sizes its halo with its neighbours' points.
 SMALL_CELL = 8
 
 #: Points whose spacing is sampled to size the halo.
 SPACING_SAMPLE = 20_000
+
+#: A cell's coarse-levels file holds its first levels up to this many nodes.
+COARSE_NODES = 4096
 
 #: Bucket records read at a time when gathering a halo.
 READ_BLOCK = 1 << 20
@@ -77,15 +80,29 @@ def _halo(buckets: Path, neighbours: list, dtype: np.dtype, lo: np.ndarray, hi: 
     return np.concatenate(recs), np.concatenate(cells), np.concatenate(rows)
 
 
-def _spacing(positions: np.ndarray, k: int) -> float:
-    """The 99th percentile of the k-th-neighbour distance over a sample of the points (model units)."""
+def _spacing(positions: np.ndarray, among: np.ndarray, k: int) -> float:
+    """The 99th percentile of the k-th-neighbour distance (among the points ``among``, which hold
+    ``positions``) over a sample of ``positions`` (model units); inf when ``among`` has k points or fewer."""
+    if len(among) <= k:
+        return np.inf
+    tree = cKDTree(among)
     n = len(positions)
-    if n <= k:
-        return 0.0
-    tree = cKDTree(positions)
     sample = positions[np.random.default_rng(0).choice(n, min(n, SPACING_SAMPLE), replace=False)]
     dist, _ = tree.query(sample, k=k + 1)
     return float(np.quantile(dist[:, k], 0.99))
+
+
+def _margin(own: np.ndarray, k: int, cell_size: float, probe) -> float:
+    """The halo's width: ``HALO_SPACINGS`` times the cell's spacing, at most a cell. A cell of a few
+    points (the corner of a surface) cannot tell its spacing alone: it is taken among its points
+    and its neighbours' within an eighth of a cell (``probe(width)`` returns those), so a dense
+    neighbourhood gives a thin halo; only where even that finds too few points is it a whole cell
+    (and then holds few points)."""
+    if len(own) >= SMALL_CELL * k:
+        spacing = _spacing(own, own, k)
+    else:
+        spacing = _spacing(own, np.concatenate([own, probe(cell_size / 8)]), k)
+    return float(min(HALO_SPACINGS * spacing, cell_size))
 
 
 def preprocess_cell(work: str, key: str, box: tuple, cell_size: float, neighbours: list, dtype: np.dtype,
@@ -107,9 +124,12 @@ def preprocess_cell(work: str, key: str, box: tuple, cell_size: float, neighbour
     own = np.fromfile(work / "buckets" / f"{key}.bin", dtype=dtype)
     n = len(own)
     k = int(options["k"])
-    # a cell of a few points cannot tell its spacing: it takes its neighbours' points up to a cell away
-    margin = float(cell_size) if n < SMALL_CELL * k else min(HALO_SPACINGS * _spacing(own["p"], k), float(cell_size))
     lo, hi = np.asarray(box[0]), np.asarray(box[1])
+
+    def probe(width):
+        return _halo(work / "buckets", neighbours, dtype, lo - width, hi + width)[0]["p"]
+
+    margin = _margin(own["p"], k, float(cell_size), probe)
     halo, halo_cell, halo_row = _halo(work / "buckets", neighbours, dtype, lo - margin, hi + margin)
     records = np.concatenate([own, halo])
     has_n, has_c = "n" in dtype.names, "c" in dtype.names
@@ -185,16 +205,27 @@ def build_cell(work: str, out: str, key: str, flip: bool, leaf_capacity: int, pr
     folder = Path(out) / CELLS / key
     _save(folder, positions=h.points.positions, normals=h.points.normals, u=h.points.u, v=h.points.v,
           colors=h.points.colors, ids=arrays["ids"][h.order])
-    members = {name: getattr(h, name) for name in NODE_FILES if getattr(h, name) is not None}
-    with open(folder / NODES, "wb") as handle:
-        np.savez(handle, level_offsets=h.level_offsets, origin=h.origin, leaf_capacity=np.int64(h.leaf_capacity),
-                 max_depth=np.int64(h.max_depth), **members)
+    _save_nodes(folder / NODES, h, h.levels)
+    # the first levels again, alone: a view that refines the cell no deeper reads only them
+    coarse = int(np.searchsorted(h.level_offsets, COARSE_NODES, side="right")) - 1
+    if 0 < coarse < h.levels:
+        _save_nodes(folder / COARSE, h, coarse)
     files = {path.name: path.stat().st_size for path in sorted(folder.iterdir())}
     lo, hi = h.bounds()
     cut = uniform_cut(h, max(1, int(preview)))
     return {"key": key, "points": len(h.points), "nodes": len(h), "levels": h.levels, "flipped": bool(flip),
+            "coarse_levels": coarse if 0 < coarse < h.levels else h.levels,
             "bounds": [[float(x) for x in lo], [float(x) for x in hi]], "files": files,
             "root": root_entry(h), "preview": splat_arrays(h.node_splats(cut))}
+
+
+def _save_nodes(path: Path, h: Hierarchy, levels: int) -> None:
+    """The node arrays of the first ``levels`` levels of ``h`` as an uncompressed .npz (:mod:`.layout`)."""
+    m = int(h.level_offsets[levels])
+    members = {name: getattr(h, name)[:m] for name in NODE_FILES if getattr(h, name) is not None}
+    with open(path, "wb") as handle:
+        np.savez(handle, level_offsets=h.level_offsets[:levels + 1], origin=h.origin,
+                 leaf_capacity=np.int64(h.leaf_capacity), max_depth=np.int64(h.max_depth), **members)
 
 
 def root_entry(h: Hierarchy) -> dict:

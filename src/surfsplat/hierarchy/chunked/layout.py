@@ -6,7 +6,8 @@ A chunked hierarchy is a directory::
       manifest.json            format, float64 origin, bounds, cell grid, cell table (JSON)
       top.npz                  the coarse hierarchy over the cells' roots (surfsplat.hierarchy.storage)
       preview.npz              a uniform cut of every cell (framing, overviews)
-      cells/<key>/nodes.npz    one cell's node arrays, all levels (loaded when the cell is needed)
+      cells/<key>/coarse.npz   one cell's first levels (up to 4096 nodes), read first
+      cells/<key>/nodes.npz    one cell's node arrays, all levels (read when a view goes deeper)
       cells/<key>/<name>.npy   one cell's splats, one plain .npy per array (memory-mapped)
 
 Positions everywhere are float32 relative to the manifest's float64 ``origin``. Every reader
@@ -33,6 +34,7 @@ TOP = "top.npz"
 PREVIEW = "preview.npz"
 CELLS = "cells"
 NODES = "nodes.npz"
+COARSE = "coarse.npz"
 
 #: Per-point arrays of a cell: name -> (dtype, columns or None for 1-D, required).
 POINT_FILES = {

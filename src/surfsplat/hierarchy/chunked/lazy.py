@@ -8,8 +8,10 @@ preview; nothing of the cells. Per view (:meth:`ChunkedHierarchy.view_splats`):
 2. each cell root the cut reaches is tested with the same projected-size rule from the
    manifest (center, bounding-sphere radius, extent): a root small enough on screen is drawn
    as its one splat without reading the cell;
-3. every other cell is loaded (its ``nodes.npz``; its splat arrays memory-mapped, so only the
-   pages of the points the cut selects are read) and cut with the same tolerance.
+3. every other cell is loaded (its ``coarse.npz``, the first levels; ``nodes.npz``, all levels,
+   only when the cut refines a coarse-level node that has children; its splat arrays
+   memory-mapped, so only the pages of the points the cut selects are read) and cut with the
+   same tolerance.
 
 Loaded cells stay in an LRU cache of ``cache_cells`` cells. Positions are relative to
 :attr:`ChunkedHierarchy.origin` (float64); cameras are given in that frame.
@@ -29,7 +31,8 @@ from ...errors import InputError
 from ..lod import select
 from ..model import Hierarchy, LodShading
 from ..storage import load_hierarchy
-from .layout import CELLS, NODES, POINT_FILES, PREVIEW, TOP, check_size, open_points, read_manifest, read_nodes
+from .layout import (CELLS, COARSE, NODE_FILES, NODES, POINT_FILES, PREVIEW, TOP, check_size, open_points,
+                     read_manifest, read_nodes)
 
 #: Cells kept loaded (node arrays in memory, splats memory-mapped).
 CACHE_CELLS = 64
@@ -43,13 +46,15 @@ class ChunkedSelection:
     """What a view of a chunked hierarchy drew: ``node_count`` (coarse splats: top nodes, cell roots
     and cell nodes), ``point_total`` (original splats), ``cells_loaded`` (cells cut for this view,
     read from disk or the cache), ``cells_root_only`` (cells drawn as their root splat, not read),
-    ``lod_tolerance`` (pixels)."""
+    ``lod_tolerance`` (pixels: the one asked for, or the larger one a point budget needed),
+    ``cells_coarse`` (of the cells cut, those whose coarse-levels file sufficed)."""
 
     node_count: int
     point_total: int
     cells_loaded: int
     cells_root_only: int
     lod_tolerance: float
+    cells_coarse: int = 0
 
     def __len__(self) -> int:
         """Splats drawn."""
@@ -59,7 +64,7 @@ class ChunkedSelection:
         """Counts for reports."""
         return {"splats": len(self), "nodes": self.node_count, "points": self.point_total,
                 "lod_tolerance": self.lod_tolerance, "cells_loaded": self.cells_loaded,
-                "cells_root_only": self.cells_root_only}
+                "cells_root_only": self.cells_root_only, "cells_coarse": self.cells_coarse}
 
 
 class ChunkedHierarchy:
@@ -84,7 +89,8 @@ class ChunkedHierarchy:
         self.up = tuple(float(x) for x in self.manifest.get("up", (0.0, 1.0, 0.0)))
         self.cells = self.manifest["cells"]
         self.cache_cells = int(cache_cells)
-        self._cache: OrderedDict[int, Hierarchy] = OrderedDict()
+        self._cache: OrderedDict[int, tuple[Hierarchy, bool]] = OrderedDict()   # (hierarchy, all levels)
+        self._deeper: dict[int, np.ndarray | None] = {}
         self.loads = 0
         self.top = load_hierarchy(self.path / self.manifest.get("top", TOP))
         if len(self.top.points) != len(self.cells):
@@ -118,53 +124,94 @@ class ChunkedHierarchy:
 
     # -- cells -----------------------------------------------------------------
 
-    def cell(self, index: int) -> Hierarchy:
+    def cell(self, index: int, full: bool = True) -> Hierarchy:
         """The hierarchy of cell ``index`` (manifest order), from the LRU cache or read from disk:
-        node arrays loaded, splat arrays memory-mapped. InputError naming a missing or corrupt file."""
+        node arrays loaded, splat arrays memory-mapped. With ``full=False`` a cell that has a
+        coarse-levels file may come with only its first levels, whose last level's nodes are then
+        leaves (their points are their whole subtrees'); :meth:`_select` reads the rest when a view
+        refines one of them. InputError naming a missing or corrupt file."""
         index = int(index)
-        if index in self._cache:
+        cached = self._cache.get(index)
+        if cached is not None and (cached[1] or not full):
             self._cache.move_to_end(index)
-            return self._cache[index]
+            return cached[0]
         entry = self.cells[index]
         folder = self.path / CELLS / entry["key"]
         files = entry["files"]
+        coarse = not full and COARSE in files
         for name, size in files.items():
             check_size(folder / name, int(size))
-        nodes = read_nodes(folder / NODES)
+        source = folder / (COARSE if coarse else NODES)
+        nodes = read_nodes(source)
         n = int(entry["points"])
-        arrays = {}
-        for name, (_, _, required) in POINT_FILES.items():
-            if f"{name}.npy" not in files:
-                if required:
-                    raise InputError(f"{folder / (name + '.npy')}: missing chunk file of the chunked hierarchy")
-                arrays[name] = None
-                continue
-            arrays[name] = open_points(folder / f"{name}.npy", name, n)
+        if cached is not None:
+            points, ids = cached[0].points, cached[0].order
+        else:
+            arrays = {}
+            for name, (_, _, required) in POINT_FILES.items():
+                if f"{name}.npy" not in files:
+                    if required:
+                        raise InputError(f"{folder / (name + '.npy')}: missing chunk file of the chunked hierarchy")
+                    arrays[name] = None
+                    continue
+                arrays[name] = open_points(folder / f"{name}.npy", name, n)
+            points = SplatCloud(positions=arrays["positions"], normals=arrays["normals"], colors=arrays["colors"],
+                                u=arrays["u"], v=arrays["v"])
+            ids = arrays["ids"]
+        off = nodes["level_offsets"]
         m = len(nodes["node_positions"])
-        if m != int(entry["nodes"]) or int(nodes["node_point_count"][0]) != n:
-            raise InputError(f"{folder / NODES}: corrupt chunk file: {m} nodes over "
-                             f"{int(nodes['node_point_count'][0])} points, the manifest says "
-                             f"{entry['nodes']} nodes over {n} points")
-        start, count = nodes["node_point_start"], nodes["node_point_count"]
-        if np.any(start < 0) or np.any(start + count > n) or np.any(nodes["node_child_start"] > m):
-            raise InputError(f"{folder / NODES}: corrupt chunk file: node ranges out of bounds")
-        points = SplatCloud(positions=arrays["positions"], normals=arrays["normals"], colors=arrays["colors"],
-                            u=arrays["u"], v=arrays["v"])
-        h = Hierarchy(points=points, order=arrays["ids"], level_offsets=nodes["level_offsets"],
-                      origin=nodes["origin"], leaf_capacity=int(nodes["leaf_capacity"]),
-                      max_depth=int(nodes["max_depth"]),
-                      **{name: nodes.get(name) for name in nodes if name.startswith("node_")},
-                      **({"node_colors": None} if "node_colors" not in nodes else {}))
+        levels = int(entry.get("coarse_levels", entry["levels"])) if coarse else int(entry["levels"])
+        if (not coarse and m != int(entry["nodes"])) or len(off) != levels + 1 or int(nodes["node_point_count"][0]) != n:
+            raise InputError(f"{source}: corrupt chunk file: {m} nodes in {len(off) - 1} levels over "
+                             f"{int(nodes['node_point_count'][0])} points, the manifest says {entry['nodes']} nodes "
+                             f"in {entry['levels']} levels over {n} points")
+        child_count = nodes["node_child_count"]
+        deeper = None
+        if coarse:  # the last level's nodes become leaves; `deeper` remembers which have children
+            last = slice(int(off[-2]), int(off[-1]))
+            deeper = np.zeros(m, dtype=bool)
+            deeper[last] = child_count[last] > 0
+            child_count = child_count.copy()
+            child_count[last] = 0
+        start, count, child = nodes["node_point_start"], nodes["node_point_count"], nodes["node_child_start"]
+        if np.any(start < 0) or np.any(start + count > n) or np.any((child_count > 0) & (child + child_count > m)):
+            raise InputError(f"{source}: corrupt chunk file: node ranges out of bounds")
+        arrays = {name: nodes.get(name) for name in NODE_FILES}
+        arrays["node_child_count"] = child_count
+        h = Hierarchy(points=points, order=ids, level_offsets=off, origin=nodes["origin"],
+                      leaf_capacity=int(nodes["leaf_capacity"]), max_depth=int(nodes["max_depth"]), **arrays)
         self.loads += 1
-        self._cache[index] = h
+        self._cache[index] = (h, not coarse)
+        self._cache.move_to_end(index)
+        self._deeper[index] = deeper
         while len(self._cache) > self.cache_cells:
-            self._cache.popitem(last=False)
+            evicted, _ = self._cache.popitem(last=False)
+            self._deeper.pop(evicted, None)
         return h
+
+    def _select(self, index: int, local: Camera, tolerance: float, options: dict) -> tuple[Hierarchy, object, bool]:
+        """A cell's cut: on its coarse levels when they suffice (no refined leaf there has
+        children), else on all its levels. Returns ``(hierarchy, selection, coarse levels only)``."""
+        h = self.cell(index, full=False)
+        sel = select(h, local, tolerance, **options)
+        deeper = self._deeper.get(int(index))
+        if deeper is None:
+            return h, sel, False
+        leaves = np.concatenate(sel.leaves) if sel.leaves else np.zeros(0, dtype=np.int64)
+        if not deeper[leaves].any():
+            return h, sel, True
+        h = self.cell(index, full=True)
+        return h, select(h, local, tolerance, **options), False
 
     @property
     def cached(self) -> list[int]:
         """Indices of the cells loaded now, least recently used first."""
         return list(self._cache)
+
+    @property
+    def complete(self) -> list[int]:
+        """Indices of the cached cells whose every level is loaded."""
+        return [index for index, (_, full) in self._cache.items() if full]
 
     # -- views -----------------------------------------------------------------
 
@@ -189,21 +236,21 @@ class ChunkedHierarchy:
         options = {"cull_backfaces": cull_backfaces, "lod_shading": lod_shading}
         tolerance = float(lod_tolerance)
         cut = self._cut(local, tolerance, options)
-        if point_budget is not None and cut[-1] > point_budget:
+        if point_budget is not None and cut[5] > point_budget:
             low, high = tolerance, max(tolerance, 0.25)
-            while cut[-1] > point_budget and high < 1e6:  # double until the cut fits
+            while cut[5] > point_budget and high < 1e6:  # double until the cut fits
                 low, high = high, 2.0 * high
                 cut = self._cut(local, high, options)
             fitting, low = cut, max(low, 1e-3)
             while high / low > BUDGET_STEP:  # then bisect (geometrically) to the finest that fits
                 mid = float(np.sqrt(low * high))
                 trial = self._cut(local, mid, options)
-                if trial[-1] <= point_budget:
+                if trial[5] <= point_budget:
                     high, fitting = mid, trial
                 else:
                     low = mid
             cut, tolerance = fitting, high
-        top_sel, rows, refine, loaded, cuts, _ = cut
+        top_sel, rows, refine, loaded, cuts, _, coarse = cut
         parts = [self.top.node_splats(top_sel.node_indices(), lod_shading)]
         if (~refine).any():
             parts.append(self.top.points.subset(rows[~refine]))
@@ -213,20 +260,20 @@ class ChunkedHierarchy:
                 parts.append(h.splats(sel))
             nodes += sel.node_count
             points += sel.point_total
-        summary = ChunkedSelection(nodes, points, len(loaded), int((~refine).sum()), tolerance)
+        summary = ChunkedSelection(nodes, points, len(loaded), int((~refine).sum()), tolerance, int(coarse))
         return concatenate(parts).replace(origin=self.origin), summary
 
     def _cut(self, local: Camera, tolerance: float, options: dict):
         """The selections of a view at one tolerance (``local``: the camera in the local frame):
         ``(top selection, top point rows reached, their cells refined (bool), loaded cell
-        hierarchies, their selections, total splats)``."""
+        hierarchies, their selections, total splats, cells cut on their coarse levels)``."""
         top_sel = select(self.top, local, tolerance, **options)
         rows = top_sel.point_indices()
         refine = self._refine_roots(self.top.order[rows], local, tolerance)
-        loaded = [self.cell(index) for index in self.top.order[rows][refine]]
-        cuts = [select(h, local, tolerance, **options) for h in loaded]
+        picked = [self._select(index, local, tolerance, options) for index in self.top.order[rows][refine]]
+        loaded, cuts = [h for h, _, _ in picked], [c for _, c, _ in picked]
         total = top_sel.node_count + int((~refine).sum()) + sum(len(c) for c in cuts)
-        return top_sel, rows, refine, loaded, cuts, total
+        return top_sel, rows, refine, loaded, cuts, total, sum(coarse for _, _, coarse in picked)
 
     def _refine_roots(self, cells: np.ndarray, camera: Camera, lod_tolerance: float) -> np.ndarray:
         """(len(cells),) bool: the cell's root is refined by the rule of :mod:`surfsplat.hierarchy.lod`

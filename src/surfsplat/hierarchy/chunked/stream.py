@@ -238,22 +238,24 @@ def build_grid(stream: PointStream, cell_points: int) -> Grid:
         lo, hi = stream.header_bounds
     else:
         lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
-        with progress.stage("pass 1: bounds", stream.count):
+        with progress.stage("pass 1: bounds", stream.count, total=stream.count) as stage:
             for chunk in stream.chunks():
                 p = chunk.positions[_finite(chunk)]
                 if len(p):
                     lo, hi = np.minimum(lo, p.min(axis=0)), np.maximum(hi, p.max(axis=0))
+                stage.update(len(chunk.positions))
     if not np.all(np.isfinite(lo)):
         raise InputError(f"{stream.path}: no finite point")
     extent = float(np.max(hi - lo))
     voxel = max(extent, 1e-9) / FINE * (1 + 1e-9)
     fine_dims = np.maximum(np.ceil((hi - lo) / voxel).astype(np.int64), 1)
     histogram = np.zeros(int(np.prod(fine_dims)), dtype=np.int64)
-    with progress.stage("pass 2: counts per voxel", stream.count):
+    with progress.stage("pass 2: counts per voxel", stream.count, total=stream.count) as stage:
         for chunk in stream.chunks():
             p = chunk.positions[_finite(chunk)]
             v = np.clip(np.floor((p - lo) / voxel).astype(np.int64), 0, fine_dims - 1)
             histogram += np.bincount(np.ravel_multi_index(v.T, fine_dims), minlength=len(histogram))
+            stage.update(len(chunk.positions))
     histogram = histogram.reshape(fine_dims)
     # a large cube of block**3 voxels with no cell over the limit (block = the longest side: one cell),
     # by bisection: only blocks that fit are kept, so the limit holds even where the maximum is not monotone
@@ -304,7 +306,7 @@ def bucket(stream: PointStream, grid: Grid, folder: Path) -> np.dtype:
     :func:`record_dtype`); returns the record dtype. Non-finite points are skipped."""
     dtype = record_dtype(stream.has_normals, stream.has_colors)
     folder.mkdir(parents=True, exist_ok=True)
-    with progress.stage("pass 3: points into cell files", stream.count):
+    with progress.stage("pass 3: points into cell files", stream.count, total=stream.count) as stage:
         for chunk in stream.chunks():
             keep = _finite(chunk)
             rows = np.flatnonzero(keep)
@@ -325,4 +327,5 @@ def bucket(stream: PointStream, grid: Grid, folder: Path) -> np.dtype:
                     key = cell_key(np.unravel_index(int(flat[first]), grid.dims))
                     with open(folder / f"{key}.bin", "ab") as handle:
                         part.tofile(handle)
+            stage.update(len(chunk.positions))
     return dtype

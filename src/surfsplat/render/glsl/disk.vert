@@ -5,10 +5,11 @@
 #include "splat_attributes.glsl"
 #include "splat_vertex.glsl"
 #include "disk_vertex.glsl"
+#include "splat_primitive.glsl"
 
 void main() {
     Splat s;
     vec2 lo, hi;
     if (!camera_splat(s) || !disk_bounds(s, lo, hi)) { gl_Position = CULLED; return; }
-    gl_Position = px_to_clip(mix(lo, hi, in_corner * 0.5 + 0.5));
+    emit_box(lo, hi);
 }

@@ -23,7 +23,7 @@ void main() {
     vec2 st = footprint_st(ray);
     if (clipped(st)) discard;
     float z = footprint_depth(st);
-    if (dot(st, st) > 1.0 && fringe_hidden(ray, z)) discard;
+    if (behind_nearest(z) || (dot(st, st) > 1.0 && fringe_hidden(ray, z))) discard;
     emit(ray, z, v_scale * exp(-beta), v_color, v_normal);
 #endif
 }

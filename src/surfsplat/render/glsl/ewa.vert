@@ -3,6 +3,7 @@
 #include "lighting.glsl"
 #include "splat_attributes.glsl"
 #include "splat_vertex.glsl"
+#include "splat_primitive.glsl"
 #include "disk_vertex.glsl"
 
 uniform float u_cutoff;      // c: kernel cut at 0.5 x^T V^-1 x = c
@@ -19,7 +20,7 @@ void main() {
     // and not planes extrapolated over the prefilter's margin.
     vec2 lo, hi;
     if (!camera_splat(s) || !disk_bounds(s, lo, hi)) { gl_Position = CULLED; return; }
-    gl_Position = px_to_clip(mix(lo, hi, in_corner * 0.5 + 0.5));
+    emit_box(lo, hi);
 #else
     // The affine approximation needs the center in front of the near plane.
     if (!camera_splat(s) || -s.p.z < u_near_far.x) { gl_Position = CULLED; return; }
@@ -40,6 +41,6 @@ void main() {
     vec2 lo = max(v_center_px - half_extent, tile_lo() - 1.0);
     vec2 hi = min(v_center_px + half_extent, tile_hi() + 1.0);
     if (any(greaterThanEqual(lo, hi))) { gl_Position = CULLED; return; }
-    gl_Position = px_to_clip(mix(lo, hi, in_corner * 0.5 + 0.5));
+    emit_box(lo, hi);
 #endif
 }

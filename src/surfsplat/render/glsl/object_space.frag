@@ -23,6 +23,7 @@ void main() {
 #if PASS == PASS_VISIBILITY
     emit(ray, z, 1.0, v_albedo, v_normal);
 #else
+    if (behind_nearest(z)) discard;
     vec2 st = plane_st(ray, z);
     vec3 n = normalize(v_normal + st.x * v_field_u + st.y * v_field_v);   // Botsch 2004, eq. 2
     vec3 color = u_deferred ? v_albedo : shade(v_albedo, n, normalize(-ray));

@@ -1,9 +1,11 @@
 // Technique "points": a screen-aligned round point per splat, its diameter the splat's radius
-// projected at its depth, clamped (Potree's adaptive point size). Drawn as a quad of the
-// pixel centers it can cover, clipped to the tile (see render/points.py: why not GL_POINTS).
+// projected at its depth, clamped (Potree's adaptive point size). Drawn over the box of the
+// pixel centers it can cover, clipped to the tile: a quad, or a GL_POINTS point for the small ones
+// (splat_primitive.glsl; Renderer.draw picks the primitive per radius class).
 #include "camera.glsl"
 #include "lighting.glsl"
 #include "splat_attributes.glsl"
+#include "splat_primitive.glsl"
 
 uniform vec2 u_point_size;   // min, max diameter in output pixels
 uniform float u_supersample; // sub-pixels per output pixel along x and y (K)
@@ -35,5 +37,5 @@ void main() {
     v_normal = has_normal ? normalize(n) : vec3(0.0);
     if (has_normal && dot(v_normal, -p) < 0.0) v_normal = -v_normal;
     v_color = (has_normal && !u_deferred) ? shade(in_color, v_normal, normalize(-p)) : in_color;
-    gl_Position = px_to_clip(mix(lo, hi, in_corner * 0.5 + 0.5));
+    emit_box(lo, hi);
 }

@@ -74,6 +74,19 @@ bool disk_at(ivec2 offset) {
 }
 #endif
 
+// The accumulation pass's depth test (at most the visibility pass's offset depth), done first: the
+// shaders write gl_FragDepth, so OpenGL runs a whole shader before its depth test. A fragment farther
+// than the nearest disk's offset depth by more than the depth buffer resolves fails that test anyway
+// (the side target holds that depth in camera space); the rest meet the depth test as before.
+bool behind_nearest(float z) {
+#if PASS == PASS_ACCUMULATION
+    vec2 nearest = texelFetch(u_side, ivec2(gl_FragCoord.xy), 0).rg;
+    return abs(nearest.x - 0.5) > 0.25 && z > nearest.y + 1e-5 * (u_near_far.y - u_near_far.x);
+#else
+    return false;
+#endif
+}
+
 bool fringe_hidden(vec3 ray, float z) {
 #if PASS == PASS_ACCUMULATION
     if (!u_clip_fringe) return false;

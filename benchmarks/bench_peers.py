@@ -1,0 +1,126 @@
+"""surfsplat in the peers' table: the same input, camera, light, timing and scoring as VTK and Open3D.
+
+The harness is ../shared/peers (its README: setup of the venv with VTK/PyVista and Open3D, scenes,
+conventions). Two modes:
+
+Runner (what the harness calls, with the common CLI of every renderer; run with a Python that has
+surfsplat installed)::
+
+    python benchmarks/bench_peers.py --technique ewa --input P.ply --out O.png --eye ... --target ...
+
+  The points PLY is read with the harness's own reader; normals and colours as given; splat axes
+  from surfsplat's preprocessing (k nearest neighbours), one-time setup like the peers' radius
+  estimation. A frame is ``Renderer.render`` of the uploaded splats with read-back into NumPy (the
+  peers also draw from buffers they keep); ``--lod-tolerance auto|PX`` times ``api.render_model`` of
+  the hierarchy instead (cut, upload, draw, read-back; the build is setup).
+
+Driver (one run of the peers' bench with surfsplat's techniques added; the table is saved as
+results/peers.md)::
+
+    python benchmarks/bench_peers.py --run --peers-python $PEERS_VENV/bin/python \\
+        [--techniques ewa flat] [--only vtk_points,vtk_disks,open3d_points] [--sizes 1000000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shlex
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+PEERS = Path(os.environ.get("SURFSPLAT_PEERS", HERE.parents[1] / "shared" / "peers"))
+
+
+def runner(argv: list[str]) -> None:
+    """Render one scene as the harness asks and print its RESULT line."""
+    sys.path.insert(0, str(PEERS))
+    import numpy as np
+    from common import Timer, add_point_args, base_parser, light_from_args, read_points_ply, report, save_png, \
+        time_frames
+
+    from surfsplat import api
+    from surfsplat.camera import Camera
+    from surfsplat.cloud import SplatCloud
+    from surfsplat.geometry.preprocess import preprocess
+    from surfsplat.lighting import Lights
+    from surfsplat.render.renderer import Renderer
+
+    parser = base_parser("surfsplat")
+    add_point_args(parser)   # accepted for the common CLI; surfsplat sizes its splats itself
+    parser.add_argument("--technique", default="ewa")
+    parser.add_argument("--lod-tolerance", default=None, help="auto or pixels: time the hierarchy's cut")
+    args = parser.parse_args(argv)
+    timer = Timer()
+    points = read_points_ply(args.input)
+    colors = None if points.colors is None else np.asarray(points.colors, np.float32) / 255.0
+    cloud = SplatCloud(np.asarray(points.xyz, np.float64), points.normals, colors)
+    timer.mark("load_s")
+    cloud = preprocess(cloud)
+    lo, hi = cloud.bounds()
+    camera = Camera(eye=tuple(args.eye), target=tuple(args.target), up=tuple(args.up), fov=args.fov,
+                    width=args.width, height=args.height, near=args.near, far=args.far)
+    if camera.near is None or camera.far is None:
+        camera = camera.with_clip_from_bounds(lo, hi, margin=float(cloud.radii.max()))
+    lights = Lights(directions=[tuple(light_from_args(args))], ambient=args.ka, diffuse=args.kd, specular=args.ks,
+                    shininess=args.shininess)
+    background = tuple(np.asarray(args.bg, float) / 255.0)
+    if args.lod_tolerance is not None:
+        tolerance = args.lod_tolerance if args.lod_tolerance == "auto" else float(args.lod_tolerance)
+        model = api.as_hierarchy(cloud)
+        render_once = lambda: api.render_model(model, camera, technique=args.technique, lights=lights,  # noqa: E731
+                                               background=background, lod_tolerance=tolerance).frame.color
+    else:
+        renderer = Renderer()
+        gpu = renderer.upload(cloud)
+        local = api.local_camera(cloud, camera)
+        render_once = lambda: renderer.render(gpu, local, args.technique, lights,  # noqa: E731
+                                              background=background).color
+    timer.mark("setup_s")
+    image, times = time_frames(render_once, args.repeat)
+    save_png(args.out, np.round(np.clip(image, 0.0, 1.0) * 255.0).astype(np.uint8))
+    suffix = "" if args.lod_tolerance is None else f"_lod_{args.lod_tolerance}"
+    report(f"surfsplat_{args.technique}{suffix}", args, len(cloud), times, timer)
+
+
+def driver(argv: list[str]) -> None:
+    """Run the peers' bench.py with surfsplat's techniques added; save its table as results/peers.md."""
+    sys.path.insert(0, str(HERE))
+    from common import machine_description
+
+    parser = argparse.ArgumentParser(description="the peers' bench with surfsplat added")
+    parser.add_argument("--run", action="store_true")
+    parser.add_argument("--peers-python", required=True, help="the Python of the peers' venv (VTK, Open3D)")
+    parser.add_argument("--techniques", nargs="+", default=["ewa", "flat"])
+    parser.add_argument("--lod-auto", action="store_true", help="also the default technique at --lod-tolerance auto")
+    parser.add_argument("--only", default="vtk_points,vtk_disks,open3d_points")
+    parser.add_argument("--sizes", nargs="+", default=["1000000"])
+    parser.add_argument("--scenes", nargs="+", default=["bunny", "torus"])
+    parser.add_argument("--repeat", default="3")
+    parser.add_argument("--work", default="/tmp/peers-data")
+    args = parser.parse_args(argv)
+    me = f"{shlex.quote(sys.executable)} {shlex.quote(str(Path(__file__).resolve()))}"
+    adds = [f"surfsplat_{t}={me} --technique {t}" for t in args.techniques]
+    if args.lod_auto:
+        first = args.techniques[0]
+        adds.append(f"surfsplat_{first}_lod_auto={me} --technique {first} --lod-tolerance auto")
+    command = [args.peers_python, str(PEERS / "bench.py"), "--work", args.work, "--sizes", *args.sizes,
+               "--scenes", *args.scenes, "--repeat", args.repeat, "--only", args.only]
+    for add in adds:
+        command += ["--add", add]
+    print(" ".join(shlex.quote(c) for c in command), flush=True)
+    subprocess.run(command, check=True)
+    table = (Path(args.work) / "bench_results.md").read_text()
+    header = (f"Machine: {machine_description()}; GL: Mesa llvmpipe; {time.strftime('%Y-%m-%d')}; one run of the "
+              f"peers' bench.py (../shared/peers), {args.repeat} frames each, median, read-back included; "
+              f"the machine is shared: compare ratios within the table.\n\n")
+    (HERE / "results").mkdir(exist_ok=True)
+    (HERE / "results" / "peers.md").write_text(header + table)
+    print(header + table)
+
+
+if __name__ == "__main__":
+    (driver if "--run" in sys.argv[1:] else runner)(sys.argv[1:])
