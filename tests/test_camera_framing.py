@@ -127,3 +127,15 @@ def test_camera_flags_are_parseable():
     flags = camera_flags(cam).split()
     assert flags[flags.index("--eye") + 1:flags.index("--eye") + 4] == ["636001.25", "849002.5", "512.75"]
     assert auto_camera(surfsplat.demo_scene("sphere"), 10, 10).width == 10
+
+
+def test_huge_and_tiny_up_vectors_frame_like_their_direction():
+    """An up vector of any magnitude (the long CLI fuzz found ``--up 1e308 -1 -1``) is a direction:
+    no overflow warning, the same picture as its unit vector."""
+    unit = np.array([1.0, -1.0, -1.0]) / np.sqrt(3.0)
+    expected = surfsplat.render("demo:sphere", surfsplat.CameraSpec(up=tuple(unit)), width=24, height=16)
+    for scale in (1e308, 1e-300):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            frame = surfsplat.render("demo:sphere", surfsplat.CameraSpec(up=tuple(unit * scale)), width=24, height=16)
+        assert np.abs(frame.color - expected.color).max() < 1e-6

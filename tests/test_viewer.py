@@ -504,3 +504,121 @@ def test_budget_refines_progressively_with_edl_and_colors(xvfb_display, tmp_path
             gif.seek(i)
             total += gif.info["duration"]
         assert abs(total - frames * 1000 / 24) <= 2 * frames   # the real-time clock: 24 frames/s
+
+
+# -- a chunked hierarchy: cells streamed in the background ----------------------------------------
+
+
+@pytest.fixture(scope="module")
+def chunked_model(tmp_path_factory):
+    """A small chunked hierarchy (a 12 k-point torus far from zero, in several cells) and its path."""
+    from surfsplat.hierarchy.chunked import build_chunked
+    from test_chunked import torus_points, write_ply
+
+    folder = tmp_path_factory.mktemp("chunked_view")
+    source = write_ply(folder / "torus.ply", torus_points(12_000, seed=5))
+    build_chunked(source, folder / "torus.ssh", cell_points=3_000, chunk_points=8_000, scheduler="synchronous")
+    return folder / "torus.ssh"
+
+
+def test_streamer_reads_cells_in_the_background_once(chunked_model):
+    import threading
+
+    from surfsplat.hierarchy.chunked import open_chunked
+    from surfsplat.viewer.streaming import CellStreamer
+
+    model = open_chunked(chunked_model)
+    camera = surfsplat.api.resolve_camera(model, None, 240, 180)
+    reference = open_chunked(chunked_model).view_splats(camera, 1.0)[0]
+    gate, threads, runs = threading.Event(), [], []
+
+    def cut(tag):
+        def run():
+            threads.append(threading.current_thread())
+            runs.append(tag)
+            assert gate.wait(10)
+            return model.view_splats(camera, 1.0)
+        return run
+
+    streamer = CellStreamer()
+    try:
+        start = time.perf_counter()
+        assert streamer.poll("a", cut("a")) is None and streamer.pending   # the read is held at the gate
+        assert streamer.poll("a", cut("a")) is None   # asking again does not start a second read
+        assert time.perf_counter() - start < 0.5 and model.loads == 0
+        assert streamer.poll("b", cut("b")) is None   # queued behind "a" ...
+        assert streamer.poll("c", cut("c")) is None   # ... and dropped for the newer view, never run
+        gate.set()
+        cloud, selection = streamer.result("c", cut("c"))
+        assert runs == ["a", "c"] and streamer.submitted == 3
+        assert all(t is not threading.main_thread() for t in threads)
+        np.testing.assert_array_equal(cloud.positions, reference.positions)
+        assert np.allclose(cloud.origin, reference.origin) and selection.cells_loaded >= 2
+        # each needed cell was read once: "c" found in the cache every cell "a" had read
+        assert model.loads == len(model.cached) == selection.cells_loaded
+        assert streamer.poll("c", cut("c"))[0] is cloud and not streamer.pending and model.loads == len(model.cached)
+    finally:
+        gate.set()
+        streamer.close()
+    # the motion preview is what opening read (the preview splats, drawn whole), no cell
+    fresh = open_chunked(chunked_model)
+    assert preview_cloud(fresh, 1000) is None and 1000 < len(fresh.points) < fresh.point_count
+    assert fresh.loads == 0
+
+
+def test_view_of_a_chunked_model_matches_render(xvfb_display, chunked_model, tmp_path):
+    out = tmp_path / "view.png"
+    result = run_view(["-q", "view", chunked_model, "--frames", 2, "--size", 240, 180, "--point-budget", 4000,
+                       "--screenshot", out], xvfb_display)
+    assert result.returncode == 0, result.stderr
+    shot = np.asarray(Image.open(out)).astype(float)
+    expected = surfsplat.render(chunked_model, width=240, height=180, point_budget=4000).image().astype(float)
+    covered = (expected < 250).any(axis=2).mean()
+    assert 0.1 < covered < 0.9   # the model is framed, not empty
+    mse = ((shot - expected) ** 2).mean()
+    assert mse == 0 or 10 * np.log10(255.0 ** 2 / mse) > 35.0
+
+
+def test_window_keeps_drawing_while_cells_stream(xvfb_display, chunked_model):
+    # the cut is slowed down: the loop does not wait for it, shows the preview, then the full frame
+    result = run_python(f"""
+        import time
+        import numpy as np
+        from surfsplat.api import CameraSpec, load_model
+        from surfsplat.lighting import Lights
+        from surfsplat.render.options import RenderOptions
+        from surfsplat.viewer import app
+        model = load_model(r"{chunked_model}")
+        cut = model.view_splats
+        def slow(*args, **kw):
+            time.sleep(1.0)
+            return cut(*args, **kw)
+        model.view_splats = slow
+        glfw, window, ctx = app.open_window(240, 180, "test")
+        v = app.Viewer(glfw, window, ctx, model, CameraSpec(), technique="ewa", lights=Lights(),
+                       options=RenderOptions(), background=(1, 1, 1), lod_tolerance=1.0,
+                       motion=app.MotionOptions("flat", budget=1000), hud=True)
+        start = time.perf_counter()
+        v.step(wait=False)
+        assert time.perf_counter() - start < 0.8, "the loop waited for the cells"
+        assert v.lod.pending and v.showing_preview and v.full_frames == 0 and v.preview_frames == 1
+        assert v.preview_splats.count == len(model.points) and model.loads == 0   # the stored preview
+        assert "reading cells" in v.status_text()
+        preview = v.screen_image()
+        assert (preview[90:] < 200).any(axis=2).mean() > 0.05   # the preview shows the model (below the HUD)
+        turns = 1
+        while v.full_version != v.version or v.fade_from is not None:
+            v.step(wait=False)
+            turns += 1
+        assert turns > 3 and v.full_frames == 1 and model.loads > 0
+        full = v.full_image()
+        assert (full < 200).any(axis=2).mean() > 0.05
+        # C: no attributes to colour by; said on the HUD, nothing fails
+        v._on_key(window, glfw.KEY_C, 0, glfw.PRESS, 0)
+        v.step(wait=False)
+        assert "keeps no point attributes" in v.status_text() and v.color_index == 0
+        v.release()
+        glfw.terminate()
+        print("ok", turns)
+        """, xvfb_display)
+    assert result.returncode == 0 and result.stdout.strip().splitlines()[-1].startswith("ok"), result.stderr

@@ -18,7 +18,7 @@ from typing import Union
 import numpy as np
 
 from . import progress
-from .camera import MIN_FOV, Camera, camera_flags, fit_points, rotate
+from .camera import MIN_FOV, Camera, camera_flags, direction_vector, fit_points, rotate
 from .cloud import SplatCloud
 from .colors import ELEVATION, ColorOptions, colorize
 from .errors import EmptyFrameWarning, InputError
@@ -306,7 +306,7 @@ def natural_up(source) -> tuple[float, float, float]:
 def default_direction(cloud: SplatCloud, up) -> np.ndarray:
     """The automatic viewing direction (toward the eye): front, a little right and above relative to
     ``up``; from about 45 degrees above for flat models (:data:`FLAT_MODEL_RATIO`)."""
-    up = np.asarray(up, dtype=np.float64)
+    up = direction_vector(up, "up")
     up = up / np.linalg.norm(up)
     lo, hi = cloud.bounds()
     extent = np.asarray(hi, dtype=np.float64) - lo
@@ -333,8 +333,9 @@ def auto_camera(cloud: SplatCloud, width: int = DEFAULT_WIDTH, height: int = DEF
     splats. Without a direction: :func:`default_direction` (so ``up=(0, 0, 1)`` suits z-up
     data such as LiDAR).
     """
-    if np.linalg.norm(np.asarray(up, dtype=float)) == 0 or not np.isfinite(up).all():
-        raise InputError(f"up must be a finite non-zero vector, got {up!r}")
+    up = direction_vector(up, "up")
+    if not np.abs(up).max() > 0:
+        raise InputError(f"up must be a finite non-zero vector, got {tuple(up)!r}")
     if direction is None:
         direction = default_direction(cloud, up)
     step = max(1, len(cloud) // FIT_SAMPLE)
@@ -416,7 +417,7 @@ def lod_splats(hierarchy: Hierarchy, camera: Camera, lod_tolerance: float = DEFA
     origin = hierarchy.points.origin
     selection = select(hierarchy, camera.translated(-origin), lod_tolerance, cull_backfaces=cull_backfaces,
                        lod_shading=lod_shading, point_budget=point_budget)
-    return hierarchy.splats(selection).replace(origin=origin), selection
+    return hierarchy.splats(selection), selection   # relative to the points' origin, which it carries
 
 
 def local_camera(splats: SplatCloud, camera: Camera) -> Camera:

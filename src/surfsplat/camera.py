@@ -21,6 +21,17 @@ def _vec3(value, name: str) -> np.ndarray:
     return arr
 
 
+def direction_vector(value, name: str) -> np.ndarray:
+    """``value`` as 3 finite float64 numbers (InputError else) giving a direction: one whose largest
+    component lies beyond 2^+-64 is multiplied by a power of two (exact, the same direction) to about
+    1, so that its norm and cross products stay finite (an ``--up 1e308 -1 -1`` would overflow)."""
+    arr = _vec3(value, name)
+    largest = float(np.abs(arr).max())
+    if largest > 2.0 ** 64 or 0.0 < largest < 2.0 ** -64:
+        arr = arr * 2.0 ** -np.round(np.log2(largest))
+    return arr
+
+
 #: Smallest vertical field of view, degrees (a telephoto of 0.001 degrees still keeps the focal
 #: length, in pixels, far inside float32).
 MIN_FOV = 1e-3
@@ -51,7 +62,7 @@ class Camera:
     far: float | None = None
 
     def __post_init__(self) -> None:
-        eye, target, up = _vec3(self.eye, "eye"), _vec3(self.target, "target"), _vec3(self.up, "up")
+        eye, target, up = _vec3(self.eye, "eye"), _vec3(self.target, "target"), direction_vector(self.up, "up")
         if np.linalg.norm(eye - target) <= 0:
             raise InputError("camera eye and target must differ")
         forward = (target - eye) / np.linalg.norm(target - eye)
@@ -199,7 +210,7 @@ def fit_points(points, *, direction, up=(0.0, 1.0, 0.0), fov: float = 40.0, widt
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     d = _vec3(direction, "direction")
     d /= np.linalg.norm(d)
-    up = _vec3(up, "up")
+    up = direction_vector(up, "up")
     if np.linalg.norm(np.cross(d, up)) < 1e-6 * np.linalg.norm(up):
         up = np.array([0.0, 0.0, 1.0]) if abs(d[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
     right = np.cross(-d, up)

@@ -258,7 +258,8 @@ class Hierarchy:
         return np.zeros((len(index), 2), dtype=np.float32)
 
     def node_splats(self, index=None, lod_shading: LodShading = "fit") -> SplatCloud:
-        """The representative splats of nodes (all nodes when ``index`` is None) as a SplatCloud."""
+        """The representative splats of nodes (all nodes when ``index`` is None) as a SplatCloud (with the
+        points' origin)."""
         index = np.arange(len(self)) if index is None else np.asarray(index, dtype=np.int64)
         return SplatCloud(
             positions=np.take(self.node_positions, index, axis=0),
@@ -267,10 +268,12 @@ class Hierarchy:
             u=np.take(self.node_u, index, axis=0),
             v=np.take(self.node_v, index, axis=0),
             normal_field=None if lod_shading == "flat" else self.node_normal_fields(index, lod_shading),
+            origin=self.points.origin,   # node positions are relative to the points' origin
         )
 
     def splats(self, selection: Selection) -> SplatCloud:
-        """Gather the splats of a selection: selected nodes' representative splats, then selected points.
+        """Gather the splats of a selection: selected nodes' representative splats, then selected points
+        (a SplatCloud with the points' origin).
 
         Normal fields follow ``selection.lod_shading`` for the nodes; selected
         original points keep their own normal field (zeros where the cloud
@@ -311,7 +314,7 @@ class Hierarchy:
             clip_lines[:m] = np.array([[0.0, 0.0, 1.0]], dtype=np.float32)
             np.take(pts.clip_lines, pidx, axis=0, out=clip_lines[m:], mode="clip")
         return SplatCloud(positions=positions, normals=normals, colors=colors, u=u, v=v,
-                          normal_field=normal_field, clip_lines=clip_lines)
+                          normal_field=normal_field, clip_lines=clip_lines, origin=pts.origin)
 
     # -- colours -----------------------------------------------------------------
 

@@ -31,9 +31,15 @@ pixel ownership, and lets a still view be re-shown without re-rendering. With ey
 on, full-quality frames go through ``Renderer.render`` (EDL needs the depth image: read back,
 shaded in NumPy, written to the ``full`` texture); previews do not get it.
 
+A chunked hierarchy (``surfsplat build --chunked``) is previewed by the splats opening it read,
+and the cut of a still view, which reads cells from disk, is made in a background thread
+(:mod:`~surfsplat.viewer.streaming`): until it arrives the loop keeps drawing the new view's
+preview and handling input, then cross-fades to it as above.
+
 Modules: ``settings`` (constants, :class:`MotionOptions`, :class:`ViewStats`), ``window``
 (:func:`open_window`), ``keys`` (input), ``detail`` (LOD cut, preview, recolouring),
-``recorder``, ``hud``, ``camera_control``, ``screenshots``; this one is the frame loop.
+``streaming`` (background cuts of chunked hierarchies), ``recorder``, ``hud``, ``camera_control``,
+``screenshots``; this one is the frame loop.
 """
 
 from __future__ import annotations
@@ -54,7 +60,7 @@ from ..cloud import SplatCloud
 from ..geometry.preprocess import NONPLANAR
 from ..errors import InputError
 from ..hierarchy import LodShading
-from ..hierarchy.chunked import ChunkedHierarchy, is_chunked_hierarchy
+from ..hierarchy.chunked import ChunkedHierarchy
 from ..hierarchy.lod import check_point_budget
 from ..io.video import check_video_path
 from ..lighting import Lights
@@ -69,6 +75,7 @@ from .recorder import Recorder
 from .screenshots import save_image
 from .settings import (FADE_S, FPS_INTERVAL_S, MOTION_MODES, PREVIEW_ABOVE_S, SETTLE_S, MotionOptions, ViewStats,
                        technique_names)
+from .streaming import STREAM_POLL_S
 from .window import open_window
 
 #: The viewer's off-screen targets (textures and their framebuffers).
@@ -102,14 +109,16 @@ class Viewer(ViewerInput):
 
         # built on loading when the model is a cloud (a mesh's surface sampled for the window's width)
         hierarchy = as_hierarchy(model, source_options, image_size=max(glfw.get_framebuffer_size(window)))
-        cloud = hierarchy.points
+        cloud = hierarchy.points   # of a chunked hierarchy: its preview splats (framing, motion)
+        self.chunked = isinstance(hierarchy, ChunkedHierarchy)
         self.lod = LevelOfDetail(self.renderer, hierarchy, lod_shading, model=model)
-        self.model_splats = len(cloud)
+        self.model_splats = hierarchy.point_count if self.chunked else len(cloud)
         self.motion_budget = int(motion.budget)
-        # colour by (C): the points with their attributes, in the hierarchy's order
+        # colour by (C): the points with their attributes, in the hierarchy's order (a chunked
+        # hierarchy keeps no attributes and reads its points per view: own colours only)
         self._colored_points = (model, hierarchy.order) if isinstance(model, SplatCloud) else (cloud, None)
-        self.color_modes = ["own colours", "elevation"] + [name for name in sorted(
-            self._colored_points[0].attributes or {}) if name != NONPLANAR]
+        self.color_modes = ["own colours"] if self.chunked else ["own colours", "elevation"] + [
+            name for name in sorted(self._colored_points[0].attributes or {}) if name != NONPLANAR]
         self.color_index, self._own_colors = 0, cloud.colors
         self.preview_splats = None
         self._upload_preview()
@@ -188,7 +197,7 @@ class Viewer(ViewerInput):
             if path is not None:
                 progress.message(f"recorded {self.recorder.frames} frames -> {path}")
         self.preview_splats.release()
-        self.lod.release()
+        self.lod.close()
         if self.hud is not None:
             self.hud.release()
 
@@ -233,8 +242,7 @@ class Viewer(ViewerInput):
         """Render the current view off-screen: full quality, or the motion preview."""
         camera = self.controller.camera
         if full:
-            splats, self.drawn = self.lod(camera, self.lod_tolerance, self.options.visibility.cull_backfaces,
-                                          self.budgets[self.refine], self.hybrid)
+            splats, self.drawn = self.lod(*self._cut_args(self.refine))
             technique, fbo = self.technique, self._targets["full_fbo"]
         else:
             splats, self.drawn = self.preview_splats, self.preview_splats.count
@@ -261,6 +269,11 @@ class Viewer(ViewerInput):
             self.preview_frames += 1
             self.preview_version = self.version
         self._fps_count += 1
+
+    def _cut_args(self, refine: int) -> tuple:
+        """The LOD cut of the current view at refinement step ``refine`` (:class:`LevelOfDetail`'s arguments)."""
+        return (self.controller.camera, self.lod_tolerance, self.options.visibility.cull_backfaces,
+                self.budgets[refine], self.hybrid)
 
     def full_image(self) -> np.ndarray:
         """(H, W, 3) uint8 full-quality image of the current view (rendered first if out of date)."""
@@ -312,8 +325,11 @@ class Viewer(ViewerInput):
         preview = self.showing_preview
         ms = 1000.0 * self.last_render_s["preview" if preview else "full"]
         rate = f"{self.fps:.1f} fps" if self.fps is not None else "idle"
-        quality = (f"moving: preview ({'flat' if self.motion != 'same' else self.technique}, "
+        quality = (f"{'reading cells' if self.lod.pending else 'moving'}: preview "
+                   f"({'flat' if self.motion != 'same' else self.technique}, "
                    f"{self.preview_splats.count:,} splats)" if preview else "full quality")
+        if self.chunked and not preview:
+            quality += f" ({self.lod.cells_loaded} cells in the cut)"
         lines = [
             f"{self.technique}{'   hybrid' if self.hybrid else ''}   {self.drawn:,} splats"
             f"{self._budget_text()}   {rate}   ({ms:.0f} ms/frame)",
@@ -371,12 +387,19 @@ class Viewer(ViewerInput):
                 self.showing_preview, self.fade_from = True, None
         elif self.full_version != self.version:
             self.refine = 0
-            self.render(full=True)
-            if self.showing_preview:
-                self.fade_source = "preview"
-                self.fade_from = time.perf_counter()  # cross-fade preview -> full, no pop
-            self.showing_preview = False
-        elif self.fade_from is None and self.refine + 1 < len(self.budgets):
+            if not self.lod.ready(*self._cut_args(0)):
+                # a chunked model's cells are read in the background: show this view's preview meanwhile
+                if self.preview_version != self.version:
+                    self.render(full=False)
+                self.showing_preview, self.fade_from = True, None
+            else:
+                self.render(full=True)
+                if self.showing_preview:
+                    self.fade_source = "preview"
+                    self.fade_from = time.perf_counter()  # cross-fade preview -> full, no pop
+                self.showing_preview = False
+        elif (self.fade_from is None and self.refine + 1 < len(self.budgets)
+              and self.lod.ready(*self._cut_args(self.refine + 1))):
             self._refine_step()
         mix = 0.0 if self.showing_preview else 1.0
         if self.fade_from is not None:
@@ -390,6 +413,8 @@ class Viewer(ViewerInput):
         # (waking at the end of the settle time, and twice a second for the HUD).
         if not wait or keys_held or self.fade_from is not None or self._actions or self._buttons:
             glfw.poll_events()
+        elif self.lod.pending:   # look again for the cells being read soon
+            glfw.wait_events_timeout(STREAM_POLL_S)
         elif moving:
             glfw.wait_events_timeout(max(0.005, SETTLE_S - (time.perf_counter() - self.moved_at)))
         else:
@@ -467,8 +492,9 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
 
     Args:
         source: anything :func:`surfsplat.api.load_model` takes: a SplatCloud, a hierarchy, a
-            point/splat/mesh file (made into splats as ``source_options`` say), a hierarchy file
-            or ``"demo:NAME"`` for a built-in scene (``demo:torus``, ...).
+            point/splat/mesh file (made into splats as ``source_options`` say), a hierarchy file,
+            a chunked hierarchy directory (cells read in the background per still view) or
+            ``"demo:NAME"`` for a built-in scene (``demo:torus``, ...).
         camera: the first view: a Camera (its size is replaced by the window's) or a
             :class:`~surfsplat.api.CameraSpec` (eye, target, up, fov); None or a spec without an
             eye frames the model automatically (also what R returns to). Orbits turn about
@@ -538,9 +564,6 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
                                                           else type(source).__name__)
 
     check_source(source)
-    if isinstance(source, ChunkedHierarchy) or is_chunked_hierarchy(source):
-        raise InputError(f"{source}: the viewer cannot stream a chunked hierarchy yet; draw it with "
-                         f"`surfsplat render` (cells are read per view), or view the point file itself")
     if not isinstance(camera, Camera):
         spec = camera or CameraSpec()
         camera = spec if spec.up is not None else replace(spec, up=natural_up(source))

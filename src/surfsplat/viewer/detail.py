@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from functools import partial
 
 import numpy as np
 
@@ -10,6 +11,8 @@ from ..api import DEFAULT_LOD_SHADING, hybrid_splats, local_camera, lod_splats
 from ..camera import Camera
 from ..cloud import SplatCloud
 from ..hierarchy import LodShading, uniform_cut
+from ..hierarchy.chunked import ChunkedHierarchy
+from .streaming import CellStreamer
 
 
 def preview_cloud(hierarchy, budget: int) -> SplatCloud | None:
@@ -20,8 +23,13 @@ def preview_cloud(hierarchy, budget: int) -> SplatCloud | None:
     whose ellipses cover their subtrees' disks (Pajarola 2003, sec. 3.4), so the
     preview has no holes; fixed, so it does not flicker. None when the model has
     no more than ``budget`` splats (or ``budget`` is 0): it is drawn whole.
+
+    A chunked hierarchy is previewed by what opening it read, never by its cells: its preview
+    splats (``hierarchy.points``, a uniform cut of every cell made by the build, at most about
+    200k), always whole (None): cutting them again through an octree built over them gives
+    oversized node ellipses sticking out of the surface, and thinning them leaves halos.
     """
-    if budget <= 0 or len(hierarchy.points) <= budget:
+    if budget <= 0 or len(hierarchy.points) <= budget or isinstance(hierarchy, ChunkedHierarchy):
         return None
     return hierarchy.node_splats(uniform_cut(hierarchy, budget), lod_shading="flat")
 
@@ -54,27 +62,59 @@ class LevelOfDetail:
     carry the ``nonplanar`` attribute) non-planar splats are drawn as points facing the eye
     (:func:`surfsplat.api.hybrid_splats`). A cut is reused while the camera, tau, culling,
     budget and hybrid switch stay the same.
+
+    A chunked hierarchy (:class:`~surfsplat.hierarchy.chunked.ChunkedHierarchy`) is cut by its
+    own ``view_splats`` (only the cells the view needs are read) in a background thread
+    (:class:`~surfsplat.viewer.streaming.CellStreamer`): :meth:`ready` asks for a view's cut
+    without waiting, calling the object waits for it.
     """
 
     def __init__(self, renderer, hierarchy, lod_shading: LodShading = DEFAULT_LOD_SHADING, model=None):
         self.renderer, self.hierarchy, self.lod_shading = renderer, hierarchy, lod_shading
         self.model = hierarchy if model is None else model
+        self.streamer = CellStreamer() if isinstance(hierarchy, ChunkedHierarchy) else None
         self._key = None
         self._splats = None
         self.count = 0
         self.select_ms = 0.0
+        self.cells_loaded = 0   # chunked: cells the last cut needed (read or found in the cache)
+
+    def _cut(self, camera: Camera, lod_tolerance: float, cull_backfaces: bool, point_budget: int | None):
+        """(SplatCloud with the model's origin, selection, milliseconds taken) of a view; ``camera`` in
+        world coordinates. A chunked hierarchy's runs in the streamer's thread, the only one touching its cells."""
+        start = time.perf_counter()
+        cut = self.hierarchy.view_splats if self.streamer is not None else partial(lod_splats, self.hierarchy)
+        cloud, selection = cut(camera, lod_tolerance, cull_backfaces=cull_backfaces, lod_shading=self.lod_shading,
+                               point_budget=point_budget)
+        return cloud, selection, 1000.0 * (time.perf_counter() - start)
+
+    def ready(self, camera: Camera, lod_tolerance: float, cull_backfaces: bool, point_budget: int | None = None,
+              hybrid: bool = False) -> bool:
+        """Whether the view's cut can be drawn without waiting: always for an in-memory hierarchy;
+        for a chunked one, once its cells have been read in the background (started here if not yet)."""
+        key = (camera, float(lod_tolerance), bool(cull_backfaces), point_budget, bool(hybrid))
+        if self.streamer is None or key == self._key:
+            return True
+        return self.streamer.poll(key, lambda: self._cut(*key[:4])) is not None
+
+    @property
+    def pending(self) -> bool:
+        """Whether cells are being read for a view."""
+        return self.streamer is not None and self.streamer.pending
 
     def __call__(self, camera: Camera, lod_tolerance: float, cull_backfaces: bool, point_budget: int | None = None,
                  hybrid: bool = False):
-        """(GpuSplats or None when nothing is visible, number of splats drawn)."""
+        """(GpuSplats or None when nothing is visible, number of splats drawn); a chunked
+        hierarchy's cut is waited for (see :meth:`ready`)."""
         key = (camera, float(lod_tolerance), bool(cull_backfaces), point_budget, bool(hybrid))
         if key != self._key:
-            start = time.perf_counter()
-            cloud, selection = lod_splats(self.hierarchy, camera, lod_tolerance, cull_backfaces=cull_backfaces,
-                                          lod_shading=self.lod_shading, point_budget=point_budget)
+            if self.streamer is not None:
+                cloud, selection, self.select_ms = self.streamer.result(key, lambda: self._cut(*key[:4]))
+                self.cells_loaded = selection.cells_loaded
+            else:
+                cloud, selection, self.select_ms = self._cut(*key[:4])
             if hybrid and len(cloud):
                 cloud = hybrid_splats(self.model, self.hierarchy, cloud, selection, local_camera(cloud, camera))
-            self.select_ms = 1000.0 * (time.perf_counter() - start)
             self.release()
             self._splats = self.renderer.upload(cloud) if len(cloud) else None
             self.count, self._key = len(cloud), key
@@ -85,6 +125,12 @@ class LevelOfDetail:
         if self._splats is not None:
             self._splats.release()
         self._splats, self._key, self.count = None, None, 0
+
+    def close(self) -> None:
+        """Free the uploaded cut and stop the background reads (the running one is finished)."""
+        self.release()
+        if self.streamer is not None:
+            self.streamer.close()
 
 
 def recolor(hierarchy, colors: np.ndarray | None, node_colors: np.ndarray | None = None) -> None:

@@ -172,6 +172,10 @@ class ViewerInput:
             o = self.options
             self.options = replace(o, edl=None if o.edl is not None else EdlOptions())
         elif kind == "color":
+            if self.chunked:   # no attributes, and its points are read per view
+                self._message = ("colour by: a chunked hierarchy keeps no point attributes",
+                                 time.perf_counter() + 3.0)
+                return
             name = self.cycle_colors()
             self._message = (f"colour by {name}", time.perf_counter() + 2.0)
         elif kind == "tolerance":
