@@ -138,6 +138,12 @@ def test_views_read_only_the_cells_they_need(torus):
     assert 0 < selection.cells_loaded < len(model.cells)
     assert len(model.cached) <= 2
     assert np.array_equal(cloud.origin, model.origin)
+    # the cache is bounded in bytes too: with room for about one cell it keeps one, and the view is the same
+    tight = open_chunked(folder / "torus.ssh")
+    tight.cache_bytes = 1
+    again, _ = tight.view_splats(near, 1.0)
+    assert len(tight.cached) == 1 and len(again) == len(cloud)
+    assert np.array_equal(np.sort(again.positions, axis=0), np.sort(cloud.positions, axis=0))
 
 
 def test_point_budget_caps_the_splats(torus):

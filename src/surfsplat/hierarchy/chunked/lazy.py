@@ -13,7 +13,8 @@ preview; nothing of the cells. Per view (:meth:`ChunkedHierarchy.view_splats`):
    memory-mapped, so only the pages of the points the cut selects are read) and cut with the
    same tolerance.
 
-Loaded cells stay in an LRU cache of ``cache_cells`` cells. Positions are relative to
+Loaded cells stay in an LRU cache of ``cache_cells`` cells whose node arrays take at most
+:data:`CACHE_MEMORY_SHARE` of the memory available when the model is opened. Positions are relative to
 :attr:`ChunkedHierarchy.origin` (float64); cameras are given in that frame.
 """
 
@@ -28,6 +29,7 @@ import numpy as np
 from ...camera import Camera
 from ...cloud import SplatCloud
 from ...errors import InputError
+from ...io.atomic import memory_limit
 from ..lod import select
 from ..model import Hierarchy, LodShading
 from ..storage import load_hierarchy
@@ -36,6 +38,10 @@ from .layout import (CELLS, COARSE, NODE_FILES, NODES, POINT_FILES, PREVIEW, TOP
 
 #: Cells kept loaded (node arrays in memory, splats memory-mapped).
 CACHE_CELLS = 64
+#: ... and at most this share of the memory available when the model is opened, in node arrays (a
+#: 64 M-point model's 81 cells hold about 8 GB of them: a count alone let a viewer or a series of
+#: renders grow until the system killed it).
+CACHE_MEMORY_SHARE = 0.25
 
 #: Ratio between the tolerances bracketing the budget's when the search stops.
 BUDGET_STEP = 1.03
@@ -89,6 +95,8 @@ class ChunkedHierarchy:
         self.up = tuple(float(x) for x in self.manifest.get("up", (0.0, 1.0, 0.0)))
         self.cells = self.manifest["cells"]
         self.cache_cells = int(cache_cells)
+        self.cache_bytes = int(CACHE_MEMORY_SHARE * memory_limit())
+        self._bytes: dict[int, int] = {}   # node-array bytes of each cached cell
         self._cache: OrderedDict[int, tuple[Hierarchy, bool]] = OrderedDict()   # (hierarchy, all levels)
         self._deeper: dict[int, np.ndarray | None] = {}
         self.loads = 0
@@ -184,9 +192,14 @@ class ChunkedHierarchy:
         self._cache[index] = (h, not coarse)
         self._cache.move_to_end(index)
         self._deeper[index] = deeper
-        while len(self._cache) > self.cache_cells:
+        self._bytes[index] = sum(a.nbytes for a in arrays.values() if isinstance(a, np.ndarray)
+                                 and not isinstance(a, np.memmap))
+        # least recently used first, never the cell just read
+        while len(self._cache) > 1 and (len(self._cache) > self.cache_cells
+                                        or sum(self._bytes.values()) > self.cache_bytes):
             evicted, _ = self._cache.popitem(last=False)
             self._deeper.pop(evicted, None)
+            self._bytes.pop(evicted, None)
         return h
 
     def _select(self, index: int, local: Camera, tolerance: float, options: dict) -> tuple[Hierarchy, object, bool]:
@@ -235,21 +248,22 @@ class ChunkedHierarchy:
             local = local.with_clip_from_bounds(*self.sphere_bounds())
         options = {"cull_backfaces": cull_backfaces, "lod_shading": lod_shading}
         tolerance = float(lod_tolerance)
-        cut = self._cut(local, tolerance, options)
-        if point_budget is not None and cut[5] > point_budget:
+        if point_budget is not None and self._cut_size(local, tolerance, options) > point_budget:
+            # only sizes while searching: a cut holds the node arrays of every cell it reads
             low, high = tolerance, max(tolerance, 0.25)
-            while cut[5] > point_budget and high < 1e6:  # double until the cut fits
+            size = point_budget + 1
+            while size > point_budget and high < 1e6:  # double until the cut fits
                 low, high = high, 2.0 * high
-                cut = self._cut(local, high, options)
-            fitting, low = cut, max(low, 1e-3)
+                size = self._cut_size(local, high, options)
+            low = max(low, 1e-3)
             while high / low > BUDGET_STEP:  # then bisect (geometrically) to the finest that fits
                 mid = float(np.sqrt(low * high))
-                trial = self._cut(local, mid, options)
-                if trial[5] <= point_budget:
-                    high, fitting = mid, trial
+                if self._cut_size(local, mid, options) <= point_budget:
+                    high = mid
                 else:
                     low = mid
-            cut, tolerance = fitting, high
+            tolerance = high
+        cut = self._cut(local, tolerance, options)
         top_sel, rows, refine, loaded, cuts, _, coarse = cut
         parts = [self.top.node_splats(top_sel.node_indices(), lod_shading)]
         if (~refine).any():
@@ -274,6 +288,17 @@ class ChunkedHierarchy:
         loaded, cuts = [h for h, _, _ in picked], [c for _, c, _ in picked]
         total = top_sel.node_count + int((~refine).sum()) + sum(len(c) for c in cuts)
         return top_sel, rows, refine, loaded, cuts, total, sum(coarse for _, _, coarse in picked)
+
+    def _cut_size(self, local: Camera, tolerance: float, options: dict) -> int:
+        """The number of splats of :meth:`_cut`, the cells cut one at a time and let go (the cache
+        keeps what its bounds allow)."""
+        top_sel = select(self.top, local, tolerance, **options)
+        rows = top_sel.point_indices()
+        refine = self._refine_roots(self.top.order[rows], local, tolerance)
+        total = top_sel.node_count + int((~refine).sum())
+        for index in self.top.order[rows][refine]:
+            total += len(self._select(index, local, tolerance, options)[1])
+        return total
 
     def _refine_roots(self, cells: np.ndarray, camera: Camera, lod_tolerance: float) -> np.ndarray:
         """(len(cells),) bool: the cell's root is refined by the rule of :mod:`surfsplat.hierarchy.lod`
