@@ -56,7 +56,6 @@ from .. import progress
 from ..api import (DEFAULT_BACKGROUND, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec, SourceOptions,
                    as_hierarchy, check_background, check_source, is_lidar, load_model, natural_up, resolve_camera)
 from ..camera import Camera
-from ..cloud import SplatCloud
 from ..geometry.preprocess import NONPLANAR
 from ..errors import InputError
 from ..hierarchy import LodShading
@@ -114,11 +113,10 @@ class Viewer(ViewerInput):
         self.lod = LevelOfDetail(self.renderer, hierarchy, lod_shading, model=model)
         self.model_splats = hierarchy.point_count if self.chunked else len(cloud)
         self.motion_budget = int(motion.budget)
-        # colour by (C): the points with their attributes, in the hierarchy's order (a chunked
-        # hierarchy keeps no attributes and reads its points per view: own colours only)
-        self._colored_points = (model, hierarchy.order) if isinstance(model, SplatCloud) else (cloud, None)
+        # colour by (C): the attributes the hierarchy's points keep (a chunked hierarchy keeps none
+        # and reads its points per view: own colours only)
         self.color_modes = ["own colours"] if self.chunked else ["own colours", "elevation"] + [
-            name for name in sorted(self._colored_points[0].attributes or {}) if name != NONPLANAR]
+            name for name in sorted(cloud.attributes or {}) if name != NONPLANAR]
         self.color_index, self._own_colors = 0, cloud.colors
         self.preview_splats = None
         self._upload_preview()
