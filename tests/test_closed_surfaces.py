@@ -10,6 +10,7 @@ from surfsplat import CameraSpec, RenderOptions, VisibilityOptions
 from surfsplat.geometry.closed import consistent_winding, is_closed_surface, outward_splats
 from surfsplat.geometry.sampling import surface_splats
 from surfsplat.io.mesh import Mesh
+from surfsplat.io.surface import weld
 
 
 def sphere(inward: bool = False, subdivisions: int = 3) -> Mesh:
@@ -25,7 +26,16 @@ def test_winding_consistency_and_closedness():
     flipped = closed.faces.copy()
     flipped[7] = flipped[7, ::-1]
     assert not consistent_winding(flipped)
-    assert not is_closed_surface(Mesh(closed.vertices, flipped))
+    # welding turns a stray face (or a soup's random winding) to agree with its neighbours
+    assert consistent_winding(weld(Mesh(closed.vertices, flipped)).faces)
+    assert is_closed_surface(Mesh(closed.vertices, flipped))
+    soup_v = closed.vertices[closed.faces].reshape(-1, 3)
+    soup_f = np.arange(len(soup_v)).reshape(-1, 3)
+    turn = np.random.default_rng(3).random(len(soup_f)) < 0.5
+    soup_f[turn] = soup_f[turn][:, ::-1]
+    welded = weld(Mesh(soup_v, soup_f))
+    assert consistent_winding(welded.faces) and is_closed_surface(Mesh(soup_v, soup_f))
+    assert len(welded.faces) == len(closed.faces)
     v = closed.vertices
     for z in (0.0, -0.5, -0.8):   # hemisphere and larger caps: open however few edges are on the rim
         cap = closed.faces[(v[closed.faces][:, :, 2] > z).any(axis=1)]

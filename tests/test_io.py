@@ -636,3 +636,19 @@ def test_load_input_ply_with_and_without_faces(tmp_path):
     welded = load_input(split)                   # duplicated vertices are merged and counted
     assert len(welded.vertices) == 4 and welded.merged_vertices == 4
     assert len(load_mesh(split).vertices) == 8 and len(load_mesh(split, welded=True).vertices) == 4
+
+
+def test_las_with_all_zero_rgb_has_no_colors(tmp_path):
+    """Point formats 2/3 always store RGB; a file that leaves it all zero has no colours (drawn in the
+    default grey, lit), not a black cloud."""
+    laspy = pytest.importorskip("laspy")
+    header = laspy.LasHeader(point_format=3, version="1.2")
+    header.scales = [0.001] * 3
+    las = laspy.LasData(header)
+    rng = np.random.default_rng(0)
+    las.x, las.y, las.z = rng.random(200), rng.random(200), 0.01 * rng.random(200)
+    las.write(tmp_path / "zero_rgb.las")
+    assert load(tmp_path / "zero_rgb.las").colors is None
+    las.red = np.full(200, 65535, np.uint16)
+    las.write(tmp_path / "white.las")
+    assert np.allclose(load(tmp_path / "white.las").colors[:, 0], 1.0)

@@ -16,28 +16,12 @@ from scipy.sparse.csgraph import connected_components
 
 from ..cloud import SplatCloud
 from ..io.mesh import Mesh
-from ..io.surface import boundary_edges, weld
+from ..io.surface import boundary_edges, consistent_winding, weld
 
 #: Longest hole (one loop of open boundary edges) of a closed mesh, in bounding-box diagonals: the
 #: scanned bunny's five holes at its base (0.12-0.45) pass; the opening of a vase, a bowl or a scan
 #: fragment's outline (1.5 and more) does not.
 MAX_HOLE = 0.5
-
-
-def consistent_winding(faces: np.ndarray) -> bool:
-    """Whether the faces (F, 3) of a welded mesh are wound consistently: no directed edge is used
-    twice (two faces sharing an edge traverse it in opposite directions) and no edge has more than
-    two faces."""
-    f = np.asarray(faces, dtype=np.int64)
-    f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])]
-    a = np.concatenate([f[:, 0], f[:, 1], f[:, 2]])
-    b = np.concatenate([f[:, 1], f[:, 2], f[:, 0]])
-    n = int(f.max(initial=0)) + 1
-    directed = np.sort(a * n + b)
-    if np.any(directed[1:] == directed[:-1]):
-        return False
-    undirected = np.unique(np.minimum(a, b) * n + np.maximum(a, b), return_counts=True)[1]
-    return bool(undirected.max(initial=0) <= 2)
 
 
 def is_closed_surface(mesh: Mesh, max_hole: float = MAX_HOLE) -> bool:

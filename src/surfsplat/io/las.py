@@ -146,6 +146,8 @@ def read_las(path: Path) -> SplatCloud:
         except Exception as exc:  # laspy.LaspyException (bad header), OSError, ValueError, ...
             raise InputError(f"{source}: cannot read LAS file: {type(exc).__name__}: {exc}") from exc
     colors = None
+    if rgb is not None and not rgb.any():   # point formats 2, 3, 5, 7, 8 always carry RGB; all zero: none given
+        rgb = None
     if rgb is not None:
         colors = np.clip(rgb.astype(np.float64) / rgb_scale(rgb), 0.0, 1.0).astype(np.float32)
 

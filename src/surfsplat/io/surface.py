@@ -45,6 +45,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+import trimesh
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
@@ -141,7 +142,7 @@ def weld(mesh: Mesh, tolerance: float | None = None) -> Mesh:
     ids = weld_map(mesh.vertices, tolerance)
     n_new = int(ids.max()) + 1 if len(ids) else 0
     if n_new == len(mesh.vertices):
-        return mesh
+        return _wound_consistently(mesh)
     first = np.full(n_new, len(ids), dtype=np.int64)
     np.minimum.at(first, ids, np.arange(len(ids)))
     faces = ids[mesh.faces]
@@ -160,9 +161,42 @@ def weld(mesh: Mesh, tolerance: float | None = None) -> Mesh:
             corner_normals = mesh.vertex_normals[mesh.faces]
     if corner_normals is not None:
         corner_normals = corner_normals[keep]
-    return Mesh(mesh.vertices[first], faces[keep], vertex_normals, colors, corner_normals,
-                merged_vertices=mesh.merged_vertices + len(ids) - n_new,
-                collapsed_faces=mesh.collapsed_faces + int((~keep).sum()), origin=mesh.origin)
+    return _wound_consistently(Mesh(mesh.vertices[first], faces[keep], vertex_normals, colors, corner_normals,
+                                    merged_vertices=mesh.merged_vertices + len(ids) - n_new,
+                                    collapsed_faces=mesh.collapsed_faces + int((~keep).sum()), origin=mesh.origin))
+
+
+def consistent_winding(faces: np.ndarray) -> bool:
+    """Whether the faces (F, 3) of a welded mesh are wound consistently: no directed edge is used
+    twice (two faces sharing an edge traverse it in opposite directions) and no edge has more than
+    two faces. Faces with a repeated corner take no part."""
+    f = np.asarray(faces, dtype=np.int64)
+    f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])]
+    a = np.concatenate([f[:, 0], f[:, 1], f[:, 2]])
+    b = np.concatenate([f[:, 1], f[:, 2], f[:, 0]])
+    n = int(f.max(initial=0)) + 1
+    directed = np.sort(a * n + b)
+    if np.any(directed[1:] == directed[:-1]):
+        return False
+    undirected = np.unique(np.minimum(a, b) * n + np.maximum(a, b), return_counts=True)[1]
+    return bool(undirected.max(initial=0) <= 2)
+
+
+def _wound_consistently(mesh: Mesh) -> Mesh:
+    """``mesh`` with the faces of each connected part turned to agree with their neighbours
+    (``trimesh.repair.fix_winding``) when they do not: a triangle soup of random winding otherwise
+    gives averaged vertex normals that cancel and samples lit from the wrong side (dark dots)."""
+    if consistent_winding(mesh.faces):
+        return mesh
+    fixed = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+    trimesh.repair.fix_winding(fixed)
+    faces = np.asarray(fixed.faces, dtype=np.int64)
+    flipped = np.any(faces != mesh.faces, axis=1)
+    corner_normals = mesh.corner_normals
+    if corner_normals is not None and flipped.any():
+        corner_normals = corner_normals.copy()
+        corner_normals[flipped] = corner_normals[flipped][:, ::-1]
+    return replace(mesh, faces=faces, corner_normals=corner_normals)
 
 
 def _group_mean(values: np.ndarray, ids: np.ndarray, n: int) -> np.ndarray:
