@@ -11,8 +11,10 @@ surfsplat installed)::
   The points PLY is read with the harness's own reader; normals and colours as given; splat axes
   from surfsplat's preprocessing (k nearest neighbours), one-time setup like the peers' radius
   estimation. A frame is ``Renderer.render`` of the uploaded splats with read-back into NumPy (the
-  peers also draw from buffers they keep); ``--lod-tolerance auto|PX`` times ``api.render_model`` of
-  the hierarchy instead (cut, upload, draw, read-back; the build is setup).
+  peers also draw from buffers they keep), with the back faces culled where ``api.cull_automatically``
+  culls them by default (a closed cloud seen from outside); ``--lod-tolerance PX`` times
+  ``api.render_model`` of the hierarchy instead (cut, upload, draw, read-back; the build is setup),
+  ``--lod-tolerance auto`` that of the cloud (``render``'s default: merged per half pixel where dense).
 
 Driver (one run of the peers' bench with surfsplat's techniques added; the table is saved as
 results/peers.md)::
@@ -47,6 +49,7 @@ def runner(argv: list[str]) -> None:
     from surfsplat.cloud import SplatCloud
     from surfsplat.geometry.preprocess import preprocess
     from surfsplat.lighting import Lights
+    from surfsplat.render.options import RenderOptions, VisibilityOptions
     from surfsplat.render.renderer import Renderer
 
     parser = base_parser("surfsplat")
@@ -70,14 +73,17 @@ def runner(argv: list[str]) -> None:
     background = tuple(np.asarray(args.bg, float) / 255.0)
     if args.lod_tolerance is not None:
         tolerance = args.lod_tolerance if args.lod_tolerance == "auto" else float(args.lod_tolerance)
-        model = api.as_hierarchy(cloud)
+        model = cloud if tolerance == "auto" else api.as_hierarchy(cloud)   # auto: a cloud merged per view
         render_once = lambda: api.render_model(model, camera, technique=args.technique, lights=lights,  # noqa: E731
                                                background=background, lod_tolerance=tolerance).frame.color
     else:
+        # the default a user gets: back faces culled where the cloud is closed and seen from outside
+        cloud, cull = api.cull_automatically(cloud, camera, closed=False)
+        options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=cull))
         renderer = Renderer()
         gpu = renderer.upload(cloud)
         local = api.local_camera(cloud, camera)
-        render_once = lambda: renderer.render(gpu, local, args.technique, lights,  # noqa: E731
+        render_once = lambda: renderer.render(gpu, local, args.technique, lights, options,  # noqa: E731
                                               background=background).color
     timer.mark("setup_s")
     image, times = time_frames(render_once, args.repeat)

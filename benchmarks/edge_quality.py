@@ -18,7 +18,9 @@ pixels; ``psnr_inner``: inside the truth's silhouette eroded by 2 px; ``ssim``: 
 whose depths differ by more than ``EDGE_JUMP`` of the nearer depth, or covered next to uncovered);
 ``frame_s``: one frame drawn and read back, splats already uploaded, after a warm-up draw.
 
-Tables: (1) supersampling K per technique, with the 1-spp mesh as reference row; (2) fold edges of the
+Tables: (1) supersampling K per technique (``--variants``: with and without edge coverage,
+``VisibilityOptions.edge_coverage``; ``--with-cad`` adds the CAD part), with the 1-spp mesh as reference
+row; (2) fold edges of the
 procedural model from a low view (wave crests occluding the troughs behind them): visibility and
 shading variants of ``ewa``, edge PSNR at the fold edges (internal depth discontinuities of the sheet);
 (3) shading: per-splat lighting, deferred shading and the ``phong`` technique against the Phong-shaded mesh.
@@ -33,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shlex
 import sys
 import tempfile
 import time
@@ -221,7 +224,14 @@ def prepare(name: str, mesh: Mesh, camera: Camera, args) -> dict:
             "options": RenderOptions(visibility=VisibilityOptions(cull_backfaces=closed))}
 
 
-def supersampling(model: dict, renderer, ks, images: Path, docs: Path | None = None) -> list[dict]:
+#: The rows of table (1): label -> (technique, splat set, edge coverage: VisibilityOptions.edge_coverage).
+VARIANTS = {"ewa": ("ewa", "splats", False), "ewa + edge coverage": ("ewa", "splats", True),
+            "blend": ("blend", "splats", False), "blend + edge coverage": ("blend", "splats", True),
+            "phong": ("phong", "phong", False)}
+
+
+def supersampling(model: dict, renderer, ks, images: Path, docs: Path | None = None,
+                  variants=tuple(VARIANTS)) -> list[dict]:
     """Table (1): K per technique against the 4x4 mesh; with ``docs``, a strip of silhouette crops there."""
     camera = model["camera"]
     kept = {}
@@ -241,31 +251,77 @@ def supersampling(model: dict, renderer, ks, images: Path, docs: Path | None = N
     gpu_phong = renderer.upload(model["phong"])
     warm_up(renderer, gpu, ("ewa", "blend"))
     warm_up(renderer, gpu_phong, ("phong",))
-    for technique, splats, n in (("ewa", gpu, len(model["splats"])), ("blend", gpu, len(model["splats"])),
-                                 ("phong", gpu_phong, len(model["phong"]))):
+    for name in variants:
+        technique, which, coverage = VARIANTS[name]
+        splats, n = (gpu, len(model["splats"])) if which == "splats" else (gpu_phong, len(model["phong"]))
+        options = replace(model["options"], visibility=replace(model["options"].visibility, edge_coverage=coverage))
         for k in ks:
-            frame, seconds = timed(renderer, splats, camera, technique, model["options"], supersample=k)
-            rows.append(base | {"technique": technique, "splats": n, "K": k, "frame_s": seconds}
+            frame, seconds = timed(renderer, splats, camera, technique, options, supersample=k)
+            rows.append(base | {"technique": name, "splats": n, "K": k, "frame_s": seconds}
                         | scores(frame, truth, edges))
             print(rows[-1], flush=True)
             if k in (1, max(ks)):
-                Image.fromarray(frame.image()).save(images / f"{model['name']}_{technique}_K{k}.png")
+                Image.fromarray(frame.image()).save(images / f"{model['name']}_{name.replace(' ', '_')}_K{k}.png")
                 if technique == "ewa":
-                    kept[k] = frame
+                    kept[(k, coverage)] = frame
     if model["options"].visibility.cull_backfaces:   # what culling the closed surface's back side changes
         two_sided = RenderOptions(visibility=VisibilityOptions(cull_backfaces=False))
         kept["two-sided"], seconds = timed(renderer, gpu, camera, "ewa", two_sided, supersample=max(ks))
         rows.append(base | {"technique": "ewa two-sided (not culled)", "splats": len(model["splats"]),
                             "K": max(ks), "frame_s": seconds} | scores(kept["two-sided"], truth, edges))
         print(rows[-1], flush=True)
-    if docs is not None:   # the README's crops: the silhouette window where K = 1 errs most
-        window = worst_window(np.abs(kept[1].color - truth.color).max(axis=2), edges)
+    if docs is not None and (1, False) in kept:   # the README's crops: the window where plain ewa at K = 1 errs most
+        window = worst_window(np.abs(kept[(1, False)].color - truth.color).max(axis=2), edges)
         panels = [(crop(truth.color, window, 3), "mesh 4x4 (truth)"), (crop(mesh1.color, window, 3), "mesh 1 spp"),
-                  (crop(kept[1].color, window, 3), "ewa K=1"),
-                  (crop(kept[max(ks)].color, window, 3), f"ewa K={max(ks)}")]
+                  (crop(kept[(1, False)].color, window, 3), "ewa K=1")]
+        if (1, True) in kept:
+            panels.append((crop(kept[(1, True)].color, window, 3), "ewa K=1 edge cov."))
+        panels.append((crop(kept[(max(ks), False)].color, window, 3), f"ewa K={max(ks)}"))
+        if (max(ks), True) in kept:
+            panels.append((crop(kept[(max(ks), True)].color, window, 3), f"K={max(ks)} edge cov."))
         if "two-sided" in kept:
             panels.append((crop(kept["two-sided"].color, window, 3), f"K={max(ks)} two-sided"))
         save_strip(panels, docs / f"quality_{model['name'].split()[0]}_edges.png", columns=len(panels))
+    return rows
+
+
+def reconstruction_weights(name: str, k: int) -> np.ndarray:
+    """1-D weights of the 4 k sub-pixels around an output pixel (offsets in output pixels, centers of
+    sub-pixels): box (width 1), tent (width 2) or Mitchell-Netravali (B = C = 1/3, support 2), summing to 1."""
+    x = (np.arange(-2 * k, 2 * k) + 0.5) / k
+    a = np.abs(x)
+    if name == "box":
+        w = (a <= 0.5).astype(float)
+    elif name == "tent":
+        w = np.maximum(1.0 - a, 0.0)
+    else:
+        b = c = 1.0 / 3.0
+        w = np.where(a < 1, (12 - 9 * b - 6 * c) * a ** 3 + (-18 + 12 * b + 6 * c) * a ** 2 + (6 - 2 * b),
+                     np.where(a < 2, (-b - 6 * c) * a ** 3 + (6 * b + 30 * c) * a ** 2 + (-12 * b - 48 * c) * a
+                              + (8 * b + 24 * c), 0.0)) / 6
+    return w / w.sum()
+
+
+def reconstruction_filters(model: dict, renderer, k: int = 4) -> list[dict]:
+    """Table (1b): plain ``ewa`` drawn at k times the size, filtered down to the output pixels by a box,
+    a tent and a Mitchell-Netravali filter (separable, NumPy), against the 4 x 4 mesh."""
+    camera, truth, edges = model["camera"], model["truth"], model["edges"]
+    big = renderer.render(model["splats"], camera.resized(camera.width * k, camera.height * k), "ewa", LIGHTS,
+                          model["options"]).color
+    h, w = camera.height, camera.width
+    rows = []
+    for name in ("box", "tent", "mitchell"):
+        weights = reconstruction_weights(name, k)
+        pad = 2 * k
+        image = np.pad(big, ((pad, pad), (pad, pad), (0, 0)), mode="edge")
+        taps = np.arange(len(weights)) + k // 2 - 2 * k + pad   # sub-pixel offsets of output pixel 0's taps
+        vertical = sum(wj * image[np.arange(h) * k + t] for wj, t in zip(weights, taps))
+        color = np.clip(sum(wj * vertical[:, np.arange(w) * k + t] for wj, t in zip(weights, taps)), 0, 1)
+        rows.append({"model": model["name"], "filter": name, "K": k,
+                     "psnr_img": round(metrics.psnr(color, truth.color), 2),
+                     "psnr_inner": round(metrics.psnr(color, truth.color, metrics.erode(truth.mask, 2)), 2),
+                     "psnr_edge": round(metrics.psnr(color, truth.color, edges), 2)})
+        print(rows[-1], flush=True)
     return rows
 
 
@@ -376,6 +432,14 @@ def main() -> None:
     parser.add_argument("--ks", type=int, nargs="+", default=[1, 2, 3, 4])
     parser.add_argument("--images", type=Path, default=Path(tempfile.gettempdir()) / "edge_quality")
     parser.add_argument("--docs", type=Path, default=None, help="write the README's crops here (docs/images)")
+    parser.add_argument("--variants", nargs="+", choices=list(VARIANTS), default=list(VARIANTS),
+                        help="rows of the supersampling table")
+    parser.add_argument("--with-cad", action="store_true", help="table (1) also for the CAD part (featuretype.ply)")
+    parser.add_argument("--filters", action="store_true",
+                        help="also table (1b): box, tent and Mitchell reconstruction of plain ewa at K = 4")
+    parser.add_argument("--supersampling-only", action="store_true",
+                        help="table (1) and its targets only, written to results/edge_quality_supersampling.md "
+                             "(the fold and shading tables of results/edge_quality.md stay as they are)")
     args = parser.parse_args()
     args.images.mkdir(parents=True, exist_ok=True)
     renderer = default_renderer()
@@ -390,19 +454,29 @@ def main() -> None:
                              height=args.size), args)]
     ss_rows = []
     for model in models:
-        ss_rows += supersampling(model, renderer, args.ks, args.images, args.docs)
-    fold_rows, fold_info = folds(sheet, whole, args, renderer, args.images)
-    cad = load_mesh(DATA / "featuretype.ply")   # sharp creases: where deferred shading loses
-    cad_model = prepare("CAD part", cad, auto_camera(SplatCloud(cad.vertices), args.size, args.size), args)
-    cad_model["truth"] = render_mesh(cad, cad_model["camera"], LIGHTS, supersample=4, renderer=renderer)
-    cad_model["edges"] = edge_mask(cad_model["truth"])
-    shade_rows = []
-    for model in models + [cad_model]:
-        shade_rows += shading(model, renderer)
+        ss_rows += supersampling(model, renderer, args.ks, args.images, args.docs, args.variants)
+    if args.with_cad:   # sharp creases and flat faces: silhouettes along clip lines
+        cad = load_mesh(DATA / "featuretype.ply")
+        ss_rows += supersampling(prepare("CAD part", cad, auto_camera(SplatCloud(cad.vertices), args.size, args.size),
+                                         args), renderer, args.ks, args.images, args.docs, args.variants)
+    filter_rows = []
+    if args.filters:
+        for model in models:
+            filter_rows += reconstruction_filters(model, renderer)
+    fold_rows, fold_info, shade_rows = [], {}, []
+    if not args.supersampling_only:
+        fold_rows, fold_info = folds(sheet, whole, args, renderer, args.images)
+        cad = load_mesh(DATA / "featuretype.ply")   # sharp creases: where deferred shading loses
+        cad_model = prepare("CAD part", cad, auto_camera(SplatCloud(cad.vertices), args.size, args.size), args)
+        cad_model["truth"] = render_mesh(cad, cad_model["camera"], LIGHTS, supersample=4, renderer=renderer)
+        cad_model["edges"] = edge_mask(cad_model["truth"])
+        for model in models + [cad_model]:
+            shade_rows += shading(model, renderer)
+    name = "edge_quality_supersampling" if args.supersampling_only else "edge_quality"
 
     ss_cols = ["model", "technique", "splats", "K", "psnr", "psnr_img", "psnr_inner", "ssim", "psnr_edge",
                "frame_s"]
-    write_table("edge_quality", ss_cols, [[r[c] for c in ss_cols] for r in ss_rows], machine)
+    write_table(name, ss_cols, [[r[c] for c in ss_cols] for r in ss_rows], machine)
     # targets
     targets = []
     for model in models:
@@ -430,24 +504,30 @@ def main() -> None:
         "", "## Targets", ""]
     notes += markdown_table(["target", "model", "technique", "value", "met"],
                             [[t[c] for c in ("target", "model", "technique", "value", "met")] for t in targets])
-    notes += ["", f"## Fold edges (procedural sheet, low view over the waves; {fold_info['fold px']:,} fold-edge px: "
-              "internal depth discontinuities of the sheet, dilated 2 px; crop rows "
-              f"{fold_info['window rows']}, cols {fold_info['window cols']})", "",
-              "psnr_fold: PSNR on the fold-edge pixels; fold px off > 0.1: fold-edge pixels whose mean channel "
-              "error exceeds 0.1 (darker / lighter than the truth).", ""]
-    notes += markdown_table(fold_cols, [[r[c] for c in fold_cols] for r in fold_rows])
-    notes += ["", "## Shading: per-splat, deferred, phong against the Phong-shaded mesh (K = 1)", ""]
-    notes += markdown_table(shade_cols, [[r[c] for c in shade_cols] for r in shade_rows])
+    if filter_rows:
+        notes += ["", "## Reconstruction filters for K > 1 (plain ewa, K = 4, filtered down in NumPy)", ""]
+        notes += markdown_table(["model", "filter", "K", "psnr_img", "psnr_inner", "psnr_edge"],
+                                [[r[c] for c in ("model", "filter", "K", "psnr_img", "psnr_inner", "psnr_edge")]
+                                 for r in filter_rows])
+    if not args.supersampling_only:
+        notes += ["", f"## Fold edges (procedural sheet, low view over the waves; {fold_info['fold px']:,} "
+                  "fold-edge px: internal depth discontinuities of the sheet, dilated 2 px; crop rows "
+                  f"{fold_info['window rows']}, cols {fold_info['window cols']})", "",
+                  "psnr_fold: PSNR on the fold-edge pixels; fold px off > 0.1: fold-edge pixels whose mean channel "
+                  "error exceeds 0.1 (darker / lighter than the truth).", ""]
+        notes += markdown_table(fold_cols, [[r[c] for c in fold_cols] for r in fold_rows])
+        notes += ["", "## Shading: per-splat, deferred, phong against the Phong-shaded mesh (K = 1)", ""]
+        notes += markdown_table(shade_cols, [[r[c] for c in shade_cols] for r in shade_rows])
     notes += ["", f"Total run time: {time.perf_counter() - started:.0f} s. "
-              "Rerun: `python benchmarks/edge_quality.py` " + " ".join(sys.argv[1:])]
+              "Rerun: `python benchmarks/edge_quality.py " + shlex.join(sys.argv[1:]) + "`"]
     text = "\n".join(notes)
     print(text)
-    with open(RESULTS / "edge_quality.md", "a") as out:
+    with open(RESULTS / f"{name}.md", "a") as out:
         out.write(text + "\n")
-    data = json.loads((RESULTS / "edge_quality.json").read_text())
+    data = json.loads((RESULTS / f"{name}.json").read_text())
     data.update({"args": {k: str(v) for k, v in vars(args).items()}, "supersampling": ss_rows, "targets": targets,
-                 "folds": fold_rows, "fold_info": fold_info, "shading": shade_rows})
-    (RESULTS / "edge_quality.json").write_text(json.dumps(data, indent=1, default=str))
+                 "folds": fold_rows, "fold_info": fold_info, "shading": shade_rows, "filters": filter_rows})
+    (RESULTS / f"{name}.json").write_text(json.dumps(data, indent=1, default=str))
 
 
 if __name__ == "__main__":

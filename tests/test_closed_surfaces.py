@@ -7,7 +7,8 @@ from scipy import ndimage
 
 import surfsplat
 from surfsplat import CameraSpec, RenderOptions, VisibilityOptions
-from surfsplat.geometry.closed import consistent_winding, is_closed_surface, outward_splats
+from surfsplat.geometry.closed import (closed_orientation, consistent_winding, eye_outside, flipped_normals,
+                                       is_closed_surface, outward_splats)
 from surfsplat.geometry.sampling import surface_splats
 from surfsplat.io.mesh import Mesh
 from surfsplat.io.surface import weld
@@ -85,3 +86,49 @@ def test_open_surface_is_drawn_two_sided():
     frame = surfsplat.render(back_facing, CameraSpec(eye=(0, 0, 3), target=(0, 0, 0)), width=64, height=64,
                              source_options=surfsplat.SourceOptions(samples=4000))
     assert np.isfinite(frame.depth)[24:40, 24:40].all()
+
+
+def sphere_cloud(n: int = 20_000, hole_above: float | None = None):
+    cloud = outward_splats(surface_splats(sphere(subdivisions=4), n, seed=2))
+    if hole_above is not None:
+        cloud = cloud.subset(np.flatnonzero(cloud.positions[:, 2] < hole_above))
+    return cloud
+
+
+def test_closed_orientation_of_point_clouds():
+    cloud = sphere_cloud()
+    assert closed_orientation(cloud) == 1 and closed_orientation(flipped_normals(cloud)) == -1
+    assert closed_orientation(surfsplat.demo_scene("torus")) == 1
+    # not closed: a sheet, a sphere with a large opening (its inside is seen through it), normals
+    # of random sign, no normals
+    assert closed_orientation(surfsplat.scenes.checkerboard(n_side=150)) == 0
+    assert closed_orientation(sphere_cloud(hole_above=0.6)) == 0
+    signs = np.where(np.random.default_rng(1).random(len(cloud.positions)) < 0.5, -1.0, 1.0).astype(np.float32)
+    assert closed_orientation(cloud.replace(normals=cloud.normals * signs[:, None])) == 0
+    assert closed_orientation(surfsplat.SplatCloud(cloud.positions)) == 0
+    lo, hi = cloud.bounds()
+    assert eye_outside((lo, hi), hi + 0.1) and not eye_outside((lo, hi), 0.5 * (lo + hi))
+
+
+def test_closed_point_cloud_is_culled_automatically_only_from_outside():
+    """A closed cloud with inward normals is culled from outside (its normals turned: the visible side
+    kept, as two-sided drawing shows it) and drawn two-sided from inside; an open one never."""
+    inward = flipped_normals(sphere_cloud())
+    outside = CameraSpec(eye=(0.0, 0.5, 3.0), target=(0.0, 0.0, 0.0))
+    drawn, cull = surfsplat.api.cull_automatically(inward, surfsplat.api.resolve_camera(inward, outside, 96, 96),
+                                                   closed=False)
+    assert cull and closed_orientation(drawn) == 1
+    inside = surfsplat.api.resolve_camera(inward, CameraSpec(eye=(0.0, 0.0, 0.1), target=(0.0, 0.0, -1.0)), 96, 96)
+    assert not surfsplat.api.cull_automatically(inward, inside, closed=False)[1]
+    opened = sphere_cloud(hole_above=0.6)
+    assert not surfsplat.api.cull_automatically(opened, surfsplat.api.resolve_camera(opened, outside, 96, 96),
+                                                closed=False)[1]
+    kw = dict(width=96, height=96)
+    auto = surfsplat.render(inward, outside, **kw)
+    two_sided = surfsplat.render(inward, outside, options=RenderOptions(
+        visibility=VisibilityOptions(cull_backfaces=False)), **kw)
+    covered = np.isfinite(two_sided.depth)
+    assert np.isfinite(auto.depth)[covered].mean() > 0.995   # the front is kept
+    assert np.abs(auto.color - two_sided.color)[covered].mean() < 0.02
+    view_inside = surfsplat.render(inward, CameraSpec(eye=(0.0, 0.0, 0.1), target=(0.0, 0.0, -1.0)), **kw)
+    assert np.isfinite(view_inside.depth).mean() > 0.99   # from inside the wall is seen all around

@@ -335,7 +335,8 @@ def test_input_drives_the_view(xvfb_display, tmp_path):
         v._on_key(window, G.KEY_R, 0, G.PRESS, 0)
         v.step(wait=False)
         assert v.technique == v.techniques[(v.techniques.index("ewa") + 1) % len(v.techniques)]
-        assert not v.options.filter.prefilter and not v.lights.enabled and v.options.visibility.cull_backfaces
+        # B: the closed torus was culled automatically; the key turns culling off
+        assert not v.options.filter.prefilter and not v.lights.enabled and v.options.visibility.cull_backfaces is False
         assert v.hud.show_help and abs(v.lod_tolerance - 2 ** 0.5) < 1e-9
         assert v.controller.camera == v.controller.home(*v.size)
         v._on_key(window, G.KEY_2, 0, G.PRESS, 0)
@@ -616,9 +617,76 @@ def test_window_keeps_drawing_while_cells_stream(xvfb_display, chunked_model):
         # C: no attributes to colour by; said on the HUD, nothing fails
         v._on_key(window, glfw.KEY_C, 0, glfw.PRESS, 0)
         v.step(wait=False)
-        assert "keeps no point attributes" in v.status_text() and v.color_index == 0
+        assert "not in the viewer for a chunked hierarchy" in v.status_text() and v.color_index == 0
         v.release()
         glfw.terminate()
         print("ok", turns)
         """, xvfb_display)
     assert result.returncode == 0 and result.stdout.strip().splitlines()[-1].startswith("ok"), result.stderr
+
+
+def test_preview_levels_are_nested_coarse_to_fine_cuts_within_the_budget():
+    # the motion preview's ladder: each level a hole-free uniform cut, about 4x fewer splats per step
+    from surfsplat.hierarchy import build_hierarchy
+    from surfsplat.viewer.detail import PREVIEW_MIN, preview_levels
+    torus = surfsplat.scenes.torus(n_major=800, n_minor=320)
+    h = build_hierarchy(torus)
+    levels = preview_levels(h, 100_000)
+    counts = [len(level) for level in levels]
+    assert len(levels) >= 2 and counts == sorted(set(counts)), counts
+    assert counts[-1] <= 100_000 and counts[0] >= PREVIEW_MIN
+    for coarse, fine in zip(counts, counts[1:]):
+        assert coarse <= fine // 4   # a step at least 4x: octree levels
+    # every level covers the model: same bounds within the coarse splats' size
+    lo, hi = torus.bounds()
+    for level in levels:
+        llo, lhi = level.bounds()
+        assert np.all(np.abs(llo - lo) < 0.1 * np.linalg.norm(hi - lo))
+    assert preview_levels(h, len(torus) + 1)[-1] is None   # the whole model is the finest level
+    assert preview_levels(h, 0) == [None]
+
+
+def test_preview_level_follows_the_frame_time():
+    from surfsplat.viewer.detail import PREVIEW_HEADROOM, PREVIEW_SHARE, next_preview_level
+    counts = [5_000, 20_000, 80_000]
+    budget = PREVIEW_SHARE / 25.0
+    assert next_preview_level(2, counts, 2.0 * budget, 25.0) == 1      # too slow: coarser
+    assert next_preview_level(0, counts, 2.0 * budget, 25.0) == 0      # nothing coarser
+    assert next_preview_level(1, counts, 0.1 * budget, 25.0) == 2      # 4x the time still fits: finer
+    # the finer level's predicted time (proportional to splats) must stay under the headroom
+    just_over = PREVIEW_HEADROOM * budget / 4.0 * 1.01
+    assert next_preview_level(1, counts, just_over, 25.0) == 1
+    assert next_preview_level(2, counts, 0.1 * budget, 25.0) == 2      # nothing finer
+    assert next_preview_level(0, counts, 10.0, 0.0) == 2               # fps 0: always the finest
+    # no flip-flop: after stepping down because level 2 was too slow, the prediction from level 1
+    # (4x its time) is not under the headroom when level 2 really took over the budget
+    t2 = 1.2 * budget
+    t1 = t2 / 4.0 + 0.001   # fixed cost per frame
+    assert next_preview_level(2, counts, t2, 25.0) == 1 and next_preview_level(1, counts, t1, 25.0) == 1
+
+
+def test_viewer_culls_closed_surfaces_automatically(xvfb_display):
+    # as render does: a closed surface seen from outside is culled, a sheet never; B turns it off
+    result = run_python("""
+        from surfsplat import scenes
+        from surfsplat.lighting import Lights
+        from surfsplat.api import load_model
+        from surfsplat.render.options import RenderOptions
+        from surfsplat.viewer import app
+        from surfsplat.viewer import camera_control as cc
+        glfw, window, ctx = app.open_window(160, 120, "test")
+        kw = dict(technique="ewa", lights=Lights(), options=RenderOptions(), background=(1, 1, 1),
+                  lod_tolerance=1.0, motion=app.MotionOptions("off"), hud=False)
+        torus = app.Viewer(glfw, window, ctx, load_model("demo:torus"), None, **kw)
+        assert torus.options.visibility.cull_backfaces is None and torus.culling
+        assert torus.drawn_options().visibility.cull_backfaces is True
+        torus._actions.append(("cull",))
+        torus._process_input(0.0)
+        assert torus.options.visibility.cull_backfaces is False and not torus.culling
+        torus.release()
+        sheet = app.Viewer(glfw, window, ctx, scenes.checkerboard(n_side=100), None, **kw)
+        assert not sheet.culling
+        print("ok")
+        """, xvfb_display)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip().endswith("ok")

@@ -12,6 +12,7 @@ from __future__ import annotations
 import time
 import warnings
 from dataclasses import dataclass, replace
+from functools import cache
 from pathlib import Path
 from typing import Union
 
@@ -19,15 +20,17 @@ import numpy as np
 
 from . import progress
 from .camera import MIN_FOV, Camera, camera_flags, direction_vector, fit_points, rotate
+from .camera_path import orbit_cameras  # noqa: F401 (part of the API: surfsplat.api.orbit_cameras)
 from .cloud import SplatCloud
 from .colors import ELEVATION, ColorOptions, colorize
 from .errors import EmptyFrameWarning, InputError
-from .geometry.closed import is_closed_surface, outward_splats
+from .geometry.closed import closed_orientation, eye_outside, flipped_normals, is_closed_surface, outward_splats
 from .geometry.preprocess import NONPLANAR, preprocess
 from .geometry.robust import OUTLIER_ACTIONS, OutlierAction
 from .geometry.sampling import DEFAULT_SPACING_PX, samples_for_pixels, surface_splats
 from .hierarchy import Hierarchy, LodShading, Selection, build_hierarchy, load_hierarchy, select
 from .hierarchy.lod import check_point_budget, selection_flags
+from .hierarchy.sequential import sequential_layout
 from .hierarchy.chunked import ChunkedHierarchy, chunked_up, is_chunked_hierarchy, open_chunked
 from .io import Mesh, load, load_input, load_mesh
 from .io.image_maps import normals_from_depth
@@ -36,10 +39,11 @@ from .io.surface import AUTO
 from .lighting import Lights
 from .render.frame import Frame
 from .render.hybrid import facing_points
-from .render.lod_auto import AUTO, auto_lod_tolerance
+from .render.lod_auto import AUTO, auto_lod_tolerance, auto_merged
 from .render.mesh import render_mesh as rasterize_mesh
 from .render.options import RenderOptions, TechniqueName
 from .render.renderer import default_renderer
+from .render.sequential import LOD_MODES, LodMode, render_sequential
 from .scenes import SCENES, demo_scene
 
 #: What can be rendered: splats as they are, a point-octree cut per view, or a surface (a mesh,
@@ -199,20 +203,18 @@ def colored(model: Model, source_options: SourceOptions | None, up=(0.0, 1.0, 0.
     node); a Hierarchy (object or ``.npz``) coloured the same from its points' attributes, its
     nodes by their majority class or mean colour (:meth:`Hierarchy.colorized`); a mesh is
     coloured when its surface is sampled; without ``color`` the model as it is. A chunked
-    hierarchy is an InputError."""
+    hierarchy colours each view's splats from the attributes its cells keep
+    (:meth:`ChunkedHierarchy.colorized`)."""
     color = source_options.color if source_options is not None else None
     if color is None or isinstance(model, Mesh):
         return model
-    if isinstance(model, ChunkedHierarchy):
-        raise InputError("--color-by needs the points: chunked hierarchies keep no attributes; render the "
-                         "point file or a one-file hierarchy (`surfsplat build` without --chunked) instead")
     value_range = color.value_range
     origin = model_points(model).origin
     if value_range is not None and color.by.lower() == ELEVATION and origin.any():
         # colorize reads the local positions: a range in world elevations moves by the origin's
         shift = float(origin @ np.asarray(up, dtype=np.float64)) / float(np.linalg.norm(up))
         value_range = (value_range[0] - shift, value_range[1] - shift)
-    if isinstance(model, Hierarchy):
+    if isinstance(model, (Hierarchy, ChunkedHierarchy)):
         return model.colorized(color.by, color.colormap, value_range, up=up)
     return colorize(model, color.by, color.colormap, value_range, up=up)
 
@@ -489,21 +491,32 @@ class RenderResult:
         frame: the image, depth and weight.
         splats: number of splats drawn.
         selection: the LOD selection (a hierarchy's cut), or None for a plain cloud.
-        seconds: wall-clock time of selection, upload, drawing and read-back.
+        seconds: wall-clock time of merging or selection, upload, drawing and read-back.
+        merged_from: the cloud's splats when ``lod_tolerance="auto"`` merged them per half pixel
+            (:func:`~surfsplat.render.lod_auto.merge_in_pixels`), else None.
+        gpu_lod_tolerance: the tolerance (pixels) of a cut made on the GPU (``lod_mode="gpu"``;
+            ``splats``: the entries handed to it, each kept or dropped by its vertex shader), else None.
     """
 
     frame: Frame
     splats: int
     selection: Selection | None = None
     seconds: float = 0.0
+    merged_from: int | None = None
+    gpu_lod_tolerance: float | None = None
 
     def describe(self) -> str:
         """One line: what was drawn ('1,234 splats' or the LOD cut's counts)."""
         s = self.selection
+        if self.gpu_lod_tolerance is not None:
+            return f"the GPU LOD cut (tolerance {self.gpu_lod_tolerance:g} px) of {self.splats:,} entries"
+        if s is None and self.merged_from is not None:
+            return f"{self.splats:,} splats (merged per half pixel from {self.merged_from:,})"
         if s is None:
             return f"{self.splats:,} splats"
+        budget = getattr(s, "budget_priority", None)   # a chunked model's budget: where its priority order stopped
         return (f"{self.splats:,} LOD splats (tolerance {s.lod_tolerance:g} px, {s.node_count:,} nodes, "
-                f"{s.point_total:,} points)")
+                f"{s.point_total:,} points{'' if budget is None else f'; budget reached {budget:.3g} px'})")
 
     def normals(self, space: str = "camera") -> np.ndarray:
         """(H, W, 3) float32 unit normals of the visible surface, computed from the depth map (NaN where
@@ -553,11 +566,39 @@ def check_coverage(frame: Frame, model: Model, what: str = "the model") -> None:
                       f"its bounds cover in the image: {where}", EmptyFrameWarning, stacklevel=3)
 
 
+def cull_automatically(drawn, camera: Camera, closed: bool):
+    """``(drawn, cull)``: whether back-face culling is safe for the splats ``drawn`` of a model seen
+    by ``camera`` (``VisibilityOptions.cull_backfaces=None``), with the splats to draw. It is where
+    they sample closed surfaces with outward normals and the eye is outside their bounds: a closed
+    mesh (``closed``), or a cloud or hierarchy (a chunked one by its preview splats) that
+    :func:`~surfsplat.geometry.closed.closed_orientation` finds closed (a cloud with inward normals has
+    them turned; a hierarchy's are kept, so only an outward one is culled). There the back side's splats, never visible, are not drawn: a frame
+    is faster and silhouettes lose the dark rim of mirrored back splats."""
+    if isinstance(drawn, (Hierarchy, ChunkedHierarchy)):   # a chunked one is judged by its preview splats
+        outward = closed or closed_orientation(drawn.points) > 0
+    elif closed:
+        outward = True
+    else:
+        orientation = closed_orientation(drawn)
+        drawn = flipped_normals(drawn) if orientation < 0 else drawn
+        outward = orientation != 0
+    cull = outward and eye_outside(drawn.bounds(), camera.eye)
+    if cull and not closed:
+        _tell_once("a closed surface seen from outside: back faces culled (--no-cull-backfaces draws them)")
+    return drawn, cull
+
+
+@cache
+def _tell_once(text: str) -> None:
+    """A progress message printed once per process (not for every frame of a turntable)."""
+    progress.message(text)
+
+
 def render_model(model: Model, camera: Camera, *, technique: TechniqueName = "ewa", lights: Lights | None = None,
                  background=DEFAULT_BACKGROUND, options: RenderOptions | None = None,
                  lod_tolerance: float | str | None = None, lod_shading: LodShading = DEFAULT_LOD_SHADING,
                  supersample: int = 1, source_options: SourceOptions | None = None,
-                 point_budget: int | None = None, hybrid: bool = False) -> RenderResult:
+                 point_budget: int | None = None, hybrid: bool = False, lod_mode: LodMode = "cpu") -> RenderResult:
     """Draw a loaded model (:func:`load_model`) with a resolved camera.
 
     A mesh's surface is sampled for this camera (:func:`surface_model`); a SplatCloud given
@@ -567,19 +608,35 @@ def render_model(model: Model, camera: Camera, *, technique: TechniqueName = "ew
     """
     options = options or RenderOptions()
     background = check_background(background)
+    if lod_mode not in LOD_MODES:
+        raise InputError(f"lod_mode must be one of {', '.join(LOD_MODES)}, got {lod_mode!r}")
     if point_budget is not None:
         point_budget = check_point_budget(point_budget)
     closed = isinstance(model, Mesh) and is_closed_surface(model)
-    if options.visibility.cull_backfaces is None:   # automatic: a closed mesh's back side is never seen
-        options = replace(options, visibility=replace(options.visibility, cull_backfaces=closed))
     drawn = surface_model(model, camera, source_options, closed=closed)
+    if options.visibility.cull_backfaces is None:   # automatic: the back of a closed surface is never seen
+        drawn, cull = cull_automatically(drawn, camera, closed)
+        options = replace(options, visibility=replace(options.visibility, cull_backfaces=cull))
+    merged_from, merge_s = None, 0.0
+    tree = isinstance(drawn, (Hierarchy, ChunkedHierarchy))
     if lod_tolerance == AUTO:   # from the output resolution (render/lod_auto.py)
-        tree = isinstance(drawn, (Hierarchy, ChunkedHierarchy))
-        lod_tolerance = auto_lod_tolerance(None if tree else drawn.positions,
-                                           None if tree else local_camera(drawn, camera), supersample, hierarchy=tree)
+        if tree or point_budget is not None or lod_mode == "gpu":
+            lod_tolerance = auto_lod_tolerance(supersample)   # cut a hierarchy at one drawn pixel
+        else:   # a cloud: its points merged per half pixel where the view is dense, no hierarchy built
+            lod_tolerance = None
+            if not hybrid:   # hybrid points are picked from the cloud's own rows
+                merge_s = time.perf_counter()
+                merged = auto_merged(drawn, local_camera(drawn, camera), supersample)
+                merged_from, drawn = (len(drawn) if merged is not drawn else None), merged
+                merge_s = time.perf_counter() - merge_s
+    elif lod_tolerance == 0 and not tree and point_budget is None and lod_mode == "cpu":
+        lod_tolerance = None   # every splat of a cloud: no hierarchy to build for a cut at 0
     if lod_tolerance is not None or point_budget is not None:
         drawn = as_hierarchy(drawn)
-    start = time.perf_counter()
+    if lod_mode == "gpu" and isinstance(drawn, (Hierarchy, ChunkedHierarchy)):
+        return _render_gpu_lod(model, drawn, camera, technique, lights, background, options, lod_tolerance,
+                               lod_shading, supersample, point_budget, hybrid)
+    start = time.perf_counter() - merge_s
     cloud, selection = view_splats(drawn, camera, lod_tolerance, cull_backfaces=options.visibility.cull_backfaces,
                                    lod_shading=lod_shading, point_budget=point_budget)
     if len(cloud) == 0:
@@ -589,7 +646,24 @@ def render_model(model: Model, camera: Camera, *, technique: TechniqueName = "ew
             cloud = hybrid_splats(model, drawn, cloud, selection, local_camera(cloud, camera))
         frame = default_renderer().render(cloud, camera, technique, lights or Lights(), options, background,
                                           supersample=supersample)   # world camera: the renderer handles the origin
-    result = RenderResult(frame, len(cloud), selection, time.perf_counter() - start)
+    result = RenderResult(frame, len(cloud), selection, time.perf_counter() - start, merged_from)
+    check_coverage(frame, model)
+    return result
+
+
+def _render_gpu_lod(model: Model, hierarchy, camera: Camera, technique, lights, background, options: RenderOptions,
+                    lod_tolerance, lod_shading: LodShading, supersample: int, point_budget, hybrid) -> RenderResult:
+    """:func:`render_model` with ``lod_mode="gpu"``: the hierarchy's sequential layout (uploaded once per
+    hierarchy, :mod:`surfsplat.render.sequential`), the cut chosen per entry by the vertex shader."""
+    if isinstance(hierarchy, ChunkedHierarchy) or point_budget is not None or hybrid:
+        raise InputError("lod_mode 'gpu' draws the tolerance cut of a hierarchy in memory; a point budget, hybrid "
+                         "points and chunked hierarchies need lod_mode 'cpu'")
+    start = time.perf_counter()
+    layout = sequential_layout(hierarchy, lod_shading)
+    tolerance = DEFAULT_LOD_TOLERANCE if lod_tolerance is None else lod_tolerance
+    frame, given = render_sequential(default_renderer(), layout.splats, layout.lod, camera, technique,
+                                     lights or Lights(), options, background, tolerance, supersample)
+    result = RenderResult(frame, given, None, time.perf_counter() - start, gpu_lod_tolerance=float(tolerance))
     check_coverage(frame, model)
     return result
 
@@ -600,7 +674,7 @@ def render(source, camera: Camera | CameraSpec | None = None, *, technique: Tech
            lod_tolerance: float | str | None = None,
            lod_shading: LodShading = DEFAULT_LOD_SHADING, supersample: int = 1,
            source_options: SourceOptions | None = None, point_budget: int | None = None,
-           hybrid: bool | None = None) -> Frame:
+           hybrid: bool | None = None, lod_mode: LodMode = "cpu") -> Frame:
     """Render a SplatCloud, a hierarchy, a file or a built-in scene to a :class:`Frame`.
 
     Args:
@@ -619,11 +693,12 @@ def render(source, camera: Camera | CameraSpec | None = None, *, technique: Tech
         background: RGB in [0, 1].
         options: :class:`~surfsplat.render.options.RenderOptions`: EWA filter, visibility,
             blend kernel, deferred shading (None: the defaults).
-        lod_tolerance: LOD screen tolerance in pixels (see :func:`lod_splats`).
-            Hierarchies default to :data:`DEFAULT_LOD_TOLERANCE`; a cloud given a
-            tolerance is turned into a hierarchy first (``surfsplat build`` saves one).
-            ``"auto"``: one pixel of the drawn grid, for a cloud only where its view holds many
-            points per pixel (:mod:`surfsplat.render.lod_auto`).
+        lod_tolerance: LOD screen tolerance in pixels (see :func:`lod_splats`); a cloud
+            given a tolerance > 0 is turned into a hierarchy first (``surfsplat build`` saves one).
+            None (default): every splat of a cloud, a hierarchy cut at :data:`DEFAULT_LOD_TOLERANCE`.
+            ``"auto"``: a hierarchy cut at one pixel of the drawn grid; a cloud's points merged per
+            half pixel for the view where it holds at least 8 points per pixel, without a hierarchy
+            (:mod:`surfsplat.render.lod_auto`; else every splat).
         lod_shading: normal field of coarse LOD splats: "fit", "cone" or "flat".
         supersample: K in 1..8: draw K x K sub-pixels per pixel and average them (antialiased
             edges and an antialiased ``Frame.alpha``; any size is drawn in tiles). The LOD cut
@@ -638,6 +713,11 @@ def render(source, camera: Camera | CameraSpec | None = None, *, technique: Tech
         hybrid: draw non-planar neighbourhoods (vegetation, wires) as round points facing the
             eye and planar ones as surface splats, in one frame (:func:`hybrid_splats`); None:
             on for LAS/LAZ files (:func:`is_lidar`), off otherwise.
+        lod_mode: where a hierarchy's LOD cut is chosen: "cpu" (:func:`lod_splats`: the cut is
+            gathered and uploaded per view) or "gpu" (sequential point trees, Dachsbacher 2003: every
+            node and point uploaded once per hierarchy, each kept or dropped by the vertex shader;
+            :mod:`surfsplat.render.sequential`). "gpu" draws the tolerance cut of an in-memory
+            hierarchy only: no point budget, no hybrid points, no chunked hierarchy.
     """
     background = check_background(background)
     model = load_model(source, source_options)
@@ -645,7 +725,8 @@ def render(source, camera: Camera | CameraSpec | None = None, *, technique: Tech
     hybrid = is_lidar(source) if hybrid is None else bool(hybrid)
     return render_model(model, camera, technique=technique, lights=lights, background=background, options=options,
                         lod_tolerance=lod_tolerance, lod_shading=lod_shading, supersample=supersample,
-                        source_options=source_options, point_budget=point_budget, hybrid=hybrid).frame
+                        source_options=source_options, point_budget=point_budget, hybrid=hybrid,
+                        lod_mode=lod_mode).frame
 
 
 def render_mesh(source, camera: Camera | CameraSpec | None = None, *, width: int = DEFAULT_WIDTH,
@@ -671,57 +752,25 @@ def render_mesh(source, camera: Camera | CameraSpec | None = None, *, width: int
 
 # -- animations ------------------------------------------------------------------------------
 
-def orbit_cameras(camera: Camera, frames: int, degrees: float = 360.0, elevation: float | None = None) -> list[Camera]:
-    """``frames`` cameras turning the eye about the line through the target along ``camera.up``,
-    ``degrees / frames`` apart (360: a loop whose last frame leads back to the first). With
-    ``elevation`` (degrees above the plane normal to up) the eye is first moved to that height at
-    the same distance. Image size, field of view and clip planes are kept (near/far widened to
-    hold the whole orbit)."""
-    if not (isinstance(frames, (int, np.integer)) and frames >= 1):
-        raise InputError(f"frames must be an integer >= 1, got {frames!r}")
-    if not np.isfinite(degrees):
-        raise InputError(f"degrees must be finite, got {degrees}")
-    up = np.asarray(camera.up, dtype=np.float64)
-    up /= np.linalg.norm(up)
-    target = np.asarray(camera.target, dtype=np.float64)
-    offset = np.asarray(camera.eye, dtype=np.float64) - target
-    if elevation is not None:
-        if not -89.0 <= elevation <= 89.0:
-            raise InputError(f"elevation must be within -89..89 degrees, got {elevation}")
-        flat = offset - (offset @ up) * up
-        if np.linalg.norm(flat) < 1e-12 * np.linalg.norm(offset):
-            flat = np.cross(up, [1.0, 0.0, 0.0] if abs(up[0]) < 0.9 else [0.0, 1.0, 0.0])
-        flat /= np.linalg.norm(flat)
-        angle = np.radians(elevation)
-        offset = np.linalg.norm(offset) * (np.cos(angle) * flat + np.sin(angle) * up)
-    cameras = []
-    for i in range(int(frames)):
-        turned = rotate(offset, up, degrees * i / frames)
-        cameras.append(replace(camera, eye=tuple(target + turned)))
-    if camera.near is not None and camera.far is not None:
-        near, far = camera.near, camera.far
-        cameras = [replace(c, near=near, far=far) for c in cameras]
-    return cameras
-
-
 def turntable_frames(model: Model, cameras: list[Camera], *, technique: TechniqueName = "ewa",
                      lights: Lights | None = None, background=DEFAULT_BACKGROUND,
                      options: RenderOptions | None = None, lod_tolerance: float | None = None,
                      lod_shading: LodShading = DEFAULT_LOD_SHADING, supersample: int = 1,
                      source_options: SourceOptions | None = None, point_budget: int | None = None,
-                     hybrid: bool = False):
+                     hybrid: bool = False, lod_mode: LodMode = "cpu"):
     """Yield the (H, W, 3) uint8 image of each camera (a mesh is sampled once, for the first camera;
-    a hierarchy is cut per frame, within ``point_budget`` splats if given; ``hybrid`` as in
-    :func:`render_model`). Progress per frame (:func:`surfsplat.progress.stage`)."""
+    a hierarchy is cut per frame, within ``point_budget`` splats if given, on the CPU or the GPU
+    (``lod_mode``); ``hybrid`` as in :func:`render_model`). Progress per frame (:func:`surfsplat.progress.stage`)."""
     if not cameras:
         return
     model = surface_model(model, cameras[0], source_options)
-    if lod_tolerance is not None or point_budget is not None:
-        model = as_hierarchy(model)
+    if (lod_tolerance is not None and lod_tolerance != AUTO) or point_budget is not None:
+        model = as_hierarchy(model)   # built once; "auto" merges a cloud's points per frame instead
     with progress.stage(f"rendering {len(cameras)} frames", unit="frames", total=len(cameras)) as frames:
         for camera in cameras:
             result = render_model(model, camera, technique=technique, lights=lights, background=background,
                                   options=options, lod_tolerance=lod_tolerance, lod_shading=lod_shading,
-                                  supersample=supersample, point_budget=point_budget, hybrid=hybrid)
+                                  supersample=supersample, point_budget=point_budget, hybrid=hybrid,
+                                  lod_mode=lod_mode)
             frames.update()
             yield result.frame.image()

@@ -7,6 +7,8 @@ end tangents come from mirrored phantom keys (``P[-1] = 2 P[0] - P[1]``), so two
 straight line at constant speed; a closed path wraps around. The vertical field of view is
 interpolated the same way; the up vector is made orthogonal to the view direction per frame.
 Optionally the frames are spaced at equal arc length of the eye's path (constant speed).
+
+:func:`orbit_cameras` gives the circular path of a turntable.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .camera import MIN_FOV, Camera
+from .camera import MIN_FOV, Camera, rotate
 from .errors import InputError
 
 #: Samples per key interval used to measure the eye path's arc length (constant speed).
@@ -120,3 +122,36 @@ def interpolate_cameras(keys: list[Camera], frames: int, *, closed: bool = False
     first = replace(keys[0], near=near, far=far).resized(width or keys[0].width, height or keys[0].height)
     return [replace(first, eye=tuple(e), target=tuple(g), up=tuple(u / n), fov=float(f))
             for e, g, u, n, f in zip(eye, target, up, size, fov)]
+
+
+def orbit_cameras(camera: Camera, frames: int, degrees: float = 360.0, elevation: float | None = None) -> list[Camera]:
+    """``frames`` cameras turning the eye about the line through the target along ``camera.up``,
+    ``degrees / frames`` apart (360: a loop whose last frame leads back to the first). With
+    ``elevation`` (degrees above the plane normal to up) the eye is first moved to that height at
+    the same distance. Image size, field of view and clip planes are kept (near/far widened to
+    hold the whole orbit)."""
+    if not (isinstance(frames, (int, np.integer)) and frames >= 1):
+        raise InputError(f"frames must be an integer >= 1, got {frames!r}")
+    if not np.isfinite(degrees):
+        raise InputError(f"degrees must be finite, got {degrees}")
+    up = np.asarray(camera.up, dtype=np.float64)
+    up /= np.linalg.norm(up)
+    target = np.asarray(camera.target, dtype=np.float64)
+    offset = np.asarray(camera.eye, dtype=np.float64) - target
+    if elevation is not None:
+        if not -89.0 <= elevation <= 89.0:
+            raise InputError(f"elevation must be within -89..89 degrees, got {elevation}")
+        flat = offset - (offset @ up) * up
+        if np.linalg.norm(flat) < 1e-12 * np.linalg.norm(offset):
+            flat = np.cross(up, [1.0, 0.0, 0.0] if abs(up[0]) < 0.9 else [0.0, 1.0, 0.0])
+        flat /= np.linalg.norm(flat)
+        angle = np.radians(elevation)
+        offset = np.linalg.norm(offset) * (np.cos(angle) * flat + np.sin(angle) * up)
+    cameras = []
+    for i in range(int(frames)):
+        turned = rotate(offset, up, degrees * i / frames)
+        cameras.append(replace(camera, eye=tuple(target + turned)))
+    if camera.near is not None and camera.far is not None:
+        near, far = camera.near, camera.far
+        cameras = [replace(c, near=near, far=far) for c in cameras]
+    return cameras

@@ -87,7 +87,7 @@ class Orbit:
 
     def __init__(self, source, camera=None, *, technique: TechniqueName = "ewa", width: int = 384,
                  height: int = 288, lights: Lights | None = None, background=DEFAULT_BACKGROUND,
-                 options: RenderOptions | None = None, lod_tolerance: float | None = None,
+                 options: RenderOptions | None = None, lod_tolerance: float | str | None = None,
                  source_options: SourceOptions | None = None, continuous_update: bool = False) -> None:
         try:
             import ipywidgets as widgets

@@ -76,6 +76,9 @@ def cmd_info(args) -> None:
     print(f"bounds:     min {' '.join(f'{x:.10g}' for x in m['bounds']['min'])}  "
           f"max {' '.join(f'{x:.10g}' for x in m['bounds']['max'])}")
     print(f"cell files: {size / 2**20:,.1f} MiB ({size / max(int(m['points']), 1):.0f} B a splat)")
+    attributes = m.get("attributes", [])
+    print("attributes: " + (", ".join(f"{a['name']} ({a['dtype']})" for a in attributes) or "none")
+          + (" (--color-by NAME)" if attributes else ""))
     seconds = build.get("seconds", {})
     if seconds:
         print(f"build:      {seconds.get('total', 0):.1f} s with {build.get('scheduler')}, k {build.get('k')}, "

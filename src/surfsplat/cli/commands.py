@@ -102,7 +102,7 @@ def draw_and_save(model, camera, args, outputs, source_options) -> None:
                               background=args.background, options=opt.render_options(args),
                               lod_tolerance=args.lod_tolerance, lod_shading=args.lod_shading,
                               supersample=args.supersample, source_options=source_options,
-                              point_budget=args.point_budget, hybrid=opt.hybrid_for(args))
+                              point_budget=args.point_budget, hybrid=opt.hybrid_for(args), lod_mode=args.lod_mode)
     result.frame.save(out, overwrite=args.force, transparent=args.transparent, bit_depth=args.bit_depth)
     progress.message(f"rendered {result.describe()} with {args.technique} at {camera.width}x{camera.height} "
                      f"in {result.seconds:.2f} s -> {out}")
@@ -220,7 +220,7 @@ def cmd_turntable(args) -> None:
                                   background=args.background, options=options, lod_tolerance=args.lod_tolerance,
                                   lod_shading=args.lod_shading, supersample=args.supersample,
                                   source_options=opt.source_options(args), point_budget=args.point_budget,
-                                  hybrid=opt.hybrid_for(args))
+                                  hybrid=opt.hybrid_for(args), lod_mode=args.lod_mode)
     write_video(frames, out, fps=args.frames / seconds, overwrite=args.force)
     progress.message(f"wrote {args.frames} frames at {width}x{height} -> {out}")
 

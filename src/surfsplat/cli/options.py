@@ -24,6 +24,7 @@ from ..geometry.robust import OUTLIER_ACTIONS
 from ..io.surface import AUTO
 from ..lighting import MAX_LIGHTS, Lights
 from ..render.frame import BIT_DEPTHS
+from ..render.sequential import LOD_MODES
 from ..render.tiles import MAX_SUPERSAMPLE
 from ..render.options import KERNELS, EdlOptions, FilterOptions, KernelOptions, RenderOptions, VisibilityOptions
 from ..render.techniques import TECHNIQUES
@@ -161,17 +162,21 @@ def add_force_option(p: argparse.ArgumentParser) -> None:
 
 
 def add_lod_options(p: argparse.ArgumentParser) -> None:
-    """``--lod-tolerance`` and ``--lod-shading``."""
+    """``--lod-tolerance``, ``--lod-shading`` and ``--lod-mode``."""
     pixels = number(float, low=0.0, what="pixels or auto")
     p.add_argument("--lod-tolerance", type=lambda text: LOD_AUTO if text == LOD_AUTO else pixels(text), metavar="PX",
                    help=f"level of detail: draw hierarchy nodes whose projected size is at most PX pixels as "
-                        f"one splat (default {DEFAULT_LOD_TOLERANCE:g} for a hierarchy MODEL.npz; a point file given "
-                        f"PX gets its hierarchy built first; 0: every original splat; auto: one pixel of the "
-                        f"drawn image, for a point file only where the view holds {AUTO_MIN_DENSITY:g} or more points per "
-                        f"pixel)")
+                        f"one splat (default {DEFAULT_LOD_TOLERANCE:g} for a hierarchy MODEL.npz, every splat of a "
+                        f"point file; a point file given PX > 0 gets its hierarchy built first); auto: a hierarchy "
+                        f"cut at one pixel of the drawn image, a point file's points merged per half pixel where "
+                        f"the view holds {AUTO_MIN_DENSITY:g} or more per pixel (no hierarchy built)")
     p.add_argument("--lod-shading", choices=SHADINGS, default=DEFAULT_LOD_SHADING,
                    help="normal field of coarse LOD splats: fit (least squares, default), cone (the normal "
                         "cone, Pajarola 2003 fig. 14) or flat")
+    p.add_argument("--lod-mode", choices=LOD_MODES, default="cpu",
+                   help="where a hierarchy's LOD cut is chosen: cpu (selected, gathered and uploaded per view; "
+                        "default) or gpu (sequential point trees: every node and point uploaded once, the vertex "
+                        "shader keeps the cut; tolerance cut only, no --point-budget or hybrid points)")
     add_point_budget_option(p)
 
 
@@ -236,6 +241,10 @@ def add_render_options(p: argparse.ArgumentParser, *, window: bool = False) -> N
                    help="ewa/perspective: draw the papers' full prefiltered footprints, also beyond the surface over the "
                         "background and farther surfaces (default: they end at the surface: thinner, sharper "
                         "silhouettes and fold crests)")
+    p.add_argument("--edge-coverage", action="store_true",
+                   help="antialias silhouettes over the background without supersampling: a rim pixel's alpha is "
+                        "the area of it the splats' disks cover (ewa/perspective both sides of the rim, blend/phong "
+                        "its inner side; best with splats of a pixel or more)")
     p.add_argument("--deferred", action="store_true",
                    help="deferred shading: blend albedo and normals, light each pixel once (any technique; "
                         "better on smooth surfaces, worse at creases)")
@@ -271,7 +280,8 @@ def render_options(args) -> RenderOptions:
     return RenderOptions(
         filter=FilterOptions(prefilter=not args.no_prefilter, cutoff=args.cutoff),
         visibility=VisibilityOptions(depth_epsilon=args.depth_epsilon, cull_backfaces=args.cull_backfaces,
-                                     separate_sides=not args.no_separate_sides, clip_fringe=not args.no_clip_fringe),
+                                     separate_sides=not args.no_separate_sides, clip_fringe=not args.no_clip_fringe,
+                                     edge_coverage=args.edge_coverage),
         kernel=KernelOptions(name=args.kernel, a=args.kernel_a, b=args.kernel_b, n=args.kernel_n,
                              sigma=args.kernel_sigma),
         deferred=args.deferred,

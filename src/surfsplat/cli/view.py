@@ -6,7 +6,9 @@ import argparse
 
 from ..api import DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE
 from ..hierarchy import SHADINGS
+from ..render.sequential import LOD_MODES
 from ..viewer import MOTION_MODES, MotionOptions, view
+from ..viewer.detail import DEFAULT_VIEWER_LOD_MODE
 from . import options as opt
 
 VIEW_EPILOG = """\
@@ -41,6 +43,10 @@ def add_view_command(subparsers) -> argparse.ArgumentParser:
                         "point-octree is cut where nodes project to at most PX pixels")
     p.add_argument("--lod-shading", choices=SHADINGS, default=DEFAULT_LOD_SHADING,
                    help="normal field of coarse LOD splats (default %(default)s)")
+    p.add_argument("--lod-mode", choices=LOD_MODES, default=DEFAULT_VIEWER_LOD_MODE,
+                   help="where an in-memory hierarchy's cut is chosen: gpu (sequential point trees, uploaded once; "
+                        "default) or cpu (selected, gathered and uploaded per view; point budgets and hybrid "
+                        "points are always cut on the CPU)")
     opt.add_point_budget_option(p)
     p.add_argument("--record", metavar="OUT.mp4|OUT.gif",
                    help="record the frames the window shows (24 frames/s; .gif, or .mp4/.webm with the video extra)")
@@ -53,6 +59,9 @@ def add_view_command(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--motion-scale", type=opt.number(float, low=0.0, high=1.0, low_open=True), default=motion.scale,
                    metavar="S", help=f"internal resolution while moving, fraction of the window's "
                                      f"(default {motion.scale:g}, upscaled bilinearly)")
+    p.add_argument("--motion-fps", type=opt.number(float, low=0.0, high=1000.0), default=motion.fps, metavar="F",
+                   help=f"frames per second kept while moving: the preview steps to coarser or finer "
+                        f"levels (of at most --motion-budget splats) to keep it (default {motion.fps:g}; 0: off)")
     p.add_argument("--no-hud", action="store_true", help="hide the heads-up display")
     p.add_argument("--frames", type=opt.number(int, low=1), metavar="N",
                    help="scripted mode: render N frames, then exit (with --orbit, --screenshot)")
@@ -71,7 +80,8 @@ def cmd_view(args) -> None:
          size=(args.width or width, args.height or height), lights=opt.lights(args),
          background=tuple(args.background), options=opt.render_options(args), lod_tolerance=args.lod_tolerance,
          lod_shading=args.lod_shading,
-         motion=MotionOptions(mode=args.motion, budget=args.motion_budget, scale=args.motion_scale),
+         motion=MotionOptions(mode=args.motion, budget=args.motion_budget, scale=args.motion_scale,
+                              fps=args.motion_fps),
          hud=not args.no_hud, frames=args.frames, orbit=args.orbit, screenshot=args.screenshot,
          source_options=opt.source_options(args), point_budget=args.point_budget, hybrid=opt.hybrid_for(args),
-         record=args.record)
+         record=args.record, lod_mode=args.lod_mode)

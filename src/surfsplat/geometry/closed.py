@@ -53,7 +53,79 @@ def outward_splats(splats: SplatCloud) -> SplatCloud:
     the Stanford bunny), with the slopes of a linear normal field."""
     p = splats.positions.astype(np.float64)
     flux = np.einsum("nd,nd->n", p - p.mean(axis=0), splats.normals.astype(np.float64)).mean()
-    if flux >= 0:
-        return splats
+    return splats if flux >= 0 else flipped_normals(splats)
+
+
+def flipped_normals(splats: SplatCloud) -> SplatCloud:
+    """``splats`` with every normal turned around, with the slopes of a linear normal field."""
     field = None if splats.normal_field is None else -splats.normal_field   # Botsch 2004, eq. 2: n + s a u + t b v
     return splats.replace(normals=-splats.normals, normal_field=field)
+
+
+#: Points the orientation test of a cloud projects (a strided sample beyond).
+ORIENTATION_SAMPLE = 50_000
+#: Cells per side of the coarse depth buffers of that test.
+ORIENTATION_GRID = 40
+#: Share of the splats seen first, over all test directions, that must face the viewer (or all
+#: face away) for a cloud to count as closed and oriented: the bunny sampled to 1M points scores
+#: 0.990-0.994 (given or estimated normals; silhouettes and the coarse cells miss some), with the
+#: normals of 1% of its surface turned 0.982-0.985, of 2% 0.971-0.973.
+ORIENTATION_SHARE = 0.98
+
+
+def _test_directions() -> np.ndarray:
+    """The 26 unit directions to the faces, edges and corners of a cube."""
+    d = np.stack(np.meshgrid([-1.0, 0.0, 1.0], [-1.0, 0.0, 1.0], [-1.0, 0.0, 1.0], indexing="ij"), -1).reshape(-1, 3)
+    d = d[np.any(d != 0.0, axis=1)]
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def closed_orientation(cloud: SplatCloud) -> int:
+    """+1 when ``cloud`` samples closed surfaces with outward normals, -1 with inward normals, 0
+    when it does not look closed and consistently oriented (or has no normals).
+
+    Looking at the cloud from far away along 26 directions (cube faces, edges and corners), the
+    splats seen first (in each cell of a coarse orthographic depth buffer,
+    :data:`ORIENTATION_GRID` cells per side) face the viewer on a closed, outward-oriented
+    surface, whatever the direction; an open sheet or a scan fragment seen from behind, a bowl
+    seen into, or a surface with unoriented normals show the back of some of theirs. +1 when at
+    least :data:`ORIENTATION_SHARE` of them face the viewer (grazing ones, ``|n . d| < 0.1``,
+    count both ways: silhouettes, noise), -1 when as many face away. A strided sample of
+    :data:`ORIENTATION_SAMPLE` points is tested (about 50 ms); fewer than 100 points: 0."""
+    if cloud.normals is None or len(cloud.positions) < 100:
+        return 0
+    step = max(1, -(-len(cloud.positions) // ORIENTATION_SAMPLE))
+    p = cloud.positions[::step].astype(np.float64)
+    n = cloud.normals[::step].astype(np.float64)
+    p -= p.mean(axis=0)
+    extent = float(np.abs(p).max())
+    if not np.isfinite(extent) or extent == 0.0:
+        return 0
+    cells = ORIENTATION_GRID
+    front = back = total = 0
+    for d in _test_directions():
+        a = np.cross(d, [0.0, 0.0, 1.0] if abs(d[2]) < 0.9 else [1.0, 0.0, 0.0])   # a frame across d
+        a /= np.linalg.norm(a)
+        b = np.cross(d, a)
+        i = np.clip(((p @ a / extent + 1.0) * (0.5 * cells)).astype(np.int64), 0, cells - 1)
+        j = np.clip(((p @ b / extent + 1.0) * (0.5 * cells)).astype(np.int64), 0, cells - 1)
+        key = i * cells + j
+        depth = p @ d                        # larger: nearer to a viewer far away along d
+        nearest = np.full(cells * cells, -np.inf)
+        np.maximum.at(nearest, key, depth)
+        seen = depth >= nearest[key]
+        cos = n[seen] @ d
+        front += int(np.count_nonzero(cos > -0.1))
+        back += int(np.count_nonzero(cos < 0.1))
+        total += int(np.count_nonzero(seen))
+    if front >= ORIENTATION_SHARE * total:
+        return 1
+    return -1 if back >= ORIENTATION_SHARE * total else 0
+
+
+def eye_outside(bounds: tuple[np.ndarray, np.ndarray], eye) -> bool:
+    """Whether ``eye`` lies outside the axis-aligned box ``bounds`` (lo, hi), so outside every closed
+    surface in it: only then is back-face culling of a closed surface safe."""
+    lo, hi = (np.asarray(b, dtype=np.float64) for b in bounds)
+    e = np.asarray(eye, dtype=np.float64)
+    return bool(np.any(e < lo) or np.any(e > hi))

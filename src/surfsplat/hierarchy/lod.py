@@ -26,7 +26,9 @@ computed without a queue: the traversal above yields every node the tolerance cu
 each gets the priority ``min`` of its projected size and its parent's (so a child never comes
 before its parent) and a cost (splats it adds when refined: its visible children, or a leaf's
 points, minus itself); sorted by priority, the longest prefix whose running total stays within
-N is refined. Larger budgets refine a longer prefix of the same order: cuts are nested.
+N is refined (ties: shallower first, then by node index). Larger budgets refine a longer prefix of
+the same order: cuts are nested. :func:`refinements` and :func:`refined_cut` expose the priorities
+and costs, for one budget over several hierarchies (the cells of a chunked model).
 """
 
 from __future__ import annotations
@@ -163,6 +165,28 @@ def select(hierarchy: Hierarchy, camera: Camera, lod_tolerance: float, *, cull_f
     check_lod_shading(lod_shading)
     lod = _lod_arrays(hierarchy)
     view = _View.of(camera, hierarchy)
+    nodes, leaves, opened_all, counts = _traverse(hierarchy, lod, view, lod_tolerance, cull_frustum, cull_backfaces)
+    if point_budget is not None:
+        size = sum(len(x) for x in nodes) + int(sum(hierarchy.node_point_count[x].sum() for x in leaves))
+        if size > point_budget:
+            nodes, leaves = _budget_cut(hierarchy, lod, view, nodes, leaves, opened_all, point_budget)
+    return _selection(hierarchy, nodes, leaves, lod_shading, lod_tolerance, counts)
+
+
+def _selection(hierarchy: Hierarchy, nodes: list, leaves: list, lod_shading: LodShading, lod_tolerance: float,
+               counts: tuple[int, int, int]) -> Selection:
+    leaf_index = np.concatenate(leaves) if leaves else np.zeros(0, dtype=np.int64)
+    return Selection(nodes=tuple(nodes), leaves=tuple(leaves),
+                     point_start=hierarchy.node_point_start[leaf_index],
+                     point_count=hierarchy.node_point_count[leaf_index],
+                     lod_shading=lod_shading, lod_tolerance=lod_tolerance, visited=counts[0],
+                     culled_frustum=counts[1], culled_backface=counts[2])
+
+
+def _traverse(hierarchy: Hierarchy, lod: _LodArrays, view: _View, lod_tolerance: float, cull_frustum: bool,
+              cull_backfaces: bool):
+    """The tolerance cut, level by level: ``(nodes drawn, leaves refined, inner nodes refined,
+    (visited, culled by the frustum, culled as back-facing))``, global indices per level."""
     off = hierarchy.level_offsets
     nodes, leaves, opened_all = [], [], []
     visited = culled_frustum = culled_backface = 0
@@ -215,16 +239,7 @@ def select(hierarchy: Hierarchy, camera: Camera, lod_tolerance: float, *, cull_f
             reach = full[lod.parent_local[level + 1]]
         else:
             reach = ranges_to_indices(lod.child_first_local[lo + go], counts)
-    if point_budget is not None:
-        size = sum(len(x) for x in nodes) + int(sum(hierarchy.node_point_count[x].sum() for x in leaves))
-        if size > point_budget:
-            nodes, leaves = _budget_cut(hierarchy, lod, view, nodes, leaves, opened_all, point_budget)
-    leaf_index = np.concatenate(leaves) if leaves else np.zeros(0, dtype=np.int64)
-    return Selection(nodes=tuple(nodes), leaves=tuple(leaves),
-                     point_start=hierarchy.node_point_start[leaf_index],
-                     point_count=hierarchy.node_point_count[leaf_index],
-                     lod_shading=lod_shading, lod_tolerance=lod_tolerance, visited=visited,
-                     culled_frustum=culled_frustum, culled_backface=culled_backface)
+    return nodes, leaves, opened_all, (visited, culled_frustum, culled_backface)
 
 
 def check_point_budget(point_budget) -> int:
@@ -254,26 +269,41 @@ def _budget_cut(h: Hierarchy, lod: _LodArrays, view: _View, nodes: list, leaves:
                 budget: int) -> tuple[list, list]:
     """The tolerance cut (``nodes``, ``leaves``, refined inner nodes ``opened``, per level) cut back
     to at most ``budget`` splats, refining in Potree's priority order (module docstring)."""
-    levels = len(nodes)
-    live = np.concatenate(nodes + leaves + opened)
+    live, cand, priority, cost, depth = _candidates(h, lod, view, nodes, leaves, opened, np.inf)
     if len(live) == 0:
         return nodes, leaves
+    order = np.lexsort((cand, depth, -priority))   # largest first, parents before children on ties
+    total = 1 + np.cumsum(cost[order])
+    over = np.flatnonzero(total > budget)
+    keep = np.zeros(len(cand), dtype=bool)
+    keep[order[:over[0] if len(over) else len(order)]] = True
+    return _kept_cut(h, lod, live, cand[keep], len(nodes))
+
+
+def _candidates(h: Hierarchy, lod: _LodArrays, view: _View, nodes: list, leaves: list, opened: list,
+                root_priority: float):
+    """The refinements of a tolerance cut: ``(live nodes (sorted), refined nodes, their priorities
+    (pixels), costs (splats added), levels)``; the root's priority is at most ``root_priority``."""
+    levels = len(nodes)
+    live = np.sort(np.concatenate(nodes + leaves + opened)) if levels else np.zeros(0, dtype=np.int64)
     refined = [np.concatenate([opened[L], leaves[L]]) for L in range(levels)]
     live_children = np.bincount(lod.parent[live][lod.parent[live] >= 0], minlength=len(lod.leaf))
     priority = np.full(len(lod.leaf), np.inf)
     for L in range(levels):   # top-down: a node's priority is at most its parent's
         r = refined[L]
         p = _projected_size(lod, view, r)
-        priority[r] = p if L == 0 else np.minimum(p, priority[lod.parent[r]])
-    cand = np.concatenate(refined)
+        priority[r] = np.minimum(p, root_priority) if L == 0 else np.minimum(p, priority[lod.parent[r]])
+    cand = np.concatenate(refined) if levels else np.zeros(0, dtype=np.int64)
     cost = np.where(lod.leaf[cand], h.node_point_count[cand], live_children[cand]) - 1
     depth = np.repeat(np.arange(levels), [len(r) for r in refined])
-    order = np.lexsort((depth, -priority[cand]))   # largest first, parents before children on ties
-    total = 1 + np.cumsum(cost[order])
-    over = np.flatnonzero(total > budget)
+    return live, cand, priority[cand], cost, depth
+
+
+def _kept_cut(h: Hierarchy, lod: _LodArrays, live: np.ndarray, kept: np.ndarray, levels: int) -> tuple[list, list]:
+    """The cut refining the nodes ``kept`` (a set closed under parents) of a tolerance cut's ``live``
+    nodes (sorted): its drawn nodes and refined leaves per level."""
     keep = np.zeros(len(lod.leaf), dtype=bool)
-    keep[cand[order[:over[0] if len(over) else len(order)]]] = True
-    live = np.sort(live)
+    keep[kept] = True
     parent = lod.parent[live]
     parent_kept = np.ones(len(live), dtype=bool)   # the root, and nodes whose parent is refined
     parent_kept[parent >= 0] = keep[parent[parent >= 0]]
@@ -281,6 +311,58 @@ def _budget_cut(h: Hierarchy, lod: _LodArrays, view: _View, nodes: list, leaves:
     opened_leaves = live[keep[live] & lod.leaf[live]]   # a refined node's parent is refined (prefix)
     off = h.level_offsets[:levels + 1]
     return _by_level(drawn, off), _by_level(opened_leaves, off)
+
+
+@dataclass(frozen=True, eq=False)
+class Refinements:
+    """The refinements a tolerance cut makes, in the point budget's terms (Schuetz 2016, Potree:
+    largest projected node first), for a budget shared by several hierarchies (a chunked model's
+    cells, :mod:`surfsplat.hierarchy.chunked.lazy`).
+
+    Refining ``node[i]`` adds ``cost[i]`` splats (its visible children, or a leaf's points, less
+    itself); ``priority[i]`` is its projected size (pixels) capped by its parent's, so a child never
+    comes before its parent; ``depth[i]`` its level. Refining the nodes of any set closed under
+    parents (e.g. all above a priority) gives a cut (:func:`refined_cut`); ``selection`` is the
+    tolerance cut, every refinement made; ``live`` its nodes (drawn or refined, sorted) and
+    ``levels`` the levels it reaches.
+    """
+
+    node: np.ndarray
+    priority: np.ndarray
+    cost: np.ndarray
+    depth: np.ndarray
+    selection: Selection
+    live: np.ndarray
+    levels: int
+
+
+def refinements(hierarchy: Hierarchy, camera: Camera, lod_tolerance: float, *, cull_frustum: bool = True,
+                cull_backfaces: bool = False, lod_shading: LodShading = "fit",
+                root_priority: float = np.inf) -> Refinements:
+    """The refinements of the tolerance cut :func:`select` makes (same arguments) with their
+    priorities and costs (:class:`Refinements`); the root's priority is at most ``root_priority``
+    (pixels: the priority of the node it hangs from in a larger tree)."""
+    check_lod_shading(lod_shading)
+    lod = _lod_arrays(hierarchy)
+    view = _View.of(camera, hierarchy)
+    nodes, leaves, opened, counts = _traverse(hierarchy, lod, view, float(lod_tolerance), cull_frustum,
+                                              cull_backfaces)
+    live, cand, priority, cost, depth = _candidates(hierarchy, lod, view, nodes, leaves, opened,
+                                                    float(root_priority))
+    selection = _selection(hierarchy, nodes, leaves, lod_shading, float(lod_tolerance), counts)
+    return Refinements(cand, priority, cost, depth, selection, live, len(nodes))
+
+
+def refined_cut(hierarchy: Hierarchy, refined: Refinements, keep: np.ndarray) -> Selection:
+    """The cut that makes the refinements ``refined.node[keep]`` (``keep``: (K,) bool, closed under
+    parents, e.g. a prefix of the priority order) and no other; the tolerance cut when all are kept."""
+    keep = np.asarray(keep, dtype=bool)
+    if keep.all():
+        return refined.selection
+    s = refined.selection
+    nodes, leaves = _kept_cut(hierarchy, _lod_arrays(hierarchy), refined.live, refined.node[keep], refined.levels)
+    return _selection(hierarchy, nodes, leaves, s.lod_shading, s.lod_tolerance,
+                      (s.visited, s.culled_frustum, s.culled_backface))
 
 
 def _by_level(index: np.ndarray, off: np.ndarray) -> list[np.ndarray]:

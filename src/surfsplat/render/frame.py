@@ -50,8 +50,11 @@ class Frame:
             of the sub-pixels'); 0 where empty.
         camera: the camera it was rendered with.
         alpha: (H, W) float32 coverage in [0, 1]: the fraction of the pixel's
-            sub-pixels the surface covers (antialiased when supersampled); None:
-            1 where ``weight > 0``, else 0.
+            area the surface covers: the mean over its sub-pixels (antialiased when
+            supersampled) of 1 where covered, or with
+            ``VisibilityOptions.edge_coverage`` of the area the splats' disks cover
+            on a silhouette's rim (antialiased at one sample); None: 1 where
+            ``weight > 0``, else 0.
         background: the RGB color composited where the surface does not cover.
     """
 

@@ -98,12 +98,27 @@ class VisibilityOptions:
             disk covers keeps them where 3 or 4 of its neighbours are covered (the
             one-pixel cracks straight clip lines leave at curved sharp edges). Off:
             the papers' full footprints everywhere.
+        edge_coverage: a pixel on the rim of a silhouette over the background is
+            composited over it by the fraction of its area the splats' disks (and
+            clip lines) cover, to first order in the distance of its center to
+            their rims, instead of all (a disk covers its center) or nothing: the
+            silhouette is antialiased without supersampling, and ``Frame.alpha``
+            is that coverage. Inside the surface and at occlusion edges over
+            another surface the coverage stays 1. ``ewa`` and ``perspective``
+            reach the pixels beyond the rim with their filter's fringe; ``blend``
+            and ``phong`` draw only inside their disks (the rim's inner pixels).
+            Off by default (opt-in, ``--edge-coverage``): the splats' rims are
+            fractional pixels then, which the single-splat reference tests of the
+            kernels do not model; the disk of a splat smaller than about a pixel
+            covers less than the union of its neighbours, so rims of sub-pixel
+            splats come out too light (measured in tests/test_edges.py).
     """
 
     depth_epsilon: float = 1.0
     cull_backfaces: bool | None = None
     separate_sides: bool = True
     clip_fringe: bool = True
+    edge_coverage: bool = False
 
     def __post_init__(self) -> None:
         if not (_is_number(self.depth_epsilon) and 0 <= self.depth_epsilon <= MAX_DEPTH_EPSILON):

@@ -11,7 +11,7 @@ Opaque techniques draw once with a plain z-buffer and share pass 3.
 Speed and memory (benchmarks/bench_render.py): splats are uploaded ordered by radius class, so each
 frame draws the large ones as instanced quads (tight boxes) and the small ones as GL_POINTS, one vertex
 per splat (``point_radius``, ``splat_primitive.glsl``), in draw calls of ``draw_batch`` splats; the
-read-back is the normalization pass's color, weight and depth sum only (20 bytes per sub-pixel), read
+read-back is the normalization pass's color, weight, depth sum and alpha only (24 bytes per sub-pixel), read
 into reused buffers and written straight into the Frame's top-down rows.
 
 The process-wide renderer of the headless context is :func:`default_renderer`
@@ -54,18 +54,24 @@ __all__ = ["GpuSplats", "Renderer", "default_renderer", "reset_default_renderer"
 #: them there is no error. This is the one documented optional set of frame-wide uniforms;
 #: a technique lists its own optional ones in ``Technique.optional_uniforms``.
 OPTIONAL_FRAME_UNIFORMS = frozenset({"u_depth_epsilon", "u_cull_backfaces", "u_deferred", "u_separate_sides",
-                                     "u_side", "u_supersample", "u_clip_fringe"})
-#: Pixels drawn around each tile and cropped (fringe clipping looks at each pixel's neighbours).
-TILE_MARGIN = 1
+                                     "u_side", "u_supersample", "u_clip_fringe", "u_edge_coverage"})
+#: Pixels drawn around each tile and cropped (fringe clipping looks at each pixel's neighbours; the
+#: edge coverage of normalize.frag at the neighbours, up to 4 sub-pixels away at K = 8, of its neighbours).
+TILE_MARGIN = 5
 #: Texture unit of the side target during the accumulation pass (units 0 and 1 serve pass 3).
 SIDE_TEXTURE_UNIT = 2
+#: Texture unit of the coverage target during pass 3.
+COVER_TEXTURE_UNIT = 3
+#: Vertex shaders whose footprints reach beyond the splat's disk (the EWA prefilter's fringe): with
+#: edge coverage, pixels beyond a silhouette get the disks' distances there (normalize.frag).
+FRINGE_SHADERS = frozenset({"ewa.vert", "perspective.vert"})
 #: Memory a render holds per splat (the upload's sorting and copies, the driver's buffers and one draw
 #: call's primitives; measured on llvmpipe by benchmarks/bench_render.py --memory: 31-83 B per splat,
 #: 1M and 5M splats; these add margin), per output pixel (the Frame, the image a caller writes) and per
-#: sub-pixel of a tile (the targets, 64 B, and the read-back buffers, 20 B): :func:`render_memory`.
+#: sub-pixel of a tile (the targets, 84 B, and the read-back buffers, 24 B): :func:`render_memory`.
 BYTES_PER_SPLAT = 160
 BYTES_PER_PIXEL = 100
-BYTES_PER_SUBPIXEL = 100
+BYTES_PER_SUBPIXEL = 120
 
 
 def render_memory(splats: int, width: int, height: int, supersample: int = 1, max_tile: int = MAX_TILE) -> int:
@@ -129,6 +135,23 @@ class GpuSplats:
     class_radius: np.ndarray = field(default_factory=lambda: np.full(1, np.inf))
     origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
     scale: float = 1.0
+    #: Attribute buffers read beyond the technique's (``in_<name>``; a sequential layout's ``lod``).
+    extra_attributes: tuple[str, ...] = ()
+    #: Shader defines of every program drawing these splats (a sequential layout's ``SEQUENTIAL_LOD``).
+    defines: dict = field(default_factory=dict)
+
+    def draw_ranges(self, camera: Camera, point_radius: float) -> tuple[list, list]:
+        """``(quads, points)``: the ``(first, count)`` ranges of splats a frame draws as instanced quads
+        and as GL_POINTS points (``camera``: the GPU frame's): all splats, the quads first
+        (:meth:`quad_count`). A sequential layout draws a prefix of each radius class
+        (``render/sequential.py``)."""
+        quads = self.quad_count(point_radius)
+        return ([(0, quads)] if quads else []), ([(quads, self.count - quads)] if quads < self.count else [])
+
+    def extra_uniforms(self, camera: Camera) -> dict:
+        """Uniforms these splats add to a frame's (``camera``: the GPU frame's): none here; a
+        sequential layout's LOD scale."""
+        return {}
 
     def local_camera(self, camera: Camera) -> Camera:
         """The world ``camera`` in the buffers' frame: eye and target moved by ``-origin`` in float64,
@@ -206,6 +229,24 @@ def _check_gpu_values(arrays: dict[str, np.ndarray]) -> None:
                              f"invalid splats")
 
 
+def splat_arrays(cloud: SplatCloud) -> tuple[dict[str, np.ndarray], float]:
+    """The per-splat vertex attributes of a preprocessed cloud as the GPU gets them (float32, lengths
+    multiplied by the power-of-two :func:`gpu_scale`, checked by :func:`_check_gpu_values`), and that
+    scale."""
+    arrays = {"position": cloud.positions, "normal": cloud.normals, "color": cloud.albedo,
+              "u": cloud.u, "v": cloud.v}
+    if cloud.clip_lines is not None:
+        arrays["clip0"], arrays["clip1"] = cloud.clip_lines[:, 0], cloud.clip_lines[:, 1]
+    if cloud.normal_field is not None:
+        arrays["normal_field"] = cloud.normal_field
+    _check_gpu_values(arrays)
+    scale = gpu_scale(cloud)
+    if scale != 1.0:   # a power of two: exact
+        for name in ("position", "u", "v"):
+            arrays[name] = arrays[name] * np.float32(scale)
+    return arrays, scale
+
+
 def radius_classes(radii: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Splats ordered by radius class, largest first: (order, first index of each non-empty class,
     the largest radius a splat of that class may have). Class ``c`` holds the radii in
@@ -254,6 +295,11 @@ def point_radius(camera: Camera, splats: GpuSplats, technique: Technique, option
             return 0.0
         return side * z / (2.0 * f * stretch)
     return max(side, 0.0) * z / (2.0 * np.sqrt(2.0) * f * stretch)
+
+
+def _components(splats: GpuSplats, name: str) -> int:
+    """Floats per splat of the attribute buffer ``name``."""
+    return splats.buffers[name].size // (4 * splats.count)
 
 
 def _with_clip_planes(camera: Camera, splats: GpuSplats) -> Camera:
@@ -358,17 +404,7 @@ class Renderer:
             raise InputError("the SplatCloud has no normals or splat axes; run surfsplat.preprocess() first")
         if len(cloud) == 0:
             raise InputError("the SplatCloud is empty")
-        arrays = {"position": cloud.positions, "normal": cloud.normals, "color": cloud.albedo,
-                  "u": cloud.u, "v": cloud.v}
-        if cloud.clip_lines is not None:
-            arrays["clip0"], arrays["clip1"] = cloud.clip_lines[:, 0], cloud.clip_lines[:, 1]
-        if cloud.normal_field is not None:
-            arrays["normal_field"] = cloud.normal_field
-        _check_gpu_values(arrays)
-        scale = gpu_scale(cloud)
-        if scale != 1.0:   # a power of two: exact
-            for name in ("position", "u", "v"):
-                arrays[name] = arrays[name] * np.float32(scale)
+        arrays, scale = splat_arrays(cloud)
         order, class_start, class_radius = radius_classes(cloud.radii * np.float32(scale))
         buffers = {}
         for name, values in arrays.items():   # one attribute's copy at a time
@@ -409,29 +445,32 @@ class Renderer:
             step = "" if points else "/i"
             content = [] if points else [(self._quad, "2f", "in_corner")]
             # attributes without a buffer keep OpenGL's default (0, 0, 0): no clip lines, no normal field
-            content += [(splats.buffers[name], ("2f" if name == "normal_field" else "3f") + step, f"in_{name}")
-                        for name in technique.attributes if f"in_{name}" in program and name in splats.buffers]
+            content += [(splats.buffers[name], f"{_components(splats, name)}f{step}", f"in_{name}")
+                        for name in technique.attributes + splats.extra_attributes
+                        if f"in_{name}" in program and name in splats.buffers]
             splats._vaos[key] = self.ctx.vertex_array(program, content)
         return splats._vaos[key]
 
-    def _draw_quads(self, splats: GpuSplats, program: moderngl.Program, technique: Technique, count: int) -> None:
-        """The first ``count`` splats as instanced quads, ``draw_batch`` instances per draw call (the
-        splat attributes re-bound at the batch's offset: OpenGL 3.3 has no base instance)."""
+    def _draw_quads(self, splats: GpuSplats, program: moderngl.Program, technique: Technique, count: int,
+                    start: int = 0) -> None:
+        """Splats ``start .. start + count`` as instanced quads, ``draw_batch`` instances per draw call
+        (the splat attributes re-bound at the batch's offset: OpenGL 3.3 has no base instance)."""
         vao = self._vao(splats, program, technique)
         batch = self.draw_batch
-        if count <= batch:
+        if count <= batch and start == 0:
             vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=count)
             return
-        bound = [(program[f"in_{name}"].location, splats.buffers[name], 2 if name == "normal_field" else 3)
-                 for name in technique.attributes if f"in_{name}" in program and name in splats.buffers]
+        bound = [(program[f"in_{name}"].location, splats.buffers[name], _components(splats, name))
+                 for name in technique.attributes + splats.extra_attributes
+                 if f"in_{name}" in program and name in splats.buffers]
 
         def bind(first: int) -> None:
             for location, buffer, size in bound:
                 vao.bind(location, "f", buffer, f"{size}f", offset=4 * size * first, stride=4 * size, divisor=1)
 
-        for first in range(0, count, batch):
+        for first in range(start, start + count, batch):
             bind(first)
-            vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=min(batch, count - first))
+            vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=min(batch, start + count - first))
             self.ctx.finish()
         bind(0)
 
@@ -453,15 +492,16 @@ class Renderer:
             aux = ctx.texture(size, 4, dtype="f4")
             depth = ctx.depth_texture(size)
             out = ctx.texture(size, 4, dtype="f4")         # normalized color, weight (normalize.frag)
-            depth_sum = ctx.texture(size, 1, dtype="f4")   # weighted depth sum
+            depth_sum = ctx.texture(size, 2, dtype="f4")   # weighted depth sum, coverage alpha
+            cover = ctx.texture(size, 4, dtype="f4")   # soft maxima of the splats' pixel coverages, distances
             side = ctx.texture(size, 2, dtype="f4")   # side and offset depth of each pixel's nearest disk
-            for tex in (accum, aux, out, depth_sum, side):
+            for tex in (accum, aux, out, depth_sum, side, cover):
                 tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
             self._targets = {
                 "size": size, "accum": accum, "aux": aux, "depth": depth, "out": out, "depth_sum": depth_sum,
-                "side": side,
+                "side": side, "cover": cover,
                 "fbo_visibility": ctx.framebuffer([side], depth),
-                "fbo_accum": ctx.framebuffer([accum, aux], depth),
+                "fbo_accum": ctx.framebuffer([accum, aux, cover], depth),
                 "fbo_out": ctx.framebuffer([out, depth_sum]),
             }
         return self._targets
@@ -505,6 +545,7 @@ class Renderer:
             "u_cull_backfaces": bool(options.visibility.cull_backfaces),
             "u_separate_sides": bool(options.visibility.separate_sides),
             "u_clip_fringe": bool(options.visibility.clip_fringe),
+            "u_edge_coverage": bool(options.visibility.edge_coverage),
             "u_side": SIDE_TEXTURE_UNIT,
             "u_deferred": bool(options.deferred),
             "u_supersample": float(supersample),   # sub-pixels per output pixel of ``camera``, per axis
@@ -539,7 +580,9 @@ class Renderer:
             targets["fbo_visibility"].clear(0.5, 0.0, 0.0, 0.0)   # side 0.5: none; depth is cleared above
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)
-        quads = splats.quad_count(point_radius(camera, splats, technique, options, supersample, self.point_px))
+        quads, points = splats.draw_ranges(camera, point_radius(camera, splats, technique, options, supersample,
+                                                                self.point_px))
+        uniforms |= splats.extra_uniforms(camera)
         for pass_id in passes:
             if pass_id == PASS_ACCUMULATION:
                 targets["side"].use(location=SIDE_TEXTURE_UNIT)
@@ -558,17 +601,20 @@ class Renderer:
                 ctx.disable(moderngl.BLEND)
             # the large splats (first in the buffers) as instanced quads, the small ones as points
             if quads:
-                program = self.program(technique.vertex, technique.fragment, {"PASS": pass_id})
+                program = self.program(technique.vertex, technique.fragment, {"PASS": pass_id} | splats.defines)
                 self.set_uniforms(program, uniforms, optional)
-                self._draw_quads(splats, program, technique, quads)
-            if quads < splats.count:
-                program = self.program(technique.vertex, technique.fragment, {"PASS": pass_id, "POINT_PRIMITIVE": 1})
+                for start, count in quads:
+                    self._draw_quads(splats, program, technique, count, start)
+            if points:
+                program = self.program(technique.vertex, technique.fragment,
+                                       {"PASS": pass_id, "POINT_PRIMITIVE": 1} | splats.defines)
                 self.set_uniforms(program, uniforms | {"u_max_point": self._max_point}, optional)
                 ctx.enable(moderngl.PROGRAM_POINT_SIZE)
                 vao = self._vao(splats, program, technique, points=True)
-                for first in range(quads, splats.count, self.draw_batch):
-                    vao.render(moderngl.POINTS, vertices=min(self.draw_batch, splats.count - first), first=first)
-                    ctx.finish()
+                for start, count in points:
+                    for first in range(start, start + count, self.draw_batch):
+                        vao.render(moderngl.POINTS, vertices=min(self.draw_batch, start + count - first), first=first)
+                        ctx.finish()
                 ctx.disable(moderngl.PROGRAM_POINT_SIZE)
         targets["fbo_accum"].depth_mask = True
         ctx.disable(moderngl.BLEND)
@@ -580,32 +626,40 @@ class Renderer:
         normalize = self._fullscreen.program
         targets["accum"].use(location=0)
         targets["aux"].use(location=1)
-        self.set_uniforms(normalize, frame | {"u_accum": 0, "u_aux": 1, "u_background": tuple(map(float, background))},
+        targets["side"].use(location=SIDE_TEXTURE_UNIT)
+        targets["cover"].use(location=COVER_TEXTURE_UNIT)
+        self.set_uniforms(normalize, frame | {"u_accum": 0, "u_aux": 1, "u_side": SIDE_TEXTURE_UNIT,
+                                              "u_cover": COVER_TEXTURE_UNIT,
+                                              "u_edge_coverage": technique.blended and options.visibility.edge_coverage,
+                                              "u_edge_fringe": technique.vertex in FRINGE_SHADERS,
+                                              "u_background": tuple(map(float, background))},
                           OPTIONAL_FRAME_UNIFORMS)
         self._fullscreen.render(moderngl.TRIANGLES, vertices=3)
 
     def _read_tile(self) -> SubPixels:
         """The tile's sub-pixels from the targets of the last :meth:`draw` (the normalization pass's
-        two targets only: 20 bytes per sub-pixel), as views of buffers reused by the next tile."""
+        two targets only: 24 bytes per sub-pixel), as views of buffers reused by the next tile."""
         targets = self._targets
         if "read_color" not in targets:   # read-back buffers, reused by every tile of this size
             width, height = targets["size"]
             targets["read_color"] = np.empty((height, width, 4), "f4")
-            targets["read_depth"] = np.empty((height, width), "f4")
-        rgbw, depth = targets["read_color"], targets["read_depth"]
+            targets["read_depth"] = np.empty((height, width, 2), "f4")   # depth sum, alpha
+        rgbw, depth_alpha = targets["read_color"], targets["read_depth"]
         targets["out"].read_into(rgbw)
-        targets["depth_sum"].read_into(depth)
+        targets["depth_sum"].read_into(depth_alpha)
         color, weight = rgbw[..., :3], rgbw[..., 3]
+        depth, alpha = depth_alpha[..., 0], depth_alpha[..., 1]
         # non-finite accumulations (degenerate splats, weight -1): normalize.frag shows the background
         # there; they count as empty and are reported by render()
         bad = weight < 0
         if bad.any():
             self._non_finite += int(np.count_nonzero(bad))
             weight[bad] = 0.0
+            alpha[bad] = 0.0
         with np.errstate(divide="ignore", invalid="ignore"):
             np.divide(depth, weight, out=depth)
         depth[~(weight > 0)] = np.inf
-        return SubPixels(color, weight, depth)
+        return SubPixels(color, weight, depth, alpha)
 
     def render(self, splats: GpuSplats | SplatCloud, camera: Camera, technique: Technique | str = "ewa",
                lights: Lights = Lights(), options: RenderOptions = RenderOptions(),

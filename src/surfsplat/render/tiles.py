@@ -47,30 +47,37 @@ class SubPixels:
         color: (h, w, 3) normalized color, the background where nothing was drawn.
         weight: (h, w) accumulated splat weight (0: empty).
         depth: (h, w) weighted camera-space depth, inf where empty.
+        alpha: (h, w) the fraction of the sub-pixel the surface covers (0 where empty; on the rim
+            of a silhouette the splats' analytic coverage, normalize.frag), None: weight > 0.
     """
 
     color: np.ndarray
     weight: np.ndarray
     depth: np.ndarray
+    alpha: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.alpha is None:
+            self.alpha = (self.weight > 0).astype("f4")
 
     def cropped(self, margin: int) -> "SubPixels":
         """The sub-pixels without ``margin`` pixels on every side."""
         if margin == 0:
             return self
         inner = np.s_[margin:-margin, margin:-margin]
-        return SubPixels(self.color[inner], self.weight[inner], self.depth[inner])
+        return SubPixels(self.color[inner], self.weight[inner], self.depth[inner], self.alpha[inner])
 
 
 def box_reduce(sub: SubPixels, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Per output pixel of K x K sub-pixels: (color: mean, over the background where uncovered;
     weight: mean sub-pixel weight; depth: the nearest sub-pixel's, inf where none is covered;
-    alpha: the fraction of covered sub-pixels). Window orientation kept."""
+    alpha: the mean sub-pixel coverage). Window orientation kept."""
     if k == 1:   # views: the caller copies them into its image
-        return sub.color, sub.weight, sub.depth, (sub.weight > 0).astype("f4")
+        return sub.color, sub.weight, sub.depth, sub.alpha
     h, w = sub.weight.shape
     shape = (h // k, k, w // k, k)
     color = sub.color.reshape(*shape, 3).mean(axis=(1, 3), dtype=np.float64)
     weight = sub.weight.reshape(shape).mean(axis=(1, 3), dtype=np.float64)
     depth = sub.depth.reshape(shape).min(axis=(1, 3))
-    alpha = (sub.weight > 0).reshape(shape).mean(axis=(1, 3), dtype=np.float64)
+    alpha = sub.alpha.reshape(shape).mean(axis=(1, 3), dtype=np.float64)
     return color.astype("f4"), weight.astype("f4"), depth.astype("f4"), alpha.astype("f4")

@@ -8,9 +8,10 @@ Frame loop (one thread; glfw callbacks only record input, the loop acts on it):
 2. rendering, off-screen, into RGBA8 textures of the window's framebuffer size:
    - while the camera moves (and for ``SETTLE_S`` after its last change), where full quality
      is too slow to follow (over ``PREVIEW_ABOVE_S`` a frame), a cheap *preview*:
-     technique ``flat`` (one pass) on at most ``MotionOptions.budget`` splats (a fixed coarse cut of the
-     LOD hierarchy: :func:`preview_cloud`), optionally at a lower internal
-     resolution (``MotionOptions.scale``);
+     technique ``flat`` (one pass) on at most ``MotionOptions.budget`` splats (fixed coarse cuts of the
+     LOD hierarchy, :func:`preview_levels`: after each preview the next is drawn one level coarser
+     or finer to keep ``MotionOptions.fps``, :func:`~surfsplat.viewer.detail.next_preview_level`),
+     optionally at a lower internal resolution (``MotionOptions.scale``);
    - once the camera has been still for ``SETTLE_S``, one *full-quality* frame with the chosen
      technique (the LOD cut of :class:`~surfsplat.viewer.detail.LevelOfDetail`); it is kept and
      shown again, not re-rendered, until something changes. Under a point budget the still view
@@ -56,18 +57,22 @@ from .. import progress
 from ..api import (DEFAULT_BACKGROUND, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec, SourceOptions,
                    as_hierarchy, check_background, check_source, is_lidar, load_model, natural_up, resolve_camera)
 from ..camera import Camera
+from ..geometry.closed import closed_orientation, eye_outside, is_closed_surface
 from ..geometry.preprocess import NONPLANAR
 from ..errors import InputError
 from ..hierarchy import LodShading
 from ..hierarchy.chunked import ChunkedHierarchy
 from ..hierarchy.lod import check_point_budget
+from ..io import Mesh
 from ..io.video import check_video_path
 from ..lighting import Lights
 from ..render.frame import check_image_path
 from ..render.options import RenderOptions, TechniqueName
 from ..render.renderer import Renderer
+from ..render.sequential import LodMode
 from . import camera_control as cc
-from .detail import LevelOfDetail, preview_cloud, recolor, refinement_budgets
+from .detail import (DEFAULT_VIEWER_LOD_MODE, LevelOfDetail, next_preview_level, preview_cloud, preview_levels,
+                     recolor, refinement_budgets)
 from .hud import Hud, viewer_program
 from .keys import HELP, ViewerInput
 from .recorder import Recorder
@@ -94,7 +99,7 @@ class Viewer(ViewerInput):
                  lights: Lights, options: RenderOptions, background, lod_tolerance: float,
                  lod_shading: LodShading = DEFAULT_LOD_SHADING, motion: MotionOptions = MotionOptions(),
                  hud: bool = True, source_options: SourceOptions | None = None, point_budget: int | None = None,
-                 hybrid: bool = False, record: Path | None = None):
+                 hybrid: bool = False, record: Path | None = None, lod_mode: LodMode = DEFAULT_VIEWER_LOD_MODE):
         self.glfw, self.window, self.ctx = glfw, window, ctx
         self.renderer = Renderer(ctx)
         self.techniques = technique_names()
@@ -110,15 +115,20 @@ class Viewer(ViewerInput):
         hierarchy = as_hierarchy(model, source_options, image_size=max(glfw.get_framebuffer_size(window)))
         cloud = hierarchy.points   # of a chunked hierarchy: its preview splats (framing, motion)
         self.chunked = isinstance(hierarchy, ChunkedHierarchy)
-        self.lod = LevelOfDetail(self.renderer, hierarchy, lod_shading, model=model)
+        self.lod = LevelOfDetail(self.renderer, hierarchy, lod_shading, model=model, lod_mode=lod_mode)
         self.model_splats = hierarchy.point_count if self.chunked else len(cloud)
-        self.motion_budget = int(motion.budget)
+        # automatic back-face culling (VisibilityOptions.cull_backfaces None): a closed surface seen from
+        # outside its bounds (as api.cull_automatically decides for render)
+        self.closed_surface = ((isinstance(model, Mesh) and is_closed_surface(model))
+                               or closed_orientation(cloud) > 0)
+        self.model_bounds = cloud.bounds()
+        self.motion_budget, self.motion_fps = int(motion.budget), float(motion.fps)
         # colour by (C): the attributes the hierarchy's points keep (a chunked hierarchy keeps none
         # and reads its points per view: own colours only)
         self.color_modes = ["own colours"] if self.chunked else ["own colours", "elevation"] + [
             name for name in sorted(cloud.attributes or {}) if name != NONPLANAR]
         self.color_index, self._own_colors = 0, cloud.colors
-        self.preview_splats = None
+        self.preview_splats, self.preview_ladder, self.preview_level = None, [], 0
         self._upload_preview()
 
         fb_w, fb_h = glfw.get_framebuffer_size(window)
@@ -194,19 +204,24 @@ class Viewer(ViewerInput):
             path = self.recorder.close()
             if path is not None:
                 progress.message(f"recorded {self.recorder.frames} frames -> {path}")
-        self.preview_splats.release()
+        for splats in self.preview_ladder:
+            splats.release()
         self.lod.close()
         if self.hud is not None:
             self.hud.release()
 
     def _upload_preview(self) -> None:
-        """(Re)upload the motion preview (:func:`preview_cloud`, or the whole model)."""
-        if self.preview_splats is not None:
-            self.preview_splats.release()
+        """(Re)upload the motion previews (:func:`preview_levels`, the finest may be the whole model),
+        starting from the finest."""
+        for splats in self.preview_ladder:
+            splats.release()
         hierarchy = self.lod.hierarchy
-        small = preview_cloud(hierarchy, self.motion_budget) if self.motion != "off" else None
-        with progress.stage(f"uploading {len(small or hierarchy.points):,} preview splats"):
-            self.preview_splats = self.renderer.upload(small if small is not None else hierarchy.points)
+        levels = preview_levels(hierarchy, self.motion_budget) if self.motion != "off" else [None]
+        clouds = [hierarchy.points if level is None else level for level in levels]
+        with progress.stage(f"uploading {' + '.join(f'{len(c):,}' for c in clouds)} preview splats"):
+            self.preview_ladder = [self.renderer.upload(cloud) for cloud in clouds]
+        self.preview_level = len(self.preview_ladder) - 1
+        self.preview_splats = self.preview_ladder[self.preview_level]
 
     def cycle_colors(self) -> str:
         """Colour the model by the next of :attr:`color_modes` (its own colours, elevation along the
@@ -253,13 +268,19 @@ class Viewer(ViewerInput):
             fbo.clear(*self.background, 0.0)
         elif full and self.options.edl is not None:
             # eye-dome lighting needs the depth: the Frame path (read back, EDL in NumPy, written back)
-            frame = self.renderer.render(splats, camera, technique, self.lights, self.options, self.background)
+            frame = self.renderer.render(splats, camera, technique, self.lights, self.drawn_options(),
+                                         self.background)
             rgba = np.concatenate([frame.image(), np.full(frame.alpha.shape + (1,), 255, np.uint8)], axis=2)
             self._targets["full"].write(np.ascontiguousarray(rgba[::-1]).tobytes())
         else:
-            self.renderer.draw(splats, camera, technique, self.lights, self.options, self.background, output=fbo)
+            self.renderer.draw(splats, camera, technique, self.lights, self.drawn_options(), self.background,
+                               output=fbo)
         self.ctx.finish()  # llvmpipe works asynchronously: wait, so frame times are real
         self.last_render_s["full" if full else "preview"] = time.perf_counter() - start
+        if not full:   # keep moving frames at the target rate: the next preview coarser or finer
+            self.preview_level = next_preview_level(self.preview_level, [s.count for s in self.preview_ladder],
+                                                    self.last_render_s["preview"], self.motion_fps)
+            self.preview_splats = self.preview_ladder[self.preview_level]
         if full:
             self.full_frames += 1
             self.full_version = self.version
@@ -268,10 +289,23 @@ class Viewer(ViewerInput):
             self.preview_version = self.version
         self._fps_count += 1
 
+    @property
+    def culling(self) -> bool:
+        """Whether back faces are culled now: as the options say, or where automatic (None) when the
+        model is a closed surface and the eye is outside its bounds."""
+        cull = self.options.visibility.cull_backfaces
+        if cull is None:
+            return self.closed_surface and eye_outside(self.model_bounds, self.controller.camera.eye)
+        return bool(cull)
+
+    def drawn_options(self) -> RenderOptions:
+        """The render options of the current frame, automatic culling resolved (:attr:`culling`)."""
+        o = self.options
+        return replace(o, visibility=replace(o.visibility, cull_backfaces=self.culling))
+
     def _cut_args(self, refine: int) -> tuple:
         """The LOD cut of the current view at refinement step ``refine`` (:class:`LevelOfDetail`'s arguments)."""
-        return (self.controller.camera, self.lod_tolerance, self.options.visibility.cull_backfaces,
-                self.budgets[refine], self.hybrid)
+        return (self.controller.camera, self.lod_tolerance, self.culling, self.budgets[refine], self.hybrid)
 
     def full_image(self) -> np.ndarray:
         """(H, W, 3) uint8 full-quality image of the current view (rendered first if out of date)."""
@@ -319,7 +353,7 @@ class Viewer(ViewerInput):
 
     def status_text(self) -> str:
         """The HUD's status panel (changes only when a shown value changes)."""
-        on = {True: "on", False: "off", None: "auto"}   # culling None: automatic (closed meshes)
+        on = {True: "on", False: "off", None: "auto"}   # culling None: automatic (closed surfaces)
         preview = self.showing_preview
         ms = 1000.0 * self.last_render_s["preview" if preview else "full"]
         rate = f"{self.fps:.1f} fps" if self.fps is not None else "idle"
@@ -332,7 +366,8 @@ class Viewer(ViewerInput):
             f"{self.technique}{'   hybrid' if self.hybrid else ''}   {self.drawn:,} splats"
             f"{self._budget_text()}   {rate}   ({ms:.0f} ms/frame)",
             f"prefilter {on[self.options.filter.prefilter]}   lighting {on[self.lights.enabled]}   "
-            f"culling {on[self.options.visibility.cull_backfaces]}   EDL {on[self.options.edl is not None]}   "
+            f"culling {on[self.options.visibility.cull_backfaces]}{' (on)' if self.options.visibility.cull_backfaces is None and self.culling else ''}   "
+            f"EDL {on[self.options.edl is not None]}   "
             f"LOD tolerance {self.lod_tolerance:.3g} px "
             f"({self.lod.select_ms:.0f} ms to select)",
             f"{self.controller.mode} mode   {quality}   H: help",
@@ -485,7 +520,7 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
          lod_shading: LodShading = DEFAULT_LOD_SHADING, motion: MotionOptions | None = None, hud: bool = True,
          frames: int | None = None, orbit: float = 0.0, screenshot=None, title: str | None = None,
          source_options: SourceOptions | None = None, point_budget: int | None = None, hybrid: bool | None = None,
-         record=None) -> ViewStats:
+         record=None, lod_mode: LodMode = DEFAULT_VIEWER_LOD_MODE) -> ViewStats:
     """Open an interactive window on a splat model (press H in it for the keys).
 
     Args:
@@ -521,6 +556,10 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
             as surface splats (:func:`surfsplat.api.hybrid_splats`); None: on for LAS/LAZ files.
         record: write the frames the window shows to this .gif, .mp4 or .webm
             (:mod:`~surfsplat.viewer.recorder`; scripted mode: one video frame per frame).
+        lod_mode: "gpu": an in-memory hierarchy's full-quality frames draw its sequential layout, the
+            cut kept by the vertex shader (no selection or upload per view; benchmarks/results/gpu_lod.md);
+            "cpu": cut, gathered and uploaded per view. Point budgets, hybrid points and chunked
+            hierarchies are always cut on the CPU.
 
     Returns:
         :class:`ViewStats` (frames, seconds, frame rate, ...).
@@ -576,7 +615,7 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
         viewer = Viewer(glfw, window, ctx, model, camera, technique=technique, lights=lights or Lights(),
                         options=options, background=background, lod_tolerance=lod_tolerance,
                         lod_shading=lod_shading, motion=motion, hud=hud, source_options=source_options,
-                        point_budget=point_budget, hybrid=hybrid, record=record)
+                        point_budget=point_budget, hybrid=hybrid, record=record, lod_mode=lod_mode)
         if frames is None:
             stats = viewer.run_interactive()
         else:
@@ -584,7 +623,8 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
             progress.message(
                 f"{stats.frames} frames of {stats.splats:,} splats at {stats.size[0]}x{stats.size[1]} in "
                 f"{stats.seconds:.2f} s: {stats.fps:.2f} frames/s "
-                f"({'preview' if stats.preview_frames else technique}, {ctx.info['GL_RENDERER']})")
+                f"({f'preview, last {stats.preview_splats:,} splats' if stats.preview_frames else technique}, "
+                f"{ctx.info['GL_RENDERER']})")
             if stats.screenshot is not None:
                 progress.message(f"screenshot -> {stats.screenshot}")
         return stats

@@ -12,6 +12,8 @@ from ..camera import Camera
 from ..cloud import SplatCloud
 from ..hierarchy import LodShading, uniform_cut
 from ..hierarchy.chunked import ChunkedHierarchy
+from ..hierarchy.sequential import sequential_layout
+from ..render.sequential import LodMode, upload_sequential
 from .streaming import CellStreamer
 
 
@@ -33,6 +35,59 @@ def preview_cloud(hierarchy, budget: int) -> SplatCloud | None:
         return None
     return hierarchy.node_splats(uniform_cut(hierarchy, budget), lod_shading="flat")
 
+
+#: The coarsest motion preview level has at least this many splats (fewer would not be faster:
+#: a frame's fixed costs, clearing and presenting, dominate below it on llvmpipe).
+PREVIEW_MIN = 4_000
+#: Share of a frame's time (1 / the target rate) the preview's rendering may take; the rest is
+#: presenting, the HUD and the buffer swap.
+PREVIEW_SHARE = 0.75
+#: A finer preview level is taken only if its predicted time is below this share of the budget
+#: (hysteresis: no flipping between two levels).
+PREVIEW_HEADROOM = 0.8
+
+
+def preview_levels(hierarchy, budget: int) -> list[SplatCloud | None]:
+    """The motion previews from coarse to fine: the finest is :func:`preview_cloud` (None: the
+    whole model), each coarser one the finest level-uniform cut with at most a quarter of the next
+    one's splats (a whole octree level: often fewer), none under :data:`PREVIEW_MIN` (all hole-free like
+    :func:`preview_cloud`). A chunked hierarchy has one level: what opening it read."""
+    finest = preview_cloud(hierarchy, budget)
+    levels = [finest]
+    if budget <= 0 or isinstance(hierarchy, ChunkedHierarchy):
+        return levels
+    count = len(hierarchy.points) if finest is None else len(finest)
+    while count // 4 >= PREVIEW_MIN:
+        coarser = hierarchy.node_splats(uniform_cut(hierarchy, count // 4), lod_shading="flat")
+        if not PREVIEW_MIN <= len(coarser) < count:
+            break
+        levels.insert(0, coarser)
+        count = len(coarser)
+    return levels
+
+
+def next_preview_level(level: int, counts: list[int], seconds: float, fps: float) -> int:
+    """The preview level (index into ``counts``, splats per level from coarse to fine) to draw next,
+    after level ``level`` took ``seconds`` to render, so moving frames keep ``fps`` frames per
+    second: one level coarser when the render took more than :data:`PREVIEW_SHARE` / ``fps``;
+    one finer when its time, predicted proportional to its splats (an over-estimate: part of a
+    frame's cost is fixed), stays within :data:`PREVIEW_HEADROOM` of that; else the same.
+    ``fps`` 0: always the finest."""
+    if fps <= 0:
+        return len(counts) - 1
+    budget_s = PREVIEW_SHARE / fps
+    if seconds > budget_s and level > 0:
+        return level - 1
+    finer = level + 1
+    if finer < len(counts) and seconds * counts[finer] / max(counts[level], 1) < PREVIEW_HEADROOM * budget_s:
+        return finer
+    return level
+
+
+#: Where the viewer cuts an in-memory hierarchy's full-quality frames (``view(lod_mode=...)``): on the
+#: GPU, which spares each new view the selection, gather and upload of its cut (1M bunny at 1280x720:
+#: benchmarks/results/gpu_lod.md).
+DEFAULT_VIEWER_LOD_MODE: LodMode = "gpu"
 
 #: Progressive refinement under a point budget: the still view is drawn with the budget divided by
 #: these factors in turn (each frame cross-faded into the next), the largest first.
@@ -67,10 +122,17 @@ class LevelOfDetail:
     own ``view_splats`` (only the cells the view needs are read) in a background thread
     (:class:`~surfsplat.viewer.streaming.CellStreamer`): :meth:`ready` asks for a view's cut
     without waiting, calling the object waits for it.
+
+    With ``lod_mode="gpu"`` an in-memory hierarchy's views without a point budget or hybrid points
+    draw its sequential layout (:mod:`surfsplat.render.sequential`), uploaded on first use: a
+    new view costs no selection, gather or upload, the vertex shader keeps the cut.
     """
 
-    def __init__(self, renderer, hierarchy, lod_shading: LodShading = DEFAULT_LOD_SHADING, model=None):
+    def __init__(self, renderer, hierarchy, lod_shading: LodShading = DEFAULT_LOD_SHADING, model=None,
+                 lod_mode: LodMode = "cpu"):
         self.renderer, self.hierarchy, self.lod_shading = renderer, hierarchy, lod_shading
+        self.lod_mode = lod_mode
+        self._sequential = None   # the GPU layout (lod_mode "gpu"), uploaded on first use
         self.model = hierarchy if model is None else model
         self.streamer = CellStreamer() if isinstance(hierarchy, ChunkedHierarchy) else None
         self._key = None
@@ -87,6 +149,11 @@ class LevelOfDetail:
         cloud, selection = cut(camera, lod_tolerance, cull_backfaces=cull_backfaces, lod_shading=self.lod_shading,
                                point_budget=point_budget)
         return cloud, selection, 1000.0 * (time.perf_counter() - start)
+
+    def on_gpu(self, point_budget: int | None, hybrid: bool) -> bool:
+        """Whether views are cut by the GPU (``lod_mode="gpu"``, an in-memory hierarchy, no point budget,
+        no hybrid points)."""
+        return self.lod_mode == "gpu" and self.streamer is None and point_budget is None and not hybrid
 
     def ready(self, camera: Camera, lod_tolerance: float, cull_backfaces: bool, point_budget: int | None = None,
               hybrid: bool = False) -> bool:
@@ -106,6 +173,16 @@ class LevelOfDetail:
                  hybrid: bool = False):
         """(GpuSplats or None when nothing is visible, number of splats drawn); a chunked
         hierarchy's cut is waited for (see :meth:`ready`)."""
+        if self.on_gpu(point_budget, hybrid):
+            if self._sequential is None:
+                self.release()
+                layout = sequential_layout(self.hierarchy, self.lod_shading)
+                self._sequential = upload_sequential(self.renderer, layout.splats, layout.lod)
+            self._sequential.lod_tolerance = float(lod_tolerance)
+            start = time.perf_counter()
+            self.count = self._sequential.prefix_count(camera)
+            self.select_ms = 1000.0 * (time.perf_counter() - start)
+            return self._sequential, self.count
         key = (camera, float(lod_tolerance), bool(cull_backfaces), point_budget, bool(hybrid))
         if key != self._key:
             if self.streamer is not None:
@@ -121,10 +198,12 @@ class LevelOfDetail:
         return self._splats, self.count
 
     def release(self) -> None:
-        """Free the uploaded cut."""
+        """Free the uploaded cut (and the GPU layout: recolouring changes it)."""
         if self._splats is not None:
             self._splats.release()
-        self._splats, self._key, self.count = None, None, 0
+        if self._sequential is not None:
+            self._sequential.release()
+        self._splats, self._key, self.count, self._sequential = None, None, 0, None
 
     def close(self) -> None:
         """Free the uploaded cut and stop the background reads (the running one is finished)."""

@@ -165,16 +165,16 @@ class ViewerInput:
             self.options = replace(o, filter=replace(o.filter, prefilter=not o.filter.prefilter))
         elif kind == "lighting":
             self.lights = replace(self.lights, enabled=not self.lights.enabled)
-        elif kind == "cull":
+        elif kind == "cull":   # from automatic: the opposite of what it does now, then on / off
             o = self.options
-            self.options = replace(o, visibility=replace(o.visibility, cull_backfaces=not o.visibility.cull_backfaces))
+            self.options = replace(o, visibility=replace(o.visibility, cull_backfaces=not self.culling))
         elif kind == "edl":
             o = self.options
             self.options = replace(o, edl=None if o.edl is not None else EdlOptions())
         elif kind == "color":
-            if self.chunked:   # no attributes, and its points are read per view
-                self._message = ("colour by: a chunked hierarchy keeps no point attributes",
-                                 time.perf_counter() + 3.0)
+            if self.chunked:   # its points are read per view; the viewer recolours points in memory
+                self._message = ("colour by: not in the viewer for a chunked hierarchy "
+                                 "(surfsplat render MODEL --color-by NAME)", time.perf_counter() + 3.0)
                 return
             name = self.cycle_colors()
             self._message = (f"colour by {name}", time.perf_counter() + 2.0)

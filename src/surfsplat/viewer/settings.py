@@ -42,11 +42,17 @@ class MotionOptions:
             ``flat`` at 1280x720 drawn at 640x360, gives about 5-10 frames/s on llvmpipe with 2
             cores; only used where full quality is slow, so a GPU usually never shows it.
         scale: internal resolution of the preview, fraction of the window's, in (0, 1].
+        fps: frames per second the preview keeps while moving: it is drawn from a ladder of
+            level-uniform cuts (the finest of at most ``budget`` splats, each coarser one about
+            a quarter of the next) and steps to a coarser one when a frame is too slow, to a finer
+            one when there is time (:func:`~surfsplat.viewer.detail.next_preview_level`); 0: always
+            the finest.
     """
 
     mode: Motion = "auto"
     budget: int = 100_000
     scale: float = 0.5
+    fps: float = 25.0
 
     def __post_init__(self) -> None:
         if self.mode not in MOTION_MODES:
@@ -55,6 +61,8 @@ class MotionOptions:
             raise InputError(f"motion scale must be in (0, 1], got {self.scale}")
         if int(self.budget) < 0:
             raise InputError(f"motion budget must be >= 0 splats (0: all), got {self.budget}")
+        if not (0.0 <= self.fps <= 1000.0):
+            raise InputError(f"motion fps must be in [0, 1000] frames per second (0: no adapting), got {self.fps}")
 
 
 @dataclass

@@ -29,6 +29,7 @@ from scipy.sparse.csgraph import breadth_first_order, connected_components, mini
 
 from ... import progress
 from ...cloud import SplatCloud
+from ...colors import robust_range
 from ...errors import InputError
 from ...geometry.robust import OUTLIER_ACTIONS
 from ..octree import build_hierarchy
@@ -138,15 +139,17 @@ def build_chunked(source, output, *, k: int = 8, outliers: str = "drop", sharp_a
         if total == 0:
             raise InputError(f"{source}: no point was kept by preprocessing")
         keep = [i for i, p in enumerate(pre) if p["points"] > 0]
+        names = tuple(stream.attributes)
         calls = [(str(work), str(partial), keys[i], bool(flips[i]), int(leaf_capacity),
-                  max(1, PREVIEW_SPLATS * pre[i]["points"] // total)) for i in keep]
+                  max(1, PREVIEW_SPLATS * pre[i]["points"] // total), names) for i in keep]
         cells = runner.run(build_cell, calls, "cell hierarchies")
         for i, cell in zip(keep, cells):
             cell["ijk"] = list(ijks[i])
             cell["halo"] = {"margin": pre[i]["margin"], "points": pre[i]["halo"]}
         previews = [cell.pop("preview") for cell in cells]
+        samples = [cell.pop("samples") for cell in cells]
         with progress.stage(f"top hierarchy over {len(cells):,} cell roots"), progress.enabled(False):
-            top = _top_hierarchy(cells, leaf_capacity)
+            top = _top_hierarchy(cells, leaf_capacity, stream.attributes)
             save_hierarchy(top, partial / TOP)
             _save_preview(partial / PREVIEW, previews)
         seconds["build"] = time.perf_counter() - t
@@ -161,6 +164,9 @@ def build_chunked(source, output, *, k: int = 8, outliers: str = "drop", sharp_a
             "up": [0.0, 0.0, 1.0] if stream.z_up else [0.0, 1.0, 0.0],
             "points": int(sum(c["points"] for c in cells)), "nodes": int(sum(c["nodes"] for c in cells)),
             "has_colors": bool(stream.has_colors),
+            "attributes": [{"name": name, "dtype": np.dtype(dtype).str,   # colormaps span the points' 2nd-98th percentiles
+                            "range": list(robust_range(np.concatenate([s[name] for s in samples])))}
+                           for name, dtype in stream.attributes.items()],
             "build": {"input": str(source), "input_points": int(stream.count),
                       "files": [{"path": path, "first_id": first} for path, first in stream.files],
                       "k": int(k), "outliers": outliers,
@@ -239,16 +245,19 @@ def cell_flips(cells: int, votes: list, tops) -> np.ndarray:
     return flips
 
 
-def _top_hierarchy(cells: list, leaf_capacity: int):
-    """The point-octree over the cells' root splats. A top node's extent (the sampling scale the LOD
-    test compares) is its covering ellipse's major semi-axis: its "points" are whole cells, whose
-    spread its centers alone would understate."""
+def _top_hierarchy(cells: list, leaf_capacity: int, attributes: dict | None = None):
+    """The point-octree over the cells' root splats (with the roots' values of the ``attributes``,
+    ``{name: dtype}``). A top node's extent (the sampling scale the LOD test compares) is its
+    covering ellipse's major semi-axis: its "points" are whole cells, whose spread its centers
+    alone would understate."""
     def rows(name):
         return np.array([c["root"][name] for c in cells], dtype=np.float32)
 
     colors = rows("color") if all(c["root"]["color"] is not None for c in cells) else None
+    values = {name: np.array([c["root"]["attributes"][i] for c in cells], dtype=dtype)
+              for i, (name, dtype) in enumerate((attributes or {}).items())}
     roots = SplatCloud(positions=rows("position"), normals=rows("normal"), u=rows("u"), v=rows("v"), colors=colors,
-                       normal_field=rows("normal_field"))
+                       normal_field=rows("normal_field"), attributes=values or None)
     top = build_hierarchy(roots, leaf_capacity, source="cell roots")
     top.node_extent = np.maximum(top.node_extent, np.linalg.norm(top.node_u, axis=1)).astype(np.float32)
     return top
@@ -256,7 +265,9 @@ def _top_hierarchy(cells: list, leaf_capacity: int):
 
 def _save_preview(path: Path, previews: list) -> None:
     arrays = {}
-    for name in ("positions", "normals", "u", "v", "colors", "normal_field"):
+    names = ["positions", "normals", "u", "v", "colors", "normal_field"] + [
+        name for name in previews[0] if name.startswith("attribute_")]
+    for name in names:
         if all(p[name] is not None for p in previews):
             arrays[name] = np.concatenate([p[name] for p in previews])
     np.savez(path, **arrays)

@@ -156,7 +156,8 @@ def preprocess_cell(work: str, key: str, box: tuple, cell_size: float, neighbour
     hrow = kept[near] - n
     _save(pre, positions=p[mine], normals=result.normals[mine], u=result.u[mine], v=result.v[mine],
           colors=None if result.colors is None else result.colors[mine], ids=own["id"][kept[mine]],
-          rows=kept[mine], halo_cell=halo_cell[hrow], halo_row=halo_row[hrow], halo_normals=result.normals[near])
+          rows=kept[mine], halo_cell=halo_cell[hrow], halo_row=halo_row[hrow], halo_normals=result.normals[near],
+          **{f"attribute_{name[1:]}": own[name][kept[mine]] for name in dtype.names if name.startswith("a")})
     return {"key": key, "points": int(mine.sum()), "halo": int(len(halo)), "margin": margin,
             "top": float(p[mine, 2].max()) if mine.any() else -np.inf,
             "duplicates": int(report.duplicates), "outliers": int(report.outliers), "capped": int(report.capped)}
@@ -187,11 +188,15 @@ def orientation_votes(work: str, key: str, index: int, keys: list) -> list:
     return votes
 
 
-def build_cell(work: str, out: str, key: str, flip: bool, leaf_capacity: int, preview: int) -> dict:
+def build_cell(work: str, out: str, key: str, flip: bool, leaf_capacity: int, preview: int,
+               attributes: tuple = ()) -> dict:
     """Step 3 for one cell: its splats (normals and ``v`` negated when ``flip``) into a point-octree,
-    written to ``out/cells/<key>/`` (:mod:`.layout`). Returns the cell's manifest entry (less
-    ``ijk``) with its ``root`` splat, and ``preview``: the splats of a uniform cut of at most
-    ``preview`` nodes (arrays, for the driver's preview file)."""
+    written to ``out/cells/<key>/`` (:mod:`.layout`), with the point attributes named
+    ``attributes`` (in the order of the build's, file ``attribute_<i>.npy``; node values by mean or
+    majority vote as the in-memory hierarchy's). Returns the cell's manifest entry (less ``ijk``)
+    with its ``root`` splat, ``preview``: the splats of a uniform cut of at most ``preview``
+    nodes (arrays, for the driver's preview file), and ``samples``: the attributes of ``preview``
+    points drawn at random (for their value ranges over the whole cloud)."""
     pre = Path(work) / "pre" / key
     arrays = {name: np.load(pre / f"{name}.npy") for name in ("positions", "normals", "u", "v", "ids")}
     colors = pre / "colors.npy"
@@ -199,12 +204,14 @@ def build_cell(work: str, out: str, key: str, flip: bool, leaf_capacity: int, pr
     if flip:
         arrays["normals"] *= -1.0
         arrays["v"] *= -1.0  # keep u x v along the normal
+    values = {name: np.load(pre / f"attribute_{i}.npy") for i, name in enumerate(attributes)}
     cloud = SplatCloud(positions=arrays["positions"], normals=arrays["normals"], colors=arrays["colors"],
-                       u=arrays["u"], v=arrays["v"])
+                       u=arrays["u"], v=arrays["v"], attributes=values or None)
     h = build_hierarchy(cloud, leaf_capacity, source=f"cell {key}")
     folder = Path(out) / CELLS / key
     _save(folder, positions=h.points.positions, normals=h.points.normals, u=h.points.u, v=h.points.v,
-          colors=h.points.colors, ids=arrays["ids"][h.order])
+          colors=h.points.colors, ids=arrays["ids"][h.order],
+          **{f"attribute_{i}": h.points.attributes[name] for i, name in enumerate(attributes)})
     _save_nodes(folder / NODES, h, h.levels)
     # the first levels again, alone: a view that refines the cell no deeper reads only them
     coarse = int(np.searchsorted(h.level_offsets, COARSE_NODES, side="right")) - 1
@@ -213,30 +220,38 @@ def build_cell(work: str, out: str, key: str, flip: bool, leaf_capacity: int, pr
     files = {path.name: path.stat().st_size for path in sorted(folder.iterdir())}
     lo, hi = h.bounds()
     cut = uniform_cut(h, max(1, int(preview)))
+    sample = np.random.default_rng(0).choice(len(h.points), min(len(h.points), max(1, int(preview))), replace=False)
     return {"key": key, "points": len(h.points), "nodes": len(h), "levels": h.levels, "flipped": bool(flip),
             "coarse_levels": coarse if 0 < coarse < h.levels else h.levels,
             "bounds": [[float(x) for x in lo], [float(x) for x in hi]], "files": files,
-            "root": root_entry(h), "preview": splat_arrays(h.node_splats(cut))}
+            "root": root_entry(h, attributes),
+            "preview": splat_arrays(h.node_splats(cut)) | {f"attribute_{i}": h.node_attributes[name][cut]
+                                                           for i, name in enumerate(attributes)},
+            "samples": {name: values[name][sample] for name in attributes}}
 
 
 def _save_nodes(path: Path, h: Hierarchy, levels: int) -> None:
     """The node arrays of the first ``levels`` levels of ``h`` as an uncompressed .npz (:mod:`.layout`)."""
     m = int(h.level_offsets[levels])
     members = {name: getattr(h, name)[:m] for name in NODE_FILES if getattr(h, name) is not None}
+    for i, values in enumerate((h.node_attributes or {}).values()):
+        members[f"node_attribute_{i}"] = values[:m]
     with open(path, "wb") as handle:
         np.savez(handle, level_offsets=h.level_offsets[:levels + 1], origin=h.origin,
                  leaf_capacity=np.int64(h.leaf_capacity), max_depth=np.int64(h.max_depth), **members)
 
 
-def root_entry(h: Hierarchy) -> dict:
+def root_entry(h: Hierarchy, attributes: tuple = ()) -> dict:
     """The root node of a cell's hierarchy as JSON numbers: its splat (position, normal, u, v,
-    color or None, normal field), bounding-sphere ``radius``, ``extent`` and normal ``cone``."""
+    color or None, normal field), bounding-sphere ``radius``, ``extent``, normal ``cone`` and
+    its values of the ``attributes`` (a list in their order)."""
     def row(array):
         return None if array is None else [float(x) for x in array[0]]
 
     return {"position": row(h.node_positions), "normal": row(h.node_normals), "u": row(h.node_u), "v": row(h.node_v),
             "color": row(h.node_colors), "normal_field": row(h.node_normal_field), "radius": float(h.node_radius[0]),
-            "extent": float(h.node_extent[0]), "cone": float(h.node_cone[0])}
+            "extent": float(h.node_extent[0]), "cone": float(h.node_cone[0]),
+            "attributes": [h.node_attributes[name][0].item() for name in attributes]}
 
 
 def splat_arrays(cloud: SplatCloud) -> dict:

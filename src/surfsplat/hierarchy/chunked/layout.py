@@ -27,8 +27,11 @@ from ...errors import InputError
 
 #: Value of the manifest's ``format``.
 FORMAT = "surfsplat-chunked-hierarchy"
-#: Version of this layout; directories of another version are refused.
-FORMAT_VERSION = 1
+#: Version of this layout (2: point attributes per cell); directories of versions not in
+#: :data:`READ_VERSIONS` are refused.
+FORMAT_VERSION = 2
+#: Versions read (version 1 directories have no attributes).
+READ_VERSIONS = (1, 2)
 MANIFEST = "manifest.json"
 TOP = "top.npz"
 PREVIEW = "preview.npz"
@@ -109,9 +112,9 @@ def read_manifest(directory) -> dict:
         raise InputError(f"{path}: not a readable manifest ({exc})") from None
     if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
         raise InputError(f"{path}: not a surfsplat chunked hierarchy manifest")
-    if manifest.get("format_version") != FORMAT_VERSION:
+    if manifest.get("format_version") not in READ_VERSIONS:
         raise InputError(f"{path}: chunked format version {manifest.get('format_version')!r} is not supported "
-                         f"(this surfsplat reads version {FORMAT_VERSION}); rebuild it")
+                         f"(this surfsplat reads versions {', '.join(map(str, READ_VERSIONS))}); rebuild it")
     try:
         origin = np.array(manifest["origin"], dtype=np.float64)
         grid = manifest["grid"]
@@ -144,9 +147,13 @@ def check_size(path: Path, expected: int) -> None:
                          "(truncated or overwritten)")
 
 
-def open_points(path: Path, name: str, count: int) -> np.ndarray:
-    """A cell's per-point array ``name`` memory-mapped read-only, checked against :data:`POINT_FILES`."""
-    dtype, columns, _ = POINT_FILES[name]
+def open_points(path: Path, name: str, count: int, dtype=None) -> np.ndarray:
+    """A cell's per-point array ``name`` memory-mapped read-only, checked against :data:`POINT_FILES`
+    (or, given ``dtype``, a 1-D array of that dtype: a point attribute)."""
+    if dtype is None:
+        dtype, columns, _ = POINT_FILES[name]
+    else:
+        columns = None
     try:
         array = np.load(path, mmap_mode="r", allow_pickle=False)
     except (OSError, ValueError, EOFError) as exc:
@@ -157,13 +164,15 @@ def open_points(path: Path, name: str, count: int) -> np.ndarray:
     return array
 
 
-def read_nodes(path: Path) -> dict[str, np.ndarray]:
-    """A cell's ``nodes.npz`` members, checked (no pickles, dtypes, matching node counts, finite floats)."""
+def read_nodes(path: Path, names=tuple(NODE_FILES)) -> dict[str, np.ndarray]:
+    """A cell's ``nodes.npz`` members, checked (no pickles, dtypes, matching node counts, finite
+    floats); of the node arrays only ``names`` are read (the others are neither read nor returned)."""
     if not zipfile.is_zipfile(path):
         raise InputError(f"{path}: corrupt chunk file (not an .npz archive, or truncated)")
+    wanted = set(names) | {"level_offsets", "origin", "leaf_capacity", "max_depth"}
     try:
         with np.load(path, allow_pickle=False) as archive:
-            members = {name: archive[name] for name in archive.files}
+            members = {name: archive[name] for name in archive.files if name in wanted or name not in NODE_FILES}
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as exc:
         raise InputError(f"{path}: corrupt chunk file ({exc})") from None
     for name in ("level_offsets", "origin", "leaf_capacity", "max_depth"):
@@ -172,7 +181,7 @@ def read_nodes(path: Path) -> dict[str, np.ndarray]:
     m = len(members.get("node_positions", ()))
     for name, (dtype, columns, required) in NODE_FILES.items():
         if name not in members:
-            if required:
+            if required and name in wanted:
                 raise InputError(f"{path}: corrupt chunk file (no '{name}')")
             continue
         value = members[name]

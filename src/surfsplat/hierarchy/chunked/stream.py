@@ -4,13 +4,15 @@ Readers (:class:`PointStream`): LAS/LAZ through laspy's chunk iterator, binary P
 (the vertex element read ``chunk_points`` records at a time), anything else read whole by
 :func:`surfsplat.io.load` (small inputs), and a folder of such tiles read one after the other. Each chunk is a :class:`Chunk` of float64 positions
 (the file's coordinates, so georeferenced LiDAR keeps its precision until the origin is
-subtracted), optional normals and colors.
+subtracted), optional normals and colors, and the point attributes (LAS/LAZ dimensions such as
+``classification`` and ``intensity``, those of files read whole; a folder keeps those all its
+tiles have with one dtype).
 
 Passes over the file (:func:`build_grid`, :func:`bucket`): bounds (the LAS header or a scan),
 counts on a fine voxel grid, then the cell grid (cubes of ``b**3`` voxels, ``b`` the largest with
 no cell over ``cell_points`` points), then every chunk's points appended to their cell's
-temporary file (float32 positions relative to the origin, normals, colors, the point's row in
-the input as int64). Memory: one chunk plus the voxel histogram.
+temporary file (float32 positions relative to the origin, normals, colors, attributes, the
+point's row in the input as int64). Memory: one chunk plus the voxel histogram.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import numpy as np
 from ... import progress
 from ...errors import InputError
 from ...io import load
-from ...io.las import check_header, rgb_scale
+from ...io.las import check_header, las_attributes, rgb_scale
 from ...io.ply_layout import TYPE_SIZES, read_layout
 from .layout import cell_key
 
@@ -42,12 +44,14 @@ _PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short":
 @dataclass
 class Chunk:
     """Points of one chunk: ``positions`` (n, 3) float64 in the file's coordinates, ``normals`` and
-    ``colors`` (n, 3) float32 or None, ``first``: the row of the first point in the input."""
+    ``colors`` (n, 3) float32 or None, ``first``: the row of the first point in the input,
+    ``attributes``: {name: (n,) array} (the stream's :attr:`PointStream.attributes`)."""
 
     positions: np.ndarray
     normals: np.ndarray | None
     colors: np.ndarray | None
     first: int
+    attributes: dict | None = None
 
 
 class PointStream:
@@ -55,7 +59,8 @@ class PointStream:
 
     Attributes: ``path``, ``count`` (points), ``has_normals``, ``has_colors``, ``kind``
     ("las", "ply", "whole" or "tiles"), ``header_bounds`` (``(lo, hi)`` float64 from LAS headers,
-    else None), ``z_up`` (LAS/LAZ input), ``files``: ``(path, row of its first point)`` per file.
+    else None), ``z_up`` (LAS/LAZ input), ``files``: ``(path, row of its first point)`` per file,
+    ``attributes``: {name: dtype} of the point attributes every chunk carries.
     """
 
     def __init__(self, path, chunk_points: int):
@@ -64,6 +69,7 @@ class PointStream:
         self.header_bounds = None
         self._whole = None
         self._tiles = None
+        self.attributes = {}
         suffix = self.path.suffix.lower()
         self.files = [(str(self.path), 0)]
         if self.path.is_dir():
@@ -83,6 +89,7 @@ class PointStream:
             self.count = len(cloud)
             self.has_normals = cloud.normals is not None
             self.has_colors = cloud.colors is not None
+            self.attributes = {name: values.dtype for name, values in (cloud.attributes or {}).items()}
 
     def _open_tiles(self) -> None:
         """A folder of tiles: its LAS, LAZ and PLY files in name order, read one after the other as
@@ -98,6 +105,8 @@ class PointStream:
         self.has_normals = all(t.has_normals for t in self._tiles)
         self.has_colors = all(t.has_colors for t in self._tiles)
         self.z_up = all(t.z_up for t in self._tiles)
+        self.attributes = {name: dtype for name, dtype in self._tiles[0].attributes.items()
+                           if all(t.attributes.get(name) == dtype for t in self._tiles)}
         if all(t.header_bounds is not None for t in self._tiles):
             self.header_bounds = (np.min([t.header_bounds[0] for t in self._tiles], axis=0),
                                   np.max([t.header_bounds[1] for t in self._tiles], axis=0))
@@ -115,6 +124,8 @@ class PointStream:
                 self.count = int(header.point_count)
                 self.header_bounds = (np.array(header.mins, dtype=np.float64), np.array(header.maxs, dtype=np.float64))
                 names = set(header.point_format.dimension_names)
+                if self.count:   # the attributes' dtypes, as the in-memory reader keeps them
+                    self.attributes = {name: v.dtype for name, v in las_attributes(reader.read_points(1)).items()}
         except Exception as exc:  # laspy.LaspyException, OSError, ValueError
             raise InputError(f"{self.path}: cannot read LAS file: {type(exc).__name__}: {exc}") from exc
         self.kind = "las"
@@ -155,14 +166,16 @@ class PointStream:
             for tile, (_, first) in zip(self._tiles, self.files):
                 for chunk in tile.chunks():  # normals and colors only where every tile has them
                     yield Chunk(chunk.positions, chunk.normals if self.has_normals else None,
-                                chunk.colors if self.has_colors else None, first + chunk.first)
+                                chunk.colors if self.has_colors else None, first + chunk.first,
+                                {name: chunk.attributes[name] for name in self.attributes})
         elif self.kind == "whole":
             cloud = self._whole
             for a in range(0, self.count, self.chunk_points):
                 b = min(a + self.chunk_points, self.count)
                 yield Chunk(cloud.positions[a:b].astype(np.float64) + cloud.origin,
                             None if cloud.normals is None else cloud.normals[a:b],
-                            None if cloud.colors is None else cloud.colors[a:b], a)
+                            None if cloud.colors is None else cloud.colors[a:b], a,
+                            {name: values[a:b] for name, values in (cloud.attributes or {}).items()})
         elif self.kind == "ply":
             v = self._vertices
             for a in range(0, self.count, self.chunk_points):
@@ -193,7 +206,8 @@ class PointStream:
                         if self._rgb_scale is None:  # decided on the first chunk, kept for the file
                             self._rgb_scale = rgb_scale(rgb)
                         col = np.clip(rgb / self._rgb_scale, 0.0, 1.0).astype(np.float32)
-                    yield Chunk(pos, None, col, first)
+                    attributes = las_attributes(points)
+                    yield Chunk(pos, None, col, first, {name: attributes[name] for name in self.attributes})
                     first += len(pos)
         except InputError:
             raise
@@ -289,22 +303,24 @@ def _block_max(histogram: np.ndarray, block: int) -> int:
     return int(_block_counts(histogram, block).max())
 
 
-def record_dtype(has_normals: bool, has_colors: bool) -> np.dtype:
+def record_dtype(has_normals: bool, has_colors: bool, attributes: dict | None = None) -> np.dtype:
     """The record of the bucket files: position relative to the origin (float32), optional normal
-    and color (float32), the point's row in the input (int64)."""
+    and color (float32), the point's row in the input (int64), then the attributes (``{name:
+    dtype}``) as fields ``a0``, ``a1``, ... in that order."""
     fields = [("p", "<f4", (3,))]
     if has_normals:
         fields.append(("n", "<f4", (3,)))
     if has_colors:
         fields.append(("c", "<f4", (3,)))
     fields.append(("id", "<i8"))
+    fields += [(f"a{i}", np.dtype(dtype).newbyteorder("<")) for i, dtype in enumerate((attributes or {}).values())]
     return np.dtype(fields)
 
 
 def bucket(stream: PointStream, grid: Grid, folder: Path) -> np.dtype:
     """Pass 3: append every chunk's points to ``folder/<cell key>.bin`` (records of
     :func:`record_dtype`); returns the record dtype. Non-finite points are skipped."""
-    dtype = record_dtype(stream.has_normals, stream.has_colors)
+    dtype = record_dtype(stream.has_normals, stream.has_colors, stream.attributes)
     folder.mkdir(parents=True, exist_ok=True)
     with progress.stage("pass 3: points into cell files", stream.count, total=stream.count) as stage:
         for chunk in stream.chunks():
@@ -317,6 +333,8 @@ def bucket(stream: PointStream, grid: Grid, folder: Path) -> np.dtype:
             if stream.has_colors:
                 rec["c"] = chunk.colors[rows]
             rec["id"] = chunk.first + rows
+            for i, name in enumerate(stream.attributes):
+                rec[f"a{i}"] = chunk.attributes[name][rows]
             ijk = grid.cell_of(chunk.positions[rows])
             flat = np.ravel_multi_index(ijk.T, grid.dims)
             order = np.argsort(flat, kind="stable")

@@ -21,9 +21,9 @@ void main() {
     if (beta > u_cutoff) discard;
     vec3 ray = pixel_ray(FRAG_PX);
     vec2 st = footprint_st(ray);
-    if (clipped(st)) discard;
+    bool cut = clipped(st);
     float z = footprint_depth(st);
-    if (behind_nearest(z) || (dot(st, st) > 1.0 && fringe_hidden(ray, z))) discard;
+    if (behind_nearest(z) || ((cut || dot(st, st) > 1.0) && fringe_hidden(ray, z, cut))) discard;
     emit(ray, z, v_scale * exp(-beta), v_color, v_normal);
 #endif
 }

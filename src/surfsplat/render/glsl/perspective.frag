@@ -34,9 +34,9 @@ void main() {
         float beta = 0.5 * (q.x * q.x * v_inv_lambda.x + q.y * q.y * v_inv_lambda.y);
         if (beta > u_cutoff) discard;
         vec2 st = footprint_st(ray);
-        if (clipped(st)) discard;
+        bool cut = clipped(st);
         float z = footprint_depth(st);
-        if (dot(st, st) > 1.0 && fringe_hidden(ray, z)) discard;
+        if ((cut || dot(st, st) > 1.0) && fringe_hidden(ray, z, cut)) discard;
         emit(ray, z, v_scale * exp(-beta), v_color, v_normal);
     }
 #endif

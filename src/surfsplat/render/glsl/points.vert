@@ -19,6 +19,9 @@ flat out vec3 v_normal;      // camera space, facing the eye; 0: the point has n
 
 void main() {
     vec3 p = (u_view * vec4(in_position, 1.0)).xyz;
+#ifdef SEQUENTIAL_LOD
+    if (lod_rejected(p)) { gl_Position = CULLED; return; }   // not in this frame's LOD cut
+#endif
     float z = -p.z;
     if (!(z >= u_near_far.x && z <= u_near_far.y)) { gl_Position = CULLED; return; }
     float radius = max(length(in_u), length(in_v));   // model units; the view is rigid

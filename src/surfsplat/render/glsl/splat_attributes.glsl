@@ -8,3 +8,33 @@ in vec3 in_v;           // scaled tangent axis, orthogonal to in_u
 in vec3 in_clip0;       // clip lines (a, b, c) in normalized (s, t): kept where a s + b t + c >= 0;
 in vec3 in_clip1;       // unbound (no clip lines) they read (0, 0, 0): nothing is clipped
 in vec2 in_normal_field; // (alpha, beta) of the linear normal field (Botsch 2004, eq. 2); unbound: (0, 0)
+#ifdef SEQUENTIAL_LOD
+// Sequential point trees (Dachsbacher, Vogelgsang & Stamminger 2003, sec. 3.2; hierarchy/sequential.py):
+// the hierarchy's nodes and points are one list, each entry drawn only at the eye distances of its
+// interval, so that a frame's LOD cut costs one uniform (render/sequential.py). Requires camera.glsl.
+in vec4 in_lod;              // (R, D, A, B), model units: drawn when R + max(near, s D) <= d < A + max(near, s B)
+uniform float u_lod_scale;   // s = focal_px / tolerance_px
+
+// Pixels the drawn footprint may reach beyond the splat's projected bounding sphere: the EWA prefilter
+// (sqrt(2 c) for the largest cutoff c = 80, options.MAX_KERNEL_EXPONENT), pixel rounding, point sizes.
+const float LOD_FRUSTUM_MARGIN_PX = 16.0;
+
+// True when the entry at camera-space position p is outside its interval (not part of this frame's
+// cut), or its bounding sphere lies entirely beyond a side plane of the tile's frustum (widened by
+// LOD_FRUSTUM_MARGIN_PX): per-entry frustum culling before any other vertex work.
+bool lod_rejected(vec3 p) {
+    float d = length(p);   // the view is rigid: the eye distance
+    float lo = in_lod.x + max(u_near_far.x, u_lod_scale * in_lod.y);
+    float hi = in_lod.z + max(u_near_far.x, u_lod_scale * in_lod.w);
+    if (!(d >= lo && d < hi)) return true;
+    // side planes through the eye: pixel x >= x0 <=> f p.x + (x0 - cx) p.z >= 0 for p in front
+    float r = max(length(in_u), length(in_v));
+    vec2 c = 0.5 * u_viewport;
+    vec2 a = tile_lo() - LOD_FRUSTUM_MARGIN_PX - c;
+    vec2 b = tile_hi() + LOD_FRUSTUM_MARGIN_PX - c;
+    vec4 side = vec4(u_focal * p.x + a.x * p.z, -u_focal * p.x - b.x * p.z,
+                     u_focal * p.y + a.y * p.z, -u_focal * p.y - b.y * p.z);
+    vec4 norm = sqrt(u_focal * u_focal + vec4(a.x * a.x, b.x * b.x, a.y * a.y, b.y * b.y));
+    return any(lessThan(side, -r * norm));
+}
+#endif

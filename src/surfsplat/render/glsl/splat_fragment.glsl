@@ -2,10 +2,16 @@
 // PASS is PASS_OPAQUE (single pass), PASS_VISIBILITY (depth only) or PASS_ACCUMULATION (shaders.py).
 layout(location = 0) out vec4 out_color;   // (w * rgb, w)
 layout(location = 1) out vec4 out_aux;     // (w * depth, w * normal), camera space
+// Accumulation pass: soft maxima of the pixel's coverage c by each splat's disk and of the signed
+// distance d of its center to the disk's rim (pixels, > 0 inside, clamped to +-COVER_REACH):
+// (sum e^(S (c - 1)), sum c e^(S (c - 1)), sum e^(S_d (d - R)), sum d e^(S_d (d - R))), S =
+// COVER_SHARPNESS, S_d = DISTANCE_SHARPNESS, R = COVER_REACH; normalize.frag takes the ratios.
+layout(location = 2) out vec4 out_cover;
 
 uniform float u_depth_epsilon;   // visibility offset along the viewing ray, in splat radii
 uniform bool u_separate_sides;   // blend only splats seen from the same side as the nearest one
 uniform bool u_clip_fringe;      // drop filter fringes beyond a splat's disk over nothing or a farther surface
+uniform bool u_edge_coverage;    // silhouette pixels: the disks' analytic area coverage as alpha (normalize.frag)
 uniform sampler2D u_side;        // visibility pass: (side of the nearest disk: 0 front, 1 back, 0.5 none;
                                  //  its offset depth, camera space)
 
@@ -87,22 +93,107 @@ bool behind_nearest(float z) {
 #endif
 }
 
-bool fringe_hidden(vec3 ray, float z) {
+// ``cut``: the fragment lies beyond one of the splat's clip lines (dropped except over the background,
+// where with u_edge_coverage a fringe fragment only brings the rim pixel's colour and the disk's coverage).
+bool fringe_hidden(vec3 ray, float z, bool cut) {
 #if PASS == PASS_ACCUMULATION
-    if (!u_clip_fringe) return false;
+    if (!u_clip_fringe) return cut;
     vec2 nearest = texelFetch(u_side, ivec2(gl_FragCoord.xy), 0).rg;
     if (abs(nearest.x - 0.5) < 0.25) {
-        // no disk covers the pixel: outside a silhouette the fringe goes; in a crack that straight
-        // clip lines leave between disks (3 or 4 neighbours covered) it fills the crack
+        // no disk covers the pixel: in a crack that straight clip lines leave between disks (3 or 4
+        // neighbours covered) the fringe fills the crack; outside a silhouette it goes, unless the
+        // pixel gets the disks' coverage as alpha (u_edge_coverage: then its weight only colours it)
         int covered = int(disk_at(ivec2(1, 0))) + int(disk_at(ivec2(-1, 0))) + int(disk_at(ivec2(0, 1)))
                       + int(disk_at(ivec2(0, -1)));
-        return covered < 3;
+        return covered >= 3 ? cut : !u_edge_coverage;
     }
-    return nearest.y > z + 2.0 * u_depth_epsilon * v_radius / length(ray);
+    return cut || nearest.y > z + 2.0 * u_depth_epsilon * v_radius / length(ray);
 #else
-    return false;
+    return cut;
 #endif
 }
+
+#if PASS == PASS_ACCUMULATION
+// Sharpness of the soft maxima (out_cover): coverages within about 1/32 of the largest one, and
+// distances within about 1/8 pixel of the largest one, weigh alike; distances are clamped to
+// +-COVER_REACH pixels (beyond, a pixel is fully in or out).
+const float COVER_SHARPNESS = 32.0;
+const float DISTANCE_SHARPNESS = 8.0;
+const float COVER_REACH = 2.0;
+// The rim's squeeze at silhouettes (disk_coverage): width kept along the foreshortened direction of
+// an edge-on disk, and the power of |w| that fades it out for disks facing the eye. Measured
+// (the sphere of 2.75 px splats of tests/test_edges.py, K = 1): squeezes 1, 0.75, 0.5, 0.3, 0.1, 0.03
+// leave a summed coverage error of 47, 34, 24, 19, 16, 14 px (net +47, +34, +22, +15, +8, +5).
+const float RIM_SQUEEZE = 0.05;
+const float RIM_SQUEEZE_FALLOFF = 4.0;
+
+// Area of the unit pixel box on the inner side of a straight edge at signed distance d (pixels,
+// > 0: the pixel's center inside) with unit normal n: the distribution of n . x over the box is
+// the convolution of two uniform ones of widths |n.x| and |n.y| (a trapezoid); this is its CDF
+// at d (its NumPy twin: tests/test_edges.py).
+float halfplane_coverage(float d, vec2 n) {
+    vec2 m = abs(n);
+    float a = max(m.x, m.y), b = min(m.x, m.y);
+    float x = abs(d);
+    float t = max(0.5 * (a + b) - x, 0.0);
+    float tail = x < 0.5 * (a - b) ? 0.5 - x / a : (a * b > 1e-8 ? 0.5 * t * t / (a * b) : 0.0);
+    return d >= 0.0 ? 1.0 - tail : tail;
+}
+
+// The fraction of the fragment's pixel that the splat's (clipped) disk covers: the signed distance
+// of the pixel's center to the disk's rim and to each clip line, in pixels, to first order (the
+// value over the length of its gradient), and the half-plane coverage of the nearest of these
+// edges. The disk is mapped to the image by its affine approximation at its center (the Jacobian
+// of EWA, Zwicker 2004 sec. 3; Guennebaud 2003 sec. 6): at the pixel's own ray the projective map
+// of a plane seen almost edge-on runs off to its horizon and the first-order distance fails.
+vec2 disk_coverage() {
+    vec3 ray = v_center / -v_center.z;   // through the center's pixel
+    float denom = dot(v_plane, ray);     // 1 / z of the plane along it
+    if (!(denom > 0.0) || !(v_center.z < 0.0)) return vec2(0.0, -COVER_REACH);
+    vec3 q = ray / denom;
+    // d q / d px for the ray's derivatives (1 / f, 0, 0) and (0, 1 / f, 0)
+    vec3 qx = (vec3(1.0 / u_focal, 0.0, 0.0) - q * (v_plane.x / u_focal)) / denom;
+    vec3 qy = (vec3(0.0, 1.0 / u_focal, 0.0) - q * (v_plane.y / u_focal)) / denom;
+    vec2 sx = vec2(dot(qx, v_udual), dot(qx, v_vdual));   // d (s, t) / d x
+    vec2 sy = vec2(dot(qy, v_udual), dot(qy, v_vdual));   // d (s, t) / d y
+    vec2 d_px = FRAG_PX - project_px(v_center);
+    vec2 st = sx * d_px.x + sy * d_px.y;
+    // A tangent disk of radius r at a silhouette whose surface curves with radius R reaches past it
+    // by up to r^2 / 2R (the disk tilted by r / R from edge-on; measured on spheres): the rim is
+    // taken that of the disk squeezed along its foreshortened direction w (the view direction's
+    // projection on its plane) to RIM_SQUEEZE of its width, which leaves r^2 / 2R times its square;
+    // disks facing the eye (|w| -> 0: not at a silhouette, e.g. an open border) keep their shape,
+    // and so do clipped ones (a clip line is where the surface ends or bends sharply: the disk's
+    // plane holds up to it, and the line is the rim).
+    vec3 toward = -normalize(v_center);
+    vec3 nrm = normalize(v_plane);
+    vec3 w = toward - dot(toward, nrm) * nrm;   // |w| = cosine of the angle off edge-on
+    vec2 wst = vec2(dot(w, v_udual), dot(w, v_vdual));
+    float wl = length(wst);
+    mat2 m = mat2(1.0);
+    if (wl > 1e-6 && dot(v_clip0.xy, v_clip0.xy) == 0.0 && dot(v_clip1.xy, v_clip1.xy) == 0.0) {
+        wst /= wl;
+        m += (1.0 / RIM_SQUEEZE - 1.0) * pow(dot(w, w), 0.5 * RIM_SQUEEZE_FALLOFF) * outerProduct(wst, wst);
+    }
+    vec2 sq = m * st, mx = m * sx, my = m * sy;
+    float r = length(sq);
+    vec2 radial = r > 1e-6 ? sq / r : vec2(1.0, 0.0);
+    vec2 grad = vec2(dot(radial, mx), dot(radial, my));   // of |(s, t)|, outward
+    float g = length(grad);
+    float d = g > 0.0 ? (1.0 - r) / g : (r <= 1.0 ? 1e6 : -1e6);
+    vec2 n = g > 0.0 ? grad / g : vec2(1.0, 0.0);
+    for (int i = 0; i < 2; ++i) {
+        vec3 line = i == 0 ? v_clip0 : v_clip1;   // kept where a s + b t + c >= 0
+        vec2 lg = vec2(dot(line.xy, sx), dot(line.xy, sy));
+        float l = length(lg);
+        if (l > 0.0) {
+            float dl = (dot(line.xy, st) + line.z) / l;
+            if (dl < d) { d = dl; n = -lg / l; }
+        }
+    }
+    return vec2(halfplane_coverage(d, n), clamp(d, -COVER_REACH, COVER_REACH));
+}
+#endif
 
 // Writes depth (offset by epsilon along the ray in the visibility pass) and the outputs.
 // The visibility pass also records which side of its splat the nearest fragment shows; with
@@ -115,6 +206,7 @@ void emit(vec3 ray, float z, float w, vec3 color, vec3 normal) {
     gl_FragDepth = window_depth(z);
     out_color = vec4(v_back, z, 0.0, 1.0);
     out_aux = vec4(0.0);
+    out_cover = vec4(0.0);
 #else
 #if PASS == PASS_ACCUMULATION
     // side 0 front, 1 back, 0.5 no splat's disk covers the pixel (a filter's fringe only): any side blends
@@ -124,5 +216,16 @@ void emit(vec3 ray, float z, float w, vec3 color, vec3 normal) {
     gl_FragDepth = window_depth(z);
     out_color = vec4(color * w, w);
     out_aux = vec4(z, normal) * w;
+#if PASS == PASS_ACCUMULATION
+    out_cover = vec4(0.0);
+    if (u_edge_coverage) {
+        vec2 cd = disk_coverage();
+        float e = exp(COVER_SHARPNESS * (cd.x - 1.0));
+        float ed = exp(DISTANCE_SHARPNESS * (cd.y - COVER_REACH));
+        out_cover = vec4(e, cd.x * e, ed, cd.y * ed);
+    }
+#else
+    out_cover = vec4(0.0);
+#endif
 #endif
 }

@@ -32,6 +32,9 @@ struct Splat {
 // or is seen exactly edge-on through the eye (it covers no area).
 bool camera_splat(out Splat s) {
     s.p = (u_view * vec4(in_position, 1.0)).xyz;
+#ifdef SEQUENTIAL_LOD
+    if (lod_rejected(s.p)) return false;   // not in this frame's LOD cut
+#endif
     mat3 r = mat3(u_view);
     s.u = r * in_u;
     s.v = r * in_v;
