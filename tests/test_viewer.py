@@ -649,20 +649,27 @@ def test_preview_levels_are_nested_coarse_to_fine_cuts_within_the_budget():
 def test_preview_level_follows_the_frame_time():
     from surfsplat.viewer.detail import PREVIEW_HEADROOM, PREVIEW_SHARE, next_preview_level
     counts = [5_000, 20_000, 80_000]
-    budget = PREVIEW_SHARE / 25.0
-    assert next_preview_level(2, counts, 2.0 * budget, 25.0) == 1      # too slow: coarser
-    assert next_preview_level(0, counts, 2.0 * budget, 25.0) == 0      # nothing coarser
-    assert next_preview_level(1, counts, 0.1 * budget, 25.0) == 2      # 4x the time still fits: finer
-    # the finer level's predicted time (proportional to splats) must stay under the headroom
-    just_over = PREVIEW_HEADROOM * budget / 4.0 * 1.01
-    assert next_preview_level(1, counts, just_over, 25.0) == 1
-    assert next_preview_level(2, counts, 0.1 * budget, 25.0) == 2      # nothing finer
-    assert next_preview_level(0, counts, 10.0, 0.0) == 2               # fps 0: always the finest
-    # no flip-flop: after stepping down because level 2 was too slow, the prediction from level 1
-    # (4x its time) is not under the headroom when level 2 really took over the budget
-    t2 = 1.2 * budget
-    t1 = t2 / 4.0 + 0.001   # fixed cost per frame
-    assert next_preview_level(2, counts, t2, 25.0) == 1 and next_preview_level(1, counts, t1, 25.0) == 1
+    target = 1.0 / 25.0
+    assert next_preview_level(2, counts, 0.01, 25.0, frame_s=2.0 * target) == 1   # too slow: coarser
+    assert next_preview_level(0, counts, 0.01, 25.0, frame_s=2.0 * target) == 0   # nothing coarser
+    # the finer level: the frame plus 3x more render time (4x the splats) must fit under the headroom
+    assert next_preview_level(1, counts, 0.002, 25.0, frame_s=0.01) == 2
+    render = 0.004
+    just_over = PREVIEW_HEADROOM * target - 3 * render + 1e-4
+    assert next_preview_level(1, counts, render, 25.0, frame_s=just_over) == 1
+    assert next_preview_level(1, counts, render, 25.0, frame_s=just_over - 2e-4) == 2
+    assert next_preview_level(2, counts, 0.001, 25.0, frame_s=0.002) == 2         # nothing finer
+    assert next_preview_level(0, counts, 10.0, 0.0) == 2                          # fps 0: always the finest
+    # without the frame's time, the render is taken as PREVIEW_SHARE of it
+    assert next_preview_level(2, counts, 1.01 * PREVIEW_SHARE * target, 25.0) == 1
+    assert next_preview_level(2, counts, 0.99 * PREVIEW_SHARE * target, 25.0) == 2
+    # no flip-flop: after stepping down because level 2's frame was too slow, the prediction from
+    # level 1 (its frame plus 3x its render) is not under the headroom
+    fixed, per_splat = 0.02, 0.5e-6
+    frame2 = fixed + per_splat * counts[2]
+    frame1 = fixed + per_splat * counts[1]
+    assert frame2 > target and next_preview_level(2, counts, frame2 - 0.015, 25.0, frame2) == 1
+    assert next_preview_level(1, counts, frame1 - 0.015, 25.0, frame1) == 1
 
 
 def test_viewer_culls_closed_surfaces_automatically(xvfb_display):

@@ -129,6 +129,7 @@ class Viewer(ViewerInput):
             name for name in sorted(cloud.attributes or {}) if name != NONPLANAR]
         self.color_index, self._own_colors = 0, cloud.colors
         self.preview_splats, self.preview_ladder, self.preview_level = None, [], 0
+        self._preview_start: float | None = None   # when the last preview's rendering started
         self._upload_preview()
 
         fb_w, fb_h = glfw.get_framebuffer_size(window)
@@ -278,8 +279,11 @@ class Viewer(ViewerInput):
         self.ctx.finish()  # llvmpipe works asynchronously: wait, so frame times are real
         self.last_render_s["full" if full else "preview"] = time.perf_counter() - start
         if not full:   # keep moving frames at the target rate: the next preview coarser or finer
+            # the whole frame: from the previous preview's start, when previews follow each other
+            previous, self._preview_start = self._preview_start, start
+            frame_s = start - previous if previous is not None and start - previous < SETTLE_S else None
             self.preview_level = next_preview_level(self.preview_level, [s.count for s in self.preview_ladder],
-                                                    self.last_render_s["preview"], self.motion_fps)
+                                                    self.last_render_s["preview"], self.motion_fps, frame_s)
             self.preview_splats = self.preview_ladder[self.preview_level]
         if full:
             self.full_frames += 1

@@ -36,14 +36,14 @@ def preview_cloud(hierarchy, budget: int) -> SplatCloud | None:
     return hierarchy.node_splats(uniform_cut(hierarchy, budget), lod_shading="flat")
 
 
-#: The coarsest motion preview level has at least this many splats (fewer would not be faster:
-#: a frame's fixed costs, clearing and presenting, dominate below it on llvmpipe).
-PREVIEW_MIN = 4_000
-#: Share of a frame's time (1 / the target rate) the preview's rendering may take; the rest is
-#: presenting, the HUD and the buffer swap.
+#: The coarsest motion preview level has at least this many splats (a coarser one would hardly be
+#: faster: a frame's fixed costs, clearing, presenting and the HUD, dominate below it on llvmpipe).
+PREVIEW_MIN = 1_000
+#: Share of a frame's time (1 / the target rate) a preview's rendering is assumed to take when the
+#: time of the whole frame is not known yet (the first preview after a still view).
 PREVIEW_SHARE = 0.75
-#: A finer preview level is taken only if its predicted time is below this share of the budget
-#: (hysteresis: no flipping between two levels).
+#: A finer preview level is taken only if its predicted frame time is below this share of the
+#: target's (hysteresis: no flipping between two levels).
 PREVIEW_HEADROOM = 0.8
 
 
@@ -66,21 +66,26 @@ def preview_levels(hierarchy, budget: int) -> list[SplatCloud | None]:
     return levels
 
 
-def next_preview_level(level: int, counts: list[int], seconds: float, fps: float) -> int:
+def next_preview_level(level: int, counts: list[int], render_s: float, fps: float,
+                       frame_s: float | None = None) -> int:
     """The preview level (index into ``counts``, splats per level from coarse to fine) to draw next,
-    after level ``level`` took ``seconds`` to render, so moving frames keep ``fps`` frames per
-    second: one level coarser when the render took more than :data:`PREVIEW_SHARE` / ``fps``;
-    one finer when its time, predicted proportional to its splats (an over-estimate: part of a
-    frame's cost is fixed), stays within :data:`PREVIEW_HEADROOM` of that; else the same.
-    ``fps`` 0: always the finest."""
+    after level ``level`` took ``render_s`` seconds to render within a frame of ``frame_s`` seconds
+    (rendering, presenting, HUD, swap; None: not known, taken as ``render_s / PREVIEW_SHARE``), so
+    that moving frames keep ``fps`` frames per second: one level coarser when the frame took longer
+    than ``1 / fps``; one finer when the frame with the finer level's render time, predicted
+    proportional to its splats (an over-estimate: part of a render is fixed), stays within
+    :data:`PREVIEW_HEADROOM` of it; else the same. ``fps`` 0: always the finest."""
     if fps <= 0:
         return len(counts) - 1
-    budget_s = PREVIEW_SHARE / fps
-    if seconds > budget_s and level > 0:
+    target = 1.0 / fps
+    frame = render_s / PREVIEW_SHARE if frame_s is None else frame_s
+    if frame > target and level > 0:
         return level - 1
     finer = level + 1
-    if finer < len(counts) and seconds * counts[finer] / max(counts[level], 1) < PREVIEW_HEADROOM * budget_s:
-        return finer
+    if finer < len(counts):
+        predicted = frame + render_s * (counts[finer] / max(counts[level], 1) - 1.0)
+        if predicted < PREVIEW_HEADROOM * target:
+            return finer
     return level
 
 
