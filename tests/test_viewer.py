@@ -589,12 +589,13 @@ def test_window_keeps_drawing_while_cells_stream(xvfb_display, chunked_model):
         from surfsplat.lighting import Lights
         from surfsplat.render.options import RenderOptions
         from surfsplat.viewer import app
+        from surfsplat.hierarchy.chunked import ChunkedHierarchy
         model = load_model(r"{chunked_model}")
-        cut = model.view_splats
-        def slow(*args, **kw):
+        cut = ChunkedHierarchy.view_splats
+        def slow(self, *args, **kw):   # on the class: recoloured copies are slow too
             time.sleep(1.0)
-            return cut(*args, **kw)
-        model.view_splats = slow
+            return cut(self, *args, **kw)
+        ChunkedHierarchy.view_splats = slow
         glfw, window, ctx = app.open_window(240, 180, "test")
         v = app.Viewer(glfw, window, ctx, model, CameraSpec(), technique="ewa", lights=Lights(),
                        options=RenderOptions(), background=(1, 1, 1), lod_tolerance=1.0,
@@ -614,10 +615,21 @@ def test_window_keeps_drawing_while_cells_stream(xvfb_display, chunked_model):
         assert turns > 3 and v.full_frames == 1 and model.loads > 0
         full = v.full_image()
         assert (full < 200).any(axis=2).mean() > 0.05
-        # C: no attributes to colour by; said on the HUD, nothing fails
+        # C: colour by elevation; the preview at once, the still view read again and coloured
+        assert v.color_modes[:2] == ["own colours", "elevation"]
         v._on_key(window, glfw.KEY_C, 0, glfw.PRESS, 0)
         v.step(wait=False)
-        assert "not in the viewer for a chunked hierarchy" in v.status_text() and v.color_index == 0
+        assert v.color_index == 1 and "colour by elevation" in v.status_text()
+        assert np.ptp(v.lod.hierarchy.points.colors, axis=0).max() > 0.3   # the preview coloured
+        deadline = time.perf_counter() + 30
+        while (v.full_version != v.version or v.fade_from is not None) and time.perf_counter() < deadline:
+            v.step(wait=False)
+        colored = v.full_image().astype(int)
+        assert v.full_frames == 2, v.full_frames
+        saturation = colored.max(axis=2) - colored.min(axis=2)
+        grey = full.astype(int).max(axis=2) - full.astype(int).min(axis=2)
+        assert (saturation > 40).mean() > 0.02 and (grey > 40).mean() < 0.01, ((saturation > 40).mean(),
+                                                                             (grey > 40).mean())
         v.release()
         glfw.terminate()
         print("ok", turns)

@@ -123,10 +123,11 @@ class Viewer(ViewerInput):
                                or closed_orientation(cloud) > 0)
         self.model_bounds = cloud.bounds()
         self.motion_budget, self.motion_fps = int(motion.budget), float(motion.fps)
-        # colour by (C): the attributes the hierarchy's points keep (a chunked hierarchy keeps none
-        # and reads its points per view: own colours only)
-        self.color_modes = ["own colours"] if self.chunked else ["own colours", "elevation"] + [
-            name for name in sorted(cloud.attributes or {}) if name != NONPLANAR]
+        # colour by (C): the attributes the hierarchy's points keep (a chunked hierarchy: those its
+        # cells keep, applied as each view is read)
+        names = hierarchy.attributes if self.chunked else (cloud.attributes or {})
+        self.color_modes = ["own colours", "elevation"] + [name for name in sorted(names) if name != NONPLANAR]
+        self._chunked_base = hierarchy if self.chunked else None
         self.color_index, self._own_colors = 0, cloud.colors
         self.preview_splats, self.preview_ladder, self.preview_level = None, [], 0
         self._preview_start: float | None = None   # when the last preview's rendering started
@@ -230,6 +231,13 @@ class Viewer(ViewerInput):
         2nd-98th percentiles, :func:`surfsplat.colors.colorize`); returns the mode's name."""
         self.color_index = (self.color_index + 1) % len(self.color_modes)
         name = self.color_modes[self.color_index]
+        if self.chunked:   # a copy coloured as its cells are read, its preview coloured now
+            base = self._chunked_base
+            self.lod.set_hierarchy(base if self.color_index == 0 else
+                                   base.colorized(name, up=tuple(self.controller.up)))
+            self._upload_preview()
+            self.preview_version = 0
+            return name
         if self.color_index == 0:
             colors = self._own_colors
             node_colors = None   # averaged per node

@@ -141,10 +141,18 @@ class LevelOfDetail:
         self.model = hierarchy if model is None else model
         self.streamer = CellStreamer() if isinstance(hierarchy, ChunkedHierarchy) else None
         self._key = None
+        self._generation = 0   # changes with the hierarchy (set_hierarchy): part of a view's key
         self._splats = None
         self.count = 0
         self.select_ms = 0.0
         self.cells_loaded = 0   # chunked: cells the last cut needed (read or found in the cache)
+
+    def set_hierarchy(self, hierarchy) -> None:
+        """Cut ``hierarchy`` from now on (a recoloured chunked model: ``ChunkedHierarchy.colorized``);
+        the uploaded cut is dropped and views already read are not reused."""
+        self.hierarchy = hierarchy
+        self._generation += 1
+        self.release()
 
     def _cut(self, camera: Camera, lod_tolerance: float, cull_backfaces: bool, point_budget: int | None):
         """(SplatCloud with the model's origin, selection, milliseconds taken) of a view; ``camera`` in
@@ -164,7 +172,7 @@ class LevelOfDetail:
               hybrid: bool = False) -> bool:
         """Whether the view's cut can be drawn without waiting: always for an in-memory hierarchy;
         for a chunked one, once its cells have been read in the background (started here if not yet)."""
-        key = (camera, float(lod_tolerance), bool(cull_backfaces), point_budget, bool(hybrid))
+        key = (camera, float(lod_tolerance), bool(cull_backfaces), point_budget, bool(hybrid), self._generation)
         if self.streamer is None or key == self._key:
             return True
         return self.streamer.poll(key, lambda: self._cut(*key[:4])) is not None
@@ -188,7 +196,7 @@ class LevelOfDetail:
             self.count = self._sequential.prefix_count(camera)
             self.select_ms = 1000.0 * (time.perf_counter() - start)
             return self._sequential, self.count
-        key = (camera, float(lod_tolerance), bool(cull_backfaces), point_budget, bool(hybrid))
+        key = (camera, float(lod_tolerance), bool(cull_backfaces), point_budget, bool(hybrid), self._generation)
         if key != self._key:
             if self.streamer is not None:
                 cloud, selection, self.select_ms = self.streamer.result(key, lambda: self._cut(*key[:4]))

@@ -172,10 +172,6 @@ class ViewerInput:
             o = self.options
             self.options = replace(o, edl=None if o.edl is not None else EdlOptions())
         elif kind == "color":
-            if self.chunked:   # its points are read per view; the viewer recolours points in memory
-                self._message = ("colour by: not in the viewer for a chunked hierarchy "
-                                 "(surfsplat render MODEL --color-by NAME)", time.perf_counter() + 3.0)
-                return
             name = self.cycle_colors()
             self._message = (f"colour by {name}", time.perf_counter() + 2.0)
         elif kind == "tolerance":

@@ -315,7 +315,7 @@ class ChunkedHierarchy:
 
     def colorized(self, by: str, colormap: str | None = None, value_range=None, *,
                   up=(0.0, 0.0, 1.0)) -> "ChunkedHierarchy":
-        """The model (sharing its cells and cache) with every view coloured by the scalar ``by``
+        """The model (sharing its cells and cache) with every view and its preview coloured by the scalar ``by``
         (``elevation`` or one of :attr:`attributes`; arguments as :func:`surfsplat.colors.colorize`):
         node splats of a class palette (``asprs``, the default for ``classification``) get their
         majority class's colour; a continuous colormap spans ``value_range``, by default the
@@ -329,6 +329,7 @@ class ChunkedHierarchy:
             value_range = tuple(ranges[name]) if ranges.get(name) else robust_range(values)
         out = copy.copy(self)
         out.coloring = (name, colormap, value_range, tuple(up))
+        out.points = colorize(self.points, name, colormap, value_range, up=up)   # the preview too
         return out
 
     def view_splats(self, camera: Camera, lod_tolerance: float, *, cull_backfaces: bool = False,
