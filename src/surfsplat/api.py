@@ -566,22 +566,26 @@ def check_coverage(frame: Frame, model: Model, what: str = "the model") -> None:
                       f"its bounds cover in the image: {where}", EmptyFrameWarning, stacklevel=3)
 
 
+def oriented_outward(drawn, closed: bool):
+    """``(drawn, outward)``: whether the splats ``drawn`` of a model sample closed surfaces with
+    outward normals, so that from outside their bounds only front faces are seen: a closed mesh
+    (``closed``), or a cloud or hierarchy (a chunked one by its preview splats) that
+    :func:`~surfsplat.geometry.closed.closed_orientation` finds closed. A cloud with inward normals has
+    them turned (the splats returned); a hierarchy's are kept, so only an outward one counts."""
+    if isinstance(drawn, (Hierarchy, ChunkedHierarchy)):
+        return drawn, closed or closed_orientation(drawn.points) > 0
+    if closed:
+        return drawn, True
+    orientation = closed_orientation(drawn)
+    return (flipped_normals(drawn) if orientation < 0 else drawn), orientation != 0
+
+
 def cull_automatically(drawn, camera: Camera, closed: bool):
     """``(drawn, cull)``: whether back-face culling is safe for the splats ``drawn`` of a model seen
-    by ``camera`` (``VisibilityOptions.cull_backfaces=None``), with the splats to draw. It is where
-    they sample closed surfaces with outward normals and the eye is outside their bounds: a closed
-    mesh (``closed``), or a cloud or hierarchy (a chunked one by its preview splats) that
-    :func:`~surfsplat.geometry.closed.closed_orientation` finds closed (a cloud with inward normals has
-    them turned; a hierarchy's are kept, so only an outward one is culled). There the back side's splats, never visible, are not drawn: a frame
-    is faster and silhouettes lose the dark rim of mirrored back splats."""
-    if isinstance(drawn, (Hierarchy, ChunkedHierarchy)):   # a chunked one is judged by its preview splats
-        outward = closed or closed_orientation(drawn.points) > 0
-    elif closed:
-        outward = True
-    else:
-        orientation = closed_orientation(drawn)
-        drawn = flipped_normals(drawn) if orientation < 0 else drawn
-        outward = orientation != 0
+    by ``camera`` (``VisibilityOptions.cull_backfaces=None``), with the splats to draw: where they are
+    :func:`oriented_outward` and the eye is outside their bounds. There the back side's splats, never
+    visible, are not drawn: a frame is faster and silhouettes lose the dark rim of mirrored back splats."""
+    drawn, outward = oriented_outward(drawn, closed)
     cull = outward and eye_outside(drawn.bounds(), camera.eye)
     if cull and not closed:
         _tell_once("a closed surface seen from outside: back faces culled (--no-cull-backfaces draws them)")

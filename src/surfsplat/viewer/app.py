@@ -55,9 +55,10 @@ import numpy as np
 
 from .. import progress
 from ..api import (DEFAULT_BACKGROUND, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec, SourceOptions,
-                   as_hierarchy, check_background, check_source, is_lidar, load_model, natural_up, resolve_camera)
+                   as_hierarchy, check_background, check_source, is_lidar, load_model, natural_up, oriented_outward,
+                   resolve_camera)
 from ..camera import Camera
-from ..geometry.closed import closed_orientation, eye_outside, is_closed_surface
+from ..geometry.closed import eye_outside, is_closed_surface
 from ..geometry.preprocess import NONPLANAR
 from ..errors import InputError
 from ..hierarchy import LodShading
@@ -119,8 +120,7 @@ class Viewer(ViewerInput):
         self.model_splats = hierarchy.point_count if self.chunked else len(cloud)
         # automatic back-face culling (VisibilityOptions.cull_backfaces None): a closed surface seen from
         # outside its bounds (as api.cull_automatically decides for render)
-        self.closed_surface = ((isinstance(model, Mesh) and is_closed_surface(model))
-                               or closed_orientation(cloud) > 0)
+        self.closed_surface = oriented_outward(hierarchy, isinstance(model, Mesh) and is_closed_surface(model))[1]
         self.model_bounds = cloud.bounds()
         self.motion_budget, self.motion_fps = int(motion.budget), float(motion.fps)
         # colour by (C): the attributes the hierarchy's points keep (a chunked hierarchy: those its
