@@ -709,3 +709,11 @@ def test_viewer_culls_closed_surfaces_automatically(xvfb_display):
         """, xvfb_display)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip().endswith("ok")
+
+
+@pytest.mark.parametrize("options", [dict(fps="x"), dict(fps=None), dict(fps=float("nan")), dict(fps=-1.0),
+                                     dict(fps=1e9), dict(scale="a"), dict(budget=1.5), dict(budget="3"),
+                                     dict(budget=float("inf")), dict(budget=True)])
+def test_motion_options_refuse_bad_values_clearly(options):
+    with pytest.raises(InputError, match="motion"):
+        surfsplat.MotionOptions(**options)

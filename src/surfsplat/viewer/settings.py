@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal, get_args
@@ -57,12 +58,17 @@ class MotionOptions:
     def __post_init__(self) -> None:
         if self.mode not in MOTION_MODES:
             raise InputError(f"motion must be one of {', '.join(map(repr, MOTION_MODES))}, got {self.mode!r}")
-        if not (0.0 < self.scale <= 1.0):
-            raise InputError(f"motion scale must be in (0, 1], got {self.scale}")
-        if int(self.budget) < 0:
-            raise InputError(f"motion budget must be >= 0 splats (0: all), got {self.budget}")
-        if not (0.0 <= self.fps <= 1000.0):
-            raise InputError(f"motion fps must be in [0, 1000] frames per second (0: no adapting), got {self.fps}")
+        if not (_is_real(self.scale) and 0.0 < self.scale <= 1.0):
+            raise InputError(f"motion scale must be in (0, 1], got {self.scale!r}")
+        if not (_is_real(self.budget) and int(self.budget) == self.budget and self.budget >= 0):
+            raise InputError(f"motion budget must be a whole number >= 0 splats (0: all), got {self.budget!r}")
+        if not (_is_real(self.fps) and 0.0 <= self.fps <= 1000.0):
+            raise InputError(f"motion fps must be in [0, 1000] frames per second (0: no adapting), got {self.fps!r}")
+
+
+def _is_real(value) -> bool:
+    """Whether ``value`` is a finite real number (bool excluded)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
 
 
 @dataclass
