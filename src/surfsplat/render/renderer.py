@@ -54,7 +54,11 @@ __all__ = ["GpuSplats", "Renderer", "default_renderer", "reset_default_renderer"
 #: them there is no error. This is the one documented optional set of frame-wide uniforms;
 #: a technique lists its own optional ones in ``Technique.optional_uniforms``.
 OPTIONAL_FRAME_UNIFORMS = frozenset({"u_depth_epsilon", "u_cull_backfaces", "u_deferred", "u_separate_sides",
-                                     "u_side", "u_supersample", "u_clip_fringe", "u_edge_coverage"})
+                                     "u_side", "u_supersample", "u_clip_fringe"})
+#: The define compiling edge coverage into the accumulation and normalization passes
+#: (``VisibilityOptions.edge_coverage``): a define, since llvmpipe pays for a branch on a false uniform
+#: (20% of the accumulation pass on the bunny).
+EDGE_COVERAGE_DEFINE = "EDGE_COVERAGE"
 #: Pixels drawn around each tile and cropped (fringe clipping looks at each pixel's neighbours; the
 #: edge coverage of normalize.frag at the neighbours, up to 4 sub-pixels away at K = 8, of its neighbours).
 TILE_MARGIN = 5
@@ -339,7 +343,8 @@ class Renderer:
         self._non_finite, self._background = 0, np.ones(3, "f4")   # of the render in progress
         self._parking_rb = self.ctx.renderbuffer((1, 1))
         self._parking = self.ctx.framebuffer([self._parking_rb])
-        self._fullscreen = self.ctx.vertex_array(self.program("fullscreen.vert", "normalize.frag"), [])
+        # the full-screen passes: normalization (by edge coverage: False, True) and "cracks"
+        self._fullscreen: dict[bool | str, moderngl.VertexArray] = {}
         self._max_point = float(self.ctx.info["GL_POINT_SIZE_RANGE"][1])
 
     # -- resources ---------------------------------------------------------
@@ -386,7 +391,9 @@ class Renderer:
         The context stays (it may be shared, e.g. the headless one)."""
         self.forget_upload()
         self._release_targets()
-        self._fullscreen.release()
+        for vao in self._fullscreen.values():
+            vao.release()
+        self._fullscreen.clear()
         for built in self._programs.values():
             built.program.release()
         self._programs.clear()
@@ -495,12 +502,14 @@ class Renderer:
             depth_sum = ctx.texture(size, 2, dtype="f4")   # weighted depth sum, coverage alpha
             cover = ctx.texture(size, 4, dtype="f4")   # soft maxima of the splats' pixel coverages, distances
             side = ctx.texture(size, 2, dtype="f4")   # side and offset depth of each pixel's nearest disk
-            for tex in (accum, aux, out, depth_sum, side, cover):
+            cracks = ctx.texture(size, 2, dtype="f4")   # the same with its cracks marked (cracks.frag)
+            for tex in (accum, aux, out, depth_sum, side, cracks, cover):
                 tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
             self._targets = {
                 "size": size, "accum": accum, "aux": aux, "depth": depth, "out": out, "depth_sum": depth_sum,
-                "side": side, "cover": cover,
+                "side": side, "cracks": cracks, "cover": cover,
                 "fbo_visibility": ctx.framebuffer([side], depth),
+                "fbo_cracks": ctx.framebuffer([cracks]),
                 "fbo_accum": ctx.framebuffer([accum, aux, cover], depth),
                 "fbo_out": ctx.framebuffer([out, depth_sum]),
             }
@@ -545,7 +554,6 @@ class Renderer:
             "u_cull_backfaces": bool(options.visibility.cull_backfaces),
             "u_separate_sides": bool(options.visibility.separate_sides),
             "u_clip_fringe": bool(options.visibility.clip_fringe),
-            "u_edge_coverage": bool(options.visibility.edge_coverage),
             "u_side": SIDE_TEXTURE_UNIT,
             "u_deferred": bool(options.deferred),
             "u_supersample": float(supersample),   # sub-pixels per output pixel of ``camera``, per axis
@@ -572,6 +580,8 @@ class Renderer:
         uniforms = frame | technique.uniforms(options)
         optional = OPTIONAL_FRAME_UNIFORMS | technique.optional_uniforms
         passes = [PASS_VISIBILITY, PASS_ACCUMULATION] if technique.blended else [PASS_OPAQUE]
+        edges = bool(technique.blended and options.visibility.edge_coverage)
+        defines = splats.defines | ({EDGE_COVERAGE_DEFINE: 1} if edges else {})
 
         targets["fbo_accum"].use()
         targets["fbo_accum"].depth_mask = True
@@ -585,7 +595,8 @@ class Renderer:
         uniforms |= splats.extra_uniforms(camera)
         for pass_id in passes:
             if pass_id == PASS_ACCUMULATION:
-                targets["side"].use(location=SIDE_TEXTURE_UNIT)
+                self._mark_cracks(targets, frame)
+                targets["cracks"].use(location=SIDE_TEXTURE_UNIT)
                 fbo = targets["fbo_accum"]
                 fbo.use()
                 fbo.depth_mask = False
@@ -601,13 +612,13 @@ class Renderer:
                 ctx.disable(moderngl.BLEND)
             # the large splats (first in the buffers) as instanced quads, the small ones as points
             if quads:
-                program = self.program(technique.vertex, technique.fragment, {"PASS": pass_id} | splats.defines)
+                program = self.program(technique.vertex, technique.fragment, {"PASS": pass_id} | defines)
                 self.set_uniforms(program, uniforms, optional)
                 for start, count in quads:
                     self._draw_quads(splats, program, technique, count, start)
             if points:
                 program = self.program(technique.vertex, technique.fragment,
-                                       {"PASS": pass_id, "POINT_PRIMITIVE": 1} | splats.defines)
+                                       {"PASS": pass_id, "POINT_PRIMITIVE": 1} | defines)
                 self.set_uniforms(program, uniforms | {"u_max_point": self._max_point}, optional)
                 ctx.enable(moderngl.PROGRAM_POINT_SIZE)
                 vao = self._vao(splats, program, technique, points=True)
@@ -623,18 +634,35 @@ class Renderer:
         # Pass 3: normalization (Guennebaud 2003, eq. 18).
         out = output or targets["fbo_out"]
         out.use()
-        normalize = self._fullscreen.program
+        if edges not in self._fullscreen:
+            self._fullscreen[edges] = self.ctx.vertex_array(
+                self.program("fullscreen.vert", "normalize.frag", {EDGE_COVERAGE_DEFINE: 1} if edges else {}), [])
+        normalize = self._fullscreen[edges].program
         targets["accum"].use(location=0)
         targets["aux"].use(location=1)
-        targets["side"].use(location=SIDE_TEXTURE_UNIT)
+        targets["cracks" if technique.blended else "side"].use(location=SIDE_TEXTURE_UNIT)
         targets["cover"].use(location=COVER_TEXTURE_UNIT)
         self.set_uniforms(normalize, frame | {"u_accum": 0, "u_aux": 1, "u_side": SIDE_TEXTURE_UNIT,
                                               "u_cover": COVER_TEXTURE_UNIT,
-                                              "u_edge_coverage": technique.blended and options.visibility.edge_coverage,
                                               "u_edge_fringe": technique.vertex in FRINGE_SHADERS,
                                               "u_background": tuple(map(float, background))},
                           OPTIONAL_FRAME_UNIFORMS)
-        self._fullscreen.render(moderngl.TRIANGLES, vertices=3)
+        self._fullscreen[edges].render(moderngl.TRIANGLES, vertices=3)
+
+    def _mark_cracks(self, targets: dict, frame: dict) -> None:
+        """Between the visibility and the accumulation pass: the visibility record copied into the
+        ``cracks`` target with the uncovered pixels between covered ones marked (``cracks.frag``)."""
+        if "cracks" not in self._fullscreen:
+            self._fullscreen["cracks"] = self.ctx.vertex_array(self.program("fullscreen.vert", "cracks.frag"), [])
+        vao = self._fullscreen["cracks"]
+        self.ctx.disable(moderngl.DEPTH_TEST)
+        self.ctx.disable(moderngl.BLEND)
+        targets["fbo_cracks"].use()
+        targets["side"].use(location=SIDE_TEXTURE_UNIT)
+        self.set_uniforms(vao.program, {"u_viewport": frame["u_viewport"], "u_tile": frame["u_tile"],
+                                        "u_side": SIDE_TEXTURE_UNIT})
+        vao.render(moderngl.TRIANGLES, vertices=3)
+        self.ctx.enable(moderngl.DEPTH_TEST)
 
     def _read_tile(self) -> SubPixels:
         """The tile's sub-pixels from the targets of the last :meth:`draw` (the normalization pass's

@@ -1,19 +1,18 @@
 // Third pass: per-pixel normalization by the accumulated weight (Guennebaud 2003,
 // eq. 18; Pajarola 2003, EQ 9), and deferred shading of the blended normals
 // (Zwicker et al. 2001; Botsch 2004, fig. 7) when the splats carried their albedo.
-// With u_edge_coverage, a pixel on the rim of a silhouette over the background is composited
+// With EDGE_COVERAGE defined, a pixel on the rim of a silhouette over the background is composited
 // over it by the area of the pixel the splats' disks cover (the soft maximum of the
 // accumulated per-splat coverages, splat_fragment.glsl) instead of all or nothing.
 #include "camera.glsl"
 #include "lighting.glsl"
+#include "visibility.glsl"
 
 uniform sampler2D u_accum;     // (sum w rgb, sum w)
 uniform sampler2D u_aux;       // (sum w depth, sum w normal), camera space
 uniform sampler2D u_cover;     // soft maxima of the splats' coverages c and rim distances d (splat_fragment.glsl)
-uniform sampler2D u_side;      // the visibility pass's nearest disk (r: 0.5 where no disk covers the pixel)
 uniform vec3 u_background;
 uniform bool u_deferred;
-uniform bool u_edge_coverage;
 uniform float u_supersample;
 uniform bool u_edge_fringe;   // the technique's footprints reach beyond its disks (ewa, perspective)
 // What Renderer.render reads back (24 bytes per sub-pixel): the color and the accumulated weight
@@ -29,19 +28,12 @@ bool in_image(ivec2 offset) {
     return all(greaterThanEqual(px, vec2(0.0))) && all(lessThan(px, u_viewport));
 }
 
-bool disk_at(ivec2 offset) {
-    if (!in_image(offset)) return false;
-    ivec2 texel = clamp(ivec2(gl_FragCoord.xy) + offset, ivec2(0), textureSize(u_side, 0) - 1);
-    return abs(texelFetch(u_side, texel, 0).r - 0.5) > 0.25;
-}
-
 // No disk at this offset and fewer than 3 of its 4 neighbours covered: background, not a crack
-// between clipped disks (the accumulation pass's rule, fringe_hidden).
+// between clipped disks (u_side holds the record with its cracks marked: cracks.frag).
 bool open_at(ivec2 o) {
-    if (!in_image(o) || disk_at(o)) return false;
-    int covered = int(disk_at(o + ivec2(1, 0))) + int(disk_at(o + ivec2(-1, 0))) + int(disk_at(o + ivec2(0, 1)))
-                  + int(disk_at(o + ivec2(0, -1)));
-    return covered < 3;
+    if (!in_image(o)) return false;
+    ivec2 texel = clamp(ivec2(gl_FragCoord.xy) + o, ivec2(0), textureSize(u_side, 0) - 1);
+    return texelFetch(u_side, texel, 0).r == SIDE_NONE;
 }
 
 // The largest (soft maximum) coverage of the pixel at this offset by one disk, and the largest
@@ -68,7 +60,9 @@ vec2 cover_at(ivec2 offset) {
 // footprints reach beyond the disks (ewa, perspective: the rim is thin there), else (blend and
 // phong draw only inside their disks) the pixel stays covered.
 float edge_alpha() {
-    if (!u_edge_coverage) return 1.0;
+#ifndef EDGE_COVERAGE
+    return 1.0;
+#else
     vec2 here = cover_at(ivec2(0));
     if (open_at(ivec2(0))) return min(here.x, 0.5);
     if (!disk_at(ivec2(0))) return 1.0;   // a crack the fringes fill
@@ -84,6 +78,7 @@ float edge_alpha() {
             }
     if (!rim) return 1.0;
     return d < 1e5 ? max(here.x, clamp(0.5 + d, 0.0, 1.0)) : (u_edge_fringe ? here.x : 1.0);
+#endif
 }
 
 void main() {

@@ -11,9 +11,11 @@ layout(location = 2) out vec4 out_cover;
 uniform float u_depth_epsilon;   // visibility offset along the viewing ray, in splat radii
 uniform bool u_separate_sides;   // blend only splats seen from the same side as the nearest one
 uniform bool u_clip_fringe;      // drop filter fringes beyond a splat's disk over nothing or a farther surface
-uniform bool u_edge_coverage;    // silhouette pixels: the disks' analytic area coverage as alpha (normalize.frag)
-uniform sampler2D u_side;        // visibility pass: (side of the nearest disk: 0 front, 1 back, 0.5 none;
-                                 //  its offset depth, camera space)
+// EDGE_COVERAGE (a define, not a uniform: llvmpipe runs a branch on a uniform that is false at a cost
+// of 20% of the accumulation pass): silhouette pixels get the disks' analytic area coverage as alpha
+// (normalize.frag).
+// u_side: the visibility pass's record (in the accumulation pass with its cracks marked: cracks.frag)
+#include "visibility.glsl"
 
 flat in vec3 v_plane;
 flat in vec3 v_center;
@@ -65,18 +67,11 @@ float footprint_depth(vec2 st) {
     return -(v_center.z + st.x * v_uvz.x + st.y * v_uvz.y);
 }
 
-// A fragment of a filter's fringe (beyond the splat's own disk, at depth z) that covers no disk at
-// all, or only a surface farther than this splat's epsilon band, is not this surface: the prefilter
-// would widen silhouettes and the crests of folds by about a pixel (a dark rim bleeding over the
-// background or the trough behind). Inside a surface the fringes still overlap its disks and blend.
 #if PASS == PASS_ACCUMULATION
-// Whether a disk covers the pixel at this offset (false outside the full image; tiles are drawn
-// with a one-pixel margin, so a neighbour inside the image is always inside the tile's targets).
-bool disk_at(ivec2 offset) {
-    vec2 px = FRAG_PX + vec2(offset);
-    if (any(lessThan(px, vec2(0.0))) || any(greaterThanEqual(px, u_viewport))) return false;
-    ivec2 texel = clamp(ivec2(gl_FragCoord.xy) + offset, ivec2(0), textureSize(u_side, 0) - 1);
-    return abs(texelFetch(u_side, texel, 0).r - 0.5) > 0.25;
+// The visibility pass's record at the fragment's pixel (side, offset depth); the compiler merges the
+// calls of one fragment into one fetch.
+vec2 nearest_here() {
+    return texelFetch(u_side, ivec2(gl_FragCoord.xy), 0).rg;
 }
 #endif
 
@@ -86,26 +81,32 @@ bool disk_at(ivec2 offset) {
 // (the side target holds that depth in camera space); the rest meet the depth test as before.
 bool behind_nearest(float z) {
 #if PASS == PASS_ACCUMULATION
-    vec2 nearest = texelFetch(u_side, ivec2(gl_FragCoord.xy), 0).rg;
-    return abs(nearest.x - 0.5) > 0.25 && z > nearest.y + 1e-5 * (u_near_far.y - u_near_far.x);
+    vec2 nearest = nearest_here();
+    return covered_side(nearest.x) && z > nearest.y + 1e-5 * (u_near_far.y - u_near_far.x);
 #else
     return false;
 #endif
 }
 
+// A fragment of a filter's fringe (beyond the splat's own disk, at depth z) that covers no disk at
+// all, or only a surface farther than this splat's epsilon band, is not this surface: the prefilter
+// would widen silhouettes and the crests of folds by about a pixel (a dark rim bleeding over the
+// background or the trough behind). Inside a surface the fringes still overlap its disks and blend.
 // ``cut``: the fragment lies beyond one of the splat's clip lines (dropped except over the background,
-// where with u_edge_coverage a fringe fragment only brings the rim pixel's colour and the disk's coverage).
+// where with EDGE_COVERAGE a fringe fragment only brings the rim pixel's colour and the disk's coverage).
 bool fringe_hidden(vec3 ray, float z, bool cut) {
 #if PASS == PASS_ACCUMULATION
     if (!u_clip_fringe) return cut;
-    vec2 nearest = texelFetch(u_side, ivec2(gl_FragCoord.xy), 0).rg;
-    if (abs(nearest.x - 0.5) < 0.25) {
+    vec2 nearest = nearest_here();
+    if (!covered_side(nearest.x)) {
         // no disk covers the pixel: in a crack that straight clip lines leave between disks (3 or 4
-        // neighbours covered) the fringe fills the crack; outside a silhouette it goes, unless the
-        // pixel gets the disks' coverage as alpha (u_edge_coverage: then its weight only colours it)
-        int covered = int(disk_at(ivec2(1, 0))) + int(disk_at(ivec2(-1, 0))) + int(disk_at(ivec2(0, 1)))
-                      + int(disk_at(ivec2(0, -1)));
-        return covered >= 3 ? cut : !u_edge_coverage;
+        // neighbours covered: cracks.frag) the fringe fills the crack; outside a silhouette it goes,
+        // unless the pixel gets the disks' coverage as alpha (EDGE_COVERAGE: its weight only colours it)
+#ifdef EDGE_COVERAGE
+        return nearest.x == SIDE_CRACK ? cut : false;
+#else
+        return nearest.x == SIDE_CRACK ? cut : true;
+#endif
     }
     return cut || nearest.y > z + 2.0 * u_depth_epsilon * v_radius / length(ray);
 #else
@@ -113,7 +114,7 @@ bool fringe_hidden(vec3 ray, float z, bool cut) {
 #endif
 }
 
-#if PASS == PASS_ACCUMULATION
+#if PASS == PASS_ACCUMULATION && defined(EDGE_COVERAGE)
 // Sharpness of the soft maxima (out_cover): coverages within about 1/32 of the largest one, and
 // distances within about 1/8 pixel of the largest one, weigh alike; distances are clamped to
 // +-COVER_REACH pixels (beyond, a pixel is fully in or out).
@@ -209,21 +210,22 @@ void emit(vec3 ray, float z, float w, vec3 color, vec3 normal) {
     out_cover = vec4(0.0);
 #else
 #if PASS == PASS_ACCUMULATION
-    // side 0 front, 1 back, 0.5 no splat's disk covers the pixel (a filter's fringe only): any side blends
-    float side = texelFetch(u_side, ivec2(gl_FragCoord.xy), 0).r;
-    if (u_separate_sides && abs(side - 0.5) > 0.25 && abs(side - v_back) > 0.5) discard;
+    // no splat's disk covers the pixel (a filter's fringe only): any side blends
+    float side = nearest_here().x;
+    if (u_separate_sides && covered_side(side) && abs(side - v_back) > 0.5) discard;
 #endif
     gl_FragDepth = window_depth(z);
     out_color = vec4(color * w, w);
     out_aux = vec4(z, normal) * w;
 #if PASS == PASS_ACCUMULATION
+#ifdef EDGE_COVERAGE
+    vec2 cd = disk_coverage();
+    float e = exp(COVER_SHARPNESS * (cd.x - 1.0));
+    float ed = exp(DISTANCE_SHARPNESS * (cd.y - COVER_REACH));
+    out_cover = vec4(e, cd.x * e, ed, cd.y * ed);
+#else
     out_cover = vec4(0.0);
-    if (u_edge_coverage) {
-        vec2 cd = disk_coverage();
-        float e = exp(COVER_SHARPNESS * (cd.x - 1.0));
-        float ed = exp(DISTANCE_SHARPNESS * (cd.y - COVER_REACH));
-        out_cover = vec4(e, cd.x * e, ed, cd.y * ed);
-    }
+#endif
 #else
     out_cover = vec4(0.0);
 #endif
