@@ -14,13 +14,15 @@ surfsplat installed)::
   peers also draw from buffers they keep), with the back faces culled where ``api.cull_automatically``
   culls them by default (a closed cloud seen from outside); ``--lod-tolerance PX`` times
   ``api.render_model`` of the hierarchy instead (cut, upload, draw, read-back; the build is setup),
-  ``--lod-tolerance auto`` that of the cloud (``render``'s default: merged per half pixel where dense).
+  ``--lod-tolerance auto`` that of the cloud (merged per half pixel where dense); with ``--lod-mode gpu``
+  the hierarchy's sequential layout is uploaded once (setup) and each frame's cut is the vertex
+  shaders' (the viewer's default path).
 
 Driver (one run of the peers' bench with surfsplat's techniques added; the table is saved as
 results/peers.md)::
 
     python benchmarks/bench_peers.py --run --peers-python $PEERS_VENV/bin/python \\
-        [--techniques ewa flat] [--only vtk_points,vtk_disks,open3d_points] [--sizes 1000000]
+        [--techniques ewa flat] [--only vtk_points,vtk_disks,open3d_points] [--sizes 1000000] [--gpu-lod 1]
 """
 
 from __future__ import annotations
@@ -56,6 +58,7 @@ def runner(argv: list[str]) -> None:
     add_point_args(parser)   # accepted for the common CLI; surfsplat sizes its splats itself
     parser.add_argument("--technique", default="ewa")
     parser.add_argument("--lod-tolerance", default=None, help="auto or pixels: time the hierarchy's cut")
+    parser.add_argument("--lod-mode", default="cpu", choices=["cpu", "gpu"], help="where the cut is made")
     args = parser.parse_args(argv)
     timer = Timer()
     points = read_points_ply(args.input)
@@ -73,9 +76,13 @@ def runner(argv: list[str]) -> None:
     background = tuple(np.asarray(args.bg, float) / 255.0)
     if args.lod_tolerance is not None:
         tolerance = args.lod_tolerance if args.lod_tolerance == "auto" else float(args.lod_tolerance)
+        cloud, cull = api.cull_automatically(cloud, camera, closed=False)
+        options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=cull))
         model = cloud if tolerance == "auto" else api.as_hierarchy(cloud)   # auto: a cloud merged per view
         render_once = lambda: api.render_model(model, camera, technique=args.technique, lights=lights,  # noqa: E731
-                                               background=background, lod_tolerance=tolerance).frame.color
+                                               background=background, options=options, lod_tolerance=tolerance,
+                                               lod_mode=args.lod_mode).frame.color
+        render_once()   # the sequential layout's upload (gpu) is setup, as the peers' buffers are
     else:
         # the default a user gets: back faces culled where the cloud is closed and seen from outside
         cloud, cull = api.cull_automatically(cloud, camera, closed=False)
@@ -88,7 +95,7 @@ def runner(argv: list[str]) -> None:
     timer.mark("setup_s")
     image, times = time_frames(render_once, args.repeat)
     save_png(args.out, np.round(np.clip(image, 0.0, 1.0) * 255.0).astype(np.uint8))
-    suffix = "" if args.lod_tolerance is None else f"_lod_{args.lod_tolerance}"
+    suffix = "" if args.lod_tolerance is None else f"_{'gpu_' if args.lod_mode == 'gpu' else ''}lod_{args.lod_tolerance}"
     report(f"surfsplat_{args.technique}{suffix}", args, len(cloud), times, timer)
 
 
@@ -102,6 +109,8 @@ def driver(argv: list[str]) -> None:
     parser.add_argument("--peers-python", required=True, help="the Python of the peers' venv (VTK, Open3D)")
     parser.add_argument("--techniques", nargs="+", default=["ewa", "flat"])
     parser.add_argument("--lod-auto", action="store_true", help="also the default technique at --lod-tolerance auto")
+    parser.add_argument("--gpu-lod", type=float, default=None, metavar="PX",
+                        help="also each technique cut on the GPU at this tolerance (the viewer's path)")
     parser.add_argument("--only", default="vtk_points,vtk_disks,open3d_points")
     parser.add_argument("--sizes", nargs="+", default=["1000000"])
     parser.add_argument("--scenes", nargs="+", default=["bunny", "torus"])
@@ -110,6 +119,9 @@ def driver(argv: list[str]) -> None:
     args = parser.parse_args(argv)
     me = f"{shlex.quote(sys.executable)} {shlex.quote(str(Path(__file__).resolve()))}"
     adds = [f"surfsplat_{t}={me} --technique {t}" for t in args.techniques]
+    if args.gpu_lod is not None:
+        adds += [f"surfsplat_{t}_gpu_lod={me} --technique {t} --lod-tolerance {args.gpu_lod:g} --lod-mode gpu"
+                 for t in args.techniques]
     if args.lod_auto:
         first = args.techniques[0]
         adds.append(f"surfsplat_{first}_lod_auto={me} --technique {first} --lod-tolerance auto")

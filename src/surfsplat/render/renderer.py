@@ -1,7 +1,9 @@
 """The renderer: GPU buffers of a SplatCloud and the pipeline's passes (DESIGN.md).
 
 1. visibility: depth only, offset by epsilon along the viewing rays, with the
-   exact per-fragment depth of each splat's plane (Guennebaud 2003, sec. 5);
+   exact per-fragment depth of each splat's plane (Guennebaud 2003, sec. 5), and per pixel the
+   side and offset depth of the nearest disk (``glsl/visibility.glsl``); a full-screen pass then
+   marks the uncovered pixels between covered ones (``cracks.frag``);
 2. accumulation: depth test against pass 1 without depth writes, additive
    blending of ``(w * color, w)`` and ``(w * depth, w * normal)`` into float targets;
 3. normalization: a full-screen pass dividing by the accumulated weight (eq. 18).
@@ -12,7 +14,11 @@ Speed and memory (benchmarks/bench_render.py): splats are uploaded ordered by ra
 frame draws the large ones as instanced quads (tight boxes) and the small ones as GL_POINTS, one vertex
 per splat (``point_radius``, ``splat_primitive.glsl``), in draw calls of ``draw_batch`` splats; the
 read-back is the normalization pass's color, weight, depth sum and alpha only (24 bytes per sub-pixel), read
-into reused buffers and written straight into the Frame's top-down rows.
+into reused buffers and written straight into the Frame's top-down rows. What llvmpipe pays for is
+fragments (``benchmarks/results/render_passes.md``): a disk's window box is its ellipse's exact box
+(``disk_vertex.glsl``), options that add work to every fragment are defines (``EDGE_COVERAGE``:
+llvmpipe runs a branch on a false uniform), a fragment reads one texel of the visibility record, and
+only the targets a frame writes are attached and cleared.
 
 The process-wide renderer of the headless context is :func:`default_renderer`
 (created on first use); :func:`reset_default_renderer` releases it and the context.
@@ -510,7 +516,8 @@ class Renderer:
                 "side": side, "cracks": cracks, "cover": cover,
                 "fbo_visibility": ctx.framebuffer([side], depth),
                 "fbo_cracks": ctx.framebuffer([cracks]),
-                "fbo_accum": ctx.framebuffer([accum, aux, cover], depth),
+                "fbo_accum": ctx.framebuffer([accum, aux], depth),
+                "fbo_accum_cover": ctx.framebuffer([accum, aux, cover], depth),   # with edge coverage
                 "fbo_out": ctx.framebuffer([out, depth_sum]),
             }
         return self._targets
@@ -583,9 +590,11 @@ class Renderer:
         edges = bool(technique.blended and options.visibility.edge_coverage)
         defines = splats.defines | ({EDGE_COVERAGE_DEFINE: 1} if edges else {})
 
-        targets["fbo_accum"].use()
-        targets["fbo_accum"].depth_mask = True
-        targets["fbo_accum"].clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        # the cover target only where edge coverage writes it: a target is cleared and written per pixel
+        accumulation = targets["fbo_accum_cover" if edges else "fbo_accum"]
+        accumulation.use()
+        accumulation.depth_mask = True
+        accumulation.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         if technique.blended:
             targets["fbo_visibility"].clear(0.5, 0.0, 0.0, 0.0)   # side 0.5: none; depth is cleared above
         ctx.enable(moderngl.DEPTH_TEST)
@@ -597,17 +606,18 @@ class Renderer:
             if pass_id == PASS_ACCUMULATION:
                 self._mark_cracks(targets, frame)
                 targets["cracks"].use(location=SIDE_TEXTURE_UNIT)
-                fbo = targets["fbo_accum"]
+                fbo = accumulation
                 fbo.use()
                 fbo.depth_mask = False
-                ctx.depth_func = "<="
+                ctx.disable(moderngl.DEPTH_TEST)   # the shaders' test (behind_nearest, splat_fragment.glsl)
                 ctx.enable(moderngl.BLEND)
                 ctx.blend_equation = moderngl.FUNC_ADD
                 ctx.blend_func = moderngl.ONE, moderngl.ONE
             else:
-                fbo = targets["fbo_visibility" if pass_id == PASS_VISIBILITY else "fbo_accum"]
+                fbo = targets["fbo_visibility"] if pass_id == PASS_VISIBILITY else accumulation
                 fbo.use()
                 fbo.depth_mask = True
+                ctx.enable(moderngl.DEPTH_TEST)
                 ctx.depth_func = "<"
                 ctx.disable(moderngl.BLEND)
             # the large splats (first in the buffers) as instanced quads, the small ones as points
@@ -627,7 +637,7 @@ class Renderer:
                         vao.render(moderngl.POINTS, vertices=min(self.draw_batch, start + count - first), first=first)
                         ctx.finish()
                 ctx.disable(moderngl.PROGRAM_POINT_SIZE)
-        targets["fbo_accum"].depth_mask = True
+        accumulation.depth_mask = True
         ctx.disable(moderngl.BLEND)
         ctx.disable(moderngl.DEPTH_TEST)
 
