@@ -47,7 +47,7 @@ from .frame import Frame
 from ..reference import prefilter_variance
 from .options import RenderOptions
 from .points import POINT_SIZE_RANGE
-from .shaders import PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBILITY, BuiltProgram, build_program, undeclared
+from .shaders import NO_DEPTH, PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBILITY, BuiltProgram, build_program, undeclared
 from .technique import Technique
 from .tiles import MAX_SUPERSAMPLE, MAX_TILE, SubPixels, box_reduce, tile_rects, tile_side
 from .techniques import get_technique
@@ -514,7 +514,7 @@ class Renderer:
             self._targets = {
                 "size": size, "accum": accum, "aux": aux, "depth": depth, "out": out, "depth_sum": depth_sum,
                 "side": side, "cracks": cracks, "cover": cover,
-                "fbo_visibility": ctx.framebuffer([side], depth),
+                "fbo_visibility": ctx.framebuffer([side]),
                 "fbo_cracks": ctx.framebuffer([cracks]),
                 "fbo_accum": ctx.framebuffer([accum, aux], depth),
                 "fbo_accum_cover": ctx.framebuffer([accum, aux, cover], depth),   # with edge coverage
@@ -595,8 +595,8 @@ class Renderer:
         accumulation.use()
         accumulation.depth_mask = True
         accumulation.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-        if technique.blended:
-            targets["fbo_visibility"].clear(0.5, 0.0, 0.0, 0.0)   # side 0.5: none; depth is cleared above
+        if technique.blended:   # no disk (glsl/visibility.glsl)
+            targets["fbo_visibility"].clear(NO_DEPTH, NO_DEPTH, 0.0, 0.0)
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)
         quads, points = splats.draw_ranges(camera, point_radius(camera, splats, technique, options, supersample,
@@ -613,10 +613,14 @@ class Renderer:
                 ctx.enable(moderngl.BLEND)
                 ctx.blend_equation = moderngl.FUNC_ADD
                 ctx.blend_func = moderngl.ONE, moderngl.ONE
+            elif pass_id == PASS_VISIBILITY:   # the nearest depths by MIN blending (visibility.glsl)
+                targets["fbo_visibility"].use()
+                ctx.disable(moderngl.DEPTH_TEST)
+                ctx.enable(moderngl.BLEND)
+                ctx.blend_equation = moderngl.MIN
             else:
-                fbo = targets["fbo_visibility"] if pass_id == PASS_VISIBILITY else accumulation
-                fbo.use()
-                fbo.depth_mask = True
+                accumulation.use()
+                accumulation.depth_mask = True
                 ctx.enable(moderngl.DEPTH_TEST)
                 ctx.depth_func = "<"
                 ctx.disable(moderngl.BLEND)
@@ -638,6 +642,7 @@ class Renderer:
                         ctx.finish()
                 ctx.disable(moderngl.PROGRAM_POINT_SIZE)
         accumulation.depth_mask = True
+        ctx.blend_equation = moderngl.FUNC_ADD
         ctx.disable(moderngl.BLEND)
         ctx.disable(moderngl.DEPTH_TEST)
 

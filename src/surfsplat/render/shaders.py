@@ -47,6 +47,9 @@ GLSL_VERSION = "#version 330 core"
 #: by epsilon; PASS_ACCUMULATION: additive blending of weighted colors, depths, normals.
 PASS_OPAQUE, PASS_VISIBILITY, PASS_ACCUMULATION = 0, 1, 2
 
+#: The visibility pass's value where no disk is drawn, larger than any depth (glsl/visibility.glsl).
+NO_DEPTH = 1e37
+
 #: Constants shared by Python and GLSL, defined once here and injected as ``#define``
 #: into every composed shader; the GLSL files use the macro names.
 SHARED_DEFINES: dict[str, int | float] = {
@@ -61,6 +64,8 @@ SHARED_DEFINES: dict[str, int | float] = {
     "PERSPECTIVE_NEAR_FRACTION": PERSPECTIVE_NEAR_FRACTION,
     # reference.py: a splat with |n . p| <= this * |p| is seen edge-on through the eye (culled)
     "EDGE_ON_TOLERANCE": EDGE_ON_TOLERANCE,
+    # renderer.py clears the visibility pass's target to it: no disk (glsl/visibility.glsl)
+    "NO_DEPTH": NO_DEPTH,
 }
 
 #: Line numbers of file k are ``k * LINE_STRIDE + line`` (a file may have fewer lines).

@@ -21,19 +21,11 @@ uniform bool u_edge_fringe;   // the technique's footprints reach beyond its dis
 layout(location = 0) out vec4 out_color;
 layout(location = 1) out vec2 out_depth;
 
-// Whether the full image's pixel at this offset lies inside the image (tiles are drawn with a
-// margin of TILE_MARGIN pixels, so the neighbours of a tile's own pixels are in its targets).
-bool in_image(ivec2 offset) {
-    vec2 px = FRAG_PX + vec2(offset);
-    return all(greaterThanEqual(px, vec2(0.0))) && all(lessThan(px, u_viewport));
-}
-
 // No disk at this offset and fewer than 3 of its 4 neighbours covered: background, not a crack
 // between clipped disks (u_side holds the record with its cracks marked: cracks.frag).
 bool open_at(ivec2 o) {
-    if (!in_image(o)) return false;
-    ivec2 texel = clamp(ivec2(gl_FragCoord.xy) + o, ivec2(0), textureSize(u_side, 0) - 1);
-    return texelFetch(u_side, texel, 0).r == SIDE_NONE;
+    ivec2 texel;
+    return texel_at(o, texel) && texelFetch(u_side, texel, 0).r == SIDE_NONE;
 }
 
 // The largest (soft maximum) coverage of the pixel at this offset by one disk, and the largest

@@ -207,8 +207,7 @@ void emit(vec3 ray, float z, float w, vec3 color, vec3 normal) {
 #if PASS == PASS_VISIBILITY
     // Guennebaud 2003, sec. 5: translate along the viewing ray, not along z.
     z += u_depth_epsilon * v_radius / length(ray);
-    gl_FragDepth = window_depth(z);
-    out_color = vec4(v_back, z, 0.0, 1.0);
+    out_color = visibility_output(z, v_back);
     out_aux = vec4(0.0);
     out_cover = vec4(0.0);
 #else
