@@ -117,7 +117,9 @@ def speed_rows(n: int, size: int, repeat: int, techniques: list[str]) -> list[di
         log: dict = {}
         vao, full = renderer._vao, renderer._fullscreen
         renderer._vao = lambda *a, **k: _Timed(vao(*a, **k), ctx, log, "geometry")
-        renderer._fullscreen = _Timed(full, ctx, log, "normalize")
+        # the full-screen passes: one vertex array (older renderers) or one per pass (normalization, cracks)
+        renderer._fullscreen = ({key: _Timed(value, ctx, log, "normalize") for key, value in full.items()}
+                                if isinstance(full, dict) else _Timed(full, ctx, log, "normalize"))
         read = renderer._read_tile
         def timed_read(*size):
             begin = time.perf_counter()

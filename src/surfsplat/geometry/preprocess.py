@@ -19,6 +19,8 @@ Stages, each reported through :func:`surfsplat.progress.stage` (counts through
 8. with ``sharp_angle``: sharp features (:func:`~surfsplat.geometry.sharp.detect_sharp_features`,
    Zwicker 2004 sec. 5): normals re-fitted to one side of the feature and the planes of the
    other side(s),
+   then (default ``coverage=None``, ellipses) each bare ellipse grown to contain its Voronoi
+   cell (:func:`~surfsplat.geometry.splats.cover_cells`),
 9. non-planar neighbourhoods (vegetation, noise) get small round splats, and every splat is
    held under a local and a global size bound (:mod:`.robust`),
 10. with ``sharp_angle``: clip lines where those planes cross the splats
@@ -45,8 +47,8 @@ from .robust import (DUPLICATE_FRACTION, OutlierAction, PreprocessReport, bound_
                      exact_duplicates, linear, merge_points, near_duplicates, outlier_points, outlier_radius,
                      round_radius, volumetric)
 from .sharp import check_sharp_angle, detect_sharp_features, feature_clip_lines
-from .splats import (CIRCLE_COVERAGE, ELLIPSE_COVERAGE, MAX_ANISOTROPY, check_ellipse_options, circular_splats,
-                     elliptical_splats, pca_splats)
+from .splats import (CIRCLE_COVERAGE, ELLIPSE_COVERAGE, GAP_BASE, MAX_ANISOTROPY, check_ellipse_options,
+                     circular_splats, cover_cells, elliptical_splats, pca_splats)
 
 SHAPES = ("ellipse", "circle")
 
@@ -74,10 +76,15 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
             ``"circle"`` (Guennebaud 2003 eq. 7 radii).
         orient: orient estimated normals consistently (Hoppe et al. 1992).
             Given normals are never re-oriented.
-        coverage: factor on all splat radii; default (None) 1.5 for ellipses,
-            1.25 for circles: what uniformly random samples need to leave no
-            holes (see :mod:`surfsplat.geometry.splats`). 1.0 gives the
-            papers' bare sizes, enough for near-regular samplings (scans).
+        coverage: factor on all splat radii. Default (None): ellipses are
+            Pajarola's bare ellipses, each grown just enough to contain its
+            Voronoi cell (:func:`~surfsplat.geometry.splats.cover_cells`: no
+            holes, about half the area of the factor 1.5 uniformly random samples
+            need otherwise; ``benchmarks/results/gap_radii.md``), circles get
+            1.25 (see :mod:`surfsplat.geometry.splats`). A number: that factor on
+            every splat, nothing grown; 1.0 gives the papers' bare sizes, enough
+            for near-regular samplings (scans). Scan-line, non-planar and
+            sharp-feature splats get 1.5 (ellipses) or 1.25 (circles) by default.
         max_anisotropy: cap of the ellipse axis ratio (default 4.0).
         source: name of the input in messages and warnings.
         sharp_angle: None (default), or an angle in degrees in (0, 180):
@@ -133,9 +140,11 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
         raise InputError(f"shape must be one of {SHAPES}, got {shape!r}")
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
         raise InputError(f"k must be a positive integer, got {k!r}")
+    gaps = coverage is None and shape == "ellipse"  # Voronoi-cell growth of bare ellipses
     if coverage is None:
         coverage = ELLIPSE_COVERAGE if shape == "ellipse" else CIRCLE_COVERAGE
     check_ellipse_options(coverage, max_anisotropy)
+    base = GAP_BASE if gaps else coverage
     check_outliers(outliers)
     if sharp_angle is not None:
         sharp_angle = check_sharp_angle(sharp_angle)
@@ -171,7 +180,7 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
     if need_normals and not sharp:
         # one pass over the neighbourhoods for all three (shares the offset gathers)
         with progress.stage(f"normals (PCA) and splat {shape}s", m):
-            normals, lam, u, v = pca_splats(pts, idx, dist, shape=shape, coverage=coverage,
+            normals, lam, u, v = pca_splats(pts, idx, dist, shape=shape, coverage=base,
                                             max_anisotropy=max_anisotropy)
     else:
         with progress.stage("normals (PCA)" if need_normals else "neighbourhood shapes (PCA)", m):
@@ -207,9 +216,20 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
                 cell_axes = (cell_axes[0], cell_axes[1] * sigma[rows, None])
     features = None
     if u is None:
-        u, v, features = _sized(pts, normals, idx, dist, rows, cell_axes, shape, coverage, max_anisotropy,
+        u, v, features = _sized(pts, normals, idx, dist, rows, cell_axes, shape, base, max_anisotropy,
                                 sharp_angle, oriented=orient or not need_normals, refine=need_normals)
         normals = features.normals if features is not None else normals
+    if gaps:
+        fixed = special | lin
+        if features is not None:
+            # splats at sharp features get the global factor: their clip lines cut them, and their
+            # cells, bounded by the other face's points projected onto their plane, end short of the edge
+            fixed = fixed | features.feature
+            u[features.feature] *= np.float32(ELLIPSE_COVERAGE / GAP_BASE)
+            v[features.feature] *= np.float32(ELLIPSE_COVERAGE / GAP_BASE)
+        with progress.stage("splat ellipses grown to their Voronoi cells", m):
+            u, v, grown = cover_cells(pts, idx, u, v, exclude=fixed, tree=tree)
+        progress.message(f"  {int((grown > 1).any(axis=1).sum()):,} splats grown to cover their Voronoi cells")
     # given normals say there is a surface (mesh samples, scanner normals): only raw points are judged
     vol = volumetric(lam) & ~special if need_normals else np.zeros(m, dtype=bool)
     if features is not None:  # two planes meeting at an edge are not a volume

@@ -20,6 +20,15 @@ Design choices (documented defaults):
   neighbourhood. Defaults: ``CIRCLE_COVERAGE = 1.25`` and
   ``ELLIPSE_COVERAGE = 1.5``; pass ``coverage=1.0`` for the bare papers'
   constructions (enough for scans and other near-regular samplings).
+* Cell-covering growth (:func:`cover_cells`, the default of
+  :func:`surfsplat.geometry.preprocess` for ellipses). A global factor sized
+  for the worst gap among a million points is paid by all of them: at 1.5 a
+  point of the surface lies under ~19 splats. Instead, the bare ellipses
+  (factor ``GAP_BASE`` = 1.0) are grown, each just enough to contain its own
+  Voronoi cell, which leaves no hole by construction (the cells tile the
+  surface). Measured on 1 M uniformly random points on a plane
+  (``benchmarks/results/gap_radii.md``): no hole, about half the area and
+  overlap of the factor 1.5, a quarter of the splats grown.
 * ``max_anisotropy`` (default 4.0) caps the ellipse axis ratio
   ``sqrt(lambda1 / lambda2)``: nearly collinear neighbourhoods would otherwise
   give needle-thin splats that leave gaps between scan lines.
@@ -38,7 +47,8 @@ import numpy as np
 from ..errors import InputError
 from ..frames import tangent_frame
 from .common import (block_covariance, block_offsets, check_indices, check_oriented_points, check_vectors, columns,
-                     for_blocks)
+                     for_blocks, parallel, row_norms)
+from .neighbors import kdtree, knn_rows
 from .normals import smallest_eigenvectors
 
 #: Default cap of the ellipse axis ratio (major / minor).
@@ -51,6 +61,31 @@ CIRCLE_COVERAGE = 1.25
 #: Default factor on ellipse semi-axes (no holes on uniformly random samples
 #: at 1 M points needed 1.43).
 ELLIPSE_COVERAGE = 1.5
+
+#: Global factor on the ellipses before :func:`cover_cells` (``preprocess(coverage=None)``).
+GAP_BASE = 1.0
+
+#: :func:`cover_cells` grows a splat so that its farthest cell vertex lies this much inside
+#: (relative to the semi-axes).
+GAP_MARGIN = 0.02
+
+#: Neighbours of :func:`cover_cells`' wider looks at the cells the k neighbours leave open or
+#: bound too loosely, one look after the other for the cells still unresolved.
+GAP_K = (12, 16, 24)
+
+#: Cell vertices farther from the point than this times the distance to the look's farthest
+#: neighbour are not trusted (the circle through them may hold points beyond the neighbours):
+#: their cells are looked at again, wider; after the widest look they are the border of an open
+#: surface. On 200k uniformly random points the vertices outside the bare ellipses lie within
+#: 1.85 times the 8th-neighbour distance (~1.5 times the 12th one's).
+GAP_REACH = 1.5
+
+#: Shapes :func:`cover_cells` tries: the major semi-axis relative to the minor one, as a
+#: fraction of the given ellipse's ratio (1: the same shape; smaller: rounder, down to a circle).
+GAP_ROUNDING = (1.0, 0.75, 0.5, 0.25)
+
+#: Points per chunk of :func:`cover_cells`' wider looks ((K^2 / 2, chunk) float32 temporaries).
+_GAP_CHUNK = 1024
 
 #: Relative growth of the Pajarola factor f so that the farthest neighbour,
 #: which lies exactly on the ellipse, stays inside after float32 rounding.
@@ -313,3 +348,215 @@ def pca_splats(positions, indices, distances, *, shape: str = "ellipse", coverag
 
     for_blocks(block, n)
     return nrm, lam, u, v
+
+
+def cover_cells(positions, indices, u, v, *, margin: float = GAP_MARGIN, wide: tuple[int, ...] = GAP_K,
+                reach: float = GAP_REACH, exclude=None, tree=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Grow each splat just enough to cover its Voronoi cell: no hole, and little overlap.
+
+    The Voronoi cells of the samples tile the surface, so splats that contain their cells
+    leave no hole (the argument of Pajarola 2003, sec. 3.4, with the cell in place of the
+    neighbours; :mod:`surfsplat.geometry.cells` does the same for scan lines). A cell is
+    convex and so is an ellipse: the ellipse contains the cell iff it contains the cell's
+    vertices, the circumcenters of the point's Delaunay triangles. Per point ``i`` and pair
+    ``(j, k)`` of its neighbours, projected into ``i``'s tangent plane (the plane of ``u``,
+    ``v``), the circumcenter ``c`` of ``(i, j, k)`` is a vertex of ``i``'s cell among its
+    neighbours when no other neighbour lies strictly inside the circumcircle. Where a vertex
+    lies outside the ellipse, the ellipse is grown (never shrunk: it keeps containing the
+    given one) so that its farthest vertex lies ``margin`` inside, keeping the axis directions:
+    of the shapes whose axis ratio is the given one times ``GAP_ROUNDING`` (at least 1), the
+    one of least area (a cell across a thin ellipse asks for a rounder splat, not a larger
+    needle).
+
+    The k nearest neighbours bound a cell too loosely next to large empty circles (the cell
+    among the neighbours contains the true cell, so this errs on the safe side, but its far
+    vertices cost area) and not at all where they all lie on one side. Cells with a vertex
+    outside the ellipse and farther than ``reach`` times the farthest neighbour's distance
+    (where the circle may hold unseen points), and cells the neighbours leave open, are
+    therefore traced again among ``wide[0]`` neighbours, and those still unresolved among
+    ``wide[1]``, ...; what is left after the widest look is the border of an open surface:
+    those cells are grown only to their vertices within ``reach`` times the k-th neighbour
+    distance. Most cells are shown to lie inside their ellipse by a cheaper test first
+    (:func:`_inside`). Collinear and coincident triples have no circumcenter and are skipped.
+
+    Args:
+        positions: (N, 3) float array, model units.
+        indices: (N, k) integer neighbour indices (e.g. from :func:`knn`).
+        u, v: (N, 3) float orthogonal splat semi-axes (model units), nonzero, ``|u| >= |v|``.
+        margin: relative depth of the farthest vertex inside the grown ellipse (>= 0).
+        wide: neighbours of the wider looks (an integer or integers >= 2, those <= k ignored;
+            clamped to N - 1).
+        reach: the trust radius (> 0), in units of the look's farthest neighbour distance.
+        exclude: optional (N,) bool: splats left as they are (outliers about to be dropped
+            or resized); they still bound the others' cells.
+        tree: the k-d tree of ``positions`` (from :func:`~surfsplat.geometry.neighbors.kdtree`),
+            if built already.
+
+    Returns:
+        ``(u, v, factors)``: the (N, 3) float32 axes and the (N, 2) float32 factors they were
+        scaled by (on ``u`` and on ``v``; both >= 1, both 1 where the ellipse contained its
+        cell already).
+    """
+    if not margin >= 0:
+        raise InputError(f"margin must be >= 0, got {margin}")
+    if not reach > 0:
+        raise InputError(f"reach must be > 0, got {reach!r}")
+    wide = (wide,) if isinstance(wide, (int, np.integer)) else tuple(wide)
+    if not all(isinstance(w, (int, np.integer)) and not isinstance(w, bool) and w >= 2 for w in wide):
+        raise InputError(f"wide must be integers >= 2, got {wide!r}")
+    pts = check_vectors(positions, "positions")
+    n = len(pts)
+    idx = check_indices(indices, n)
+    u = check_vectors(u, "u", n)
+    v = check_vectors(v, "v", n)
+    a, b = row_norms(u), row_norms(v)
+    if not (np.isfinite(a).all() and np.isfinite(b).all() and (a > 0).all() and (b > 0).all()):
+        raise InputError("cover_cells: the splat axes u and v must be finite and nonzero")
+    skip = np.zeros(n, dtype=bool) if exclude is None else np.asarray(exclude, dtype=bool)
+    if skip.shape != (n,):
+        raise InputError(f"exclude must have shape ({n},), got {skip.shape}")
+    factors = np.ones((n, 2), dtype=np.float32)
+    k = idx.shape[1]
+    if k < 2:
+        return u.copy(), v.copy(), factors
+    cols = columns(pts)
+    # the shapes tried: major semi-axis a * rho (never below the minor one), minor b
+    rho = np.maximum(np.asarray(GAP_ROUNDING, dtype=np.float32)[:, None], (b / a)[None, :])
+    frame = (u / a[:, None], v / b[:, None], a, b, rho)
+    need = np.zeros((len(GAP_ROUNDING), n), dtype=np.float32)  # squared metric of the farthest vertex
+    reach2 = np.float32(reach * reach)
+    limit = np.float32((1.0 + margin) ** -2)  # a cell within this metric needs no growth
+    unresolved = np.zeros(n, dtype=bool)
+
+    def trace(d, rows, bound_dist):
+        """The need of the cells of ``rows`` (offsets ``d``); marks the ones left unresolved."""
+        inside, open_ = _inside(d, rows, frame, limit)
+        need[:, rows] = 0.0
+        sel = np.flatnonzero(~inside & ~open_)
+        need[:, rows[sel]], far = _cell_vertices([o[:, sel] for o in d], rows[sel], frame,
+                                                 reach2 * bound_dist[sel] ** 2)
+        unresolved[rows] = open_
+        unresolved[rows[sel]] = far
+
+    def first(sl):
+        d = block_offsets(cols, idx, sl)
+        trace(d, np.arange(sl.start, sl.stop), np.sqrt((d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).max(axis=0)))
+
+    for_blocks(first, n)
+    rows = np.flatnonzero(unresolved & ~skip)
+    kw = k
+    for kw in sorted(min(int(w), n - 1) for w in wide if w > k):
+        if not len(rows):
+            break
+        # cells the neighbours leave open or bound too loosely: a wider look
+        tree = kdtree(pts) if tree is None else tree
+        wide_dist, wide_idx = knn_rows(tree, rows, kw)
+
+        def again(start):
+            part = slice(start, start + _GAP_CHUNK)
+            sel, nb = rows[part], wide_idx[part]
+            trace([np.ascontiguousarray((col[nb] - col[sel, None]).T) for col in cols], sel, wide_dist[part, -1])
+
+        parallel(again, range(0, len(rows), _GAP_CHUNK))
+        rows = rows[unresolved[rows]]
+    if len(rows) and kw > k:
+        # still open or loose with the widest look: the border of an open surface, whose cells reach
+        # out of it; grown only to the vertices the first look would trust
+        dist, nb = knn_rows(tree, rows, kw)
+        d = [np.ascontiguousarray((col[nb] - col[rows, None]).T) for col in cols]
+        need[:, rows] = _cell_vertices(d, rows, frame, reach2 * dist[:, k - 1] ** 2)[0]
+    # per shape: the scale that reaches the farthest vertex and keeps the given ellipse inside
+    scale = np.maximum(np.sqrt(need) * np.float32(1.0 + margin), np.maximum(1.0 / rho, np.float32(1.0)))
+    best = np.argmin(scale * scale * rho, axis=0)  # area relative to the given ellipse's
+    pick = np.arange(n)
+    factors[:, 1] = scale[best, pick]
+    factors[:, 0] = np.maximum(factors[:, 1] * rho[best, pick], np.float32(1.0))  # >= 1 after rounding too
+    factors[skip] = 1.0
+    return u * factors[:, :1], v * factors[:, 1:], factors
+
+
+def _cell_vertices(d, rows, frame, bound):
+    """The farthest vertex of some points' Voronoi cells among their neighbours (see :func:`cover_cells`).
+
+    d: three (K, M) float32 neighbour offsets (model units); rows: (M,) the points; frame: the
+    cloud's unit axes, semi-axis lengths and the (S, N) shapes tried; bound: (M,) the largest
+    squared distance of a trusted vertex. Returns ``(need, far)``: (S, M) float32 squared
+    ellipse metric of the farthest trusted vertex in each shape (0 if none), and (M,) bool: an
+    untrusted vertex lies outside the ellipse.
+    """
+    ua, va, a, b, rho = frame
+    k = d[0].shape[0]
+    # neighbour offsets in i's own ellipse frame (the splat's tangent plane)
+    x = d[0] * ua[rows, 0] + d[1] * ua[rows, 1] + d[2] * ua[rows, 2]
+    y = d[0] * va[rows, 0] + d[1] * va[rows, 1] + d[2] * va[rows, 2]
+    q = x * x + y * y
+    jj, kk = np.triu_indices(k, 1)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        # circumcenter of (0, P_j, P_k): the Voronoi vertex of the three samples
+        det2 = 2.0 * (x[jj] * y[kk] - x[kk] * y[jj])
+        cx = (y[kk] * q[jj] - y[jj] * q[kk]) / det2
+        cy = (x[jj] * q[kk] - x[kk] * q[jj]) / det2
+        # only vertices near or outside the ellipse matter, in any of the rounder shapes too
+        # (their scale keeps the given ellipse inside); NaN: no circumcenter
+        pair, col = np.nonzero((cx / a[rows]) ** 2 + (cy / b[rows]) ** 2 > np.float32(0.9))
+    cx, cy = cx[pair, col], cy[pair, col]
+    xs, ys = x[:, col], y[:, col]
+    with np.errstate(invalid="ignore", over="ignore"):
+        r2 = cx * cx + cy * cy
+        # a vertex of the cell: no neighbour strictly inside the circle, |P_l - c|^2 < |c|^2
+        vertex = ~((xs * xs + ys * ys - 2.0 * (xs * cx + ys * cy)) < np.float32(-1e-4) * r2).any(axis=0)
+        near = r2 <= bound[col]
+    i = rows[col]
+    far = np.zeros(len(rows), dtype=bool)
+    with np.errstate(over="ignore"):
+        ey2 = (cy / b[i]) ** 2
+        far[col[vertex & ~near & ((cx / a[i]) ** 2 + ey2 > 1.0)]] = True
+    keep = vertex & near
+    col, i, cx, ey2 = col[keep], i[keep], cx[keep], ey2[keep]
+    need = np.zeros((len(rho), len(rows)), dtype=np.float32)
+    for s in range(len(rho)):
+        np.maximum.at(need[s], col, (cx / (a[i] * rho[s, i])) ** 2 + ey2)
+    return need, far
+
+
+def _inside(d, rows, frame, limit):
+    """Which Voronoi cells among the neighbours lie surely inside their ellipse, and which are open.
+
+    d: three (K, M) float32 neighbour offsets; rows: (M,) the points; frame: as in
+    :func:`_cell_vertices`; limit: the largest squared ellipse metric accepted. In coordinates
+    where the ellipse is the unit circle the cell is the intersection of the half-planes
+    ``D_j . X <= 1`` (``D_j = n_j / h_j``, the bisector ``p . o_j <= |o_j|^2 / 2`` with
+    ``p = (a X, b Y)``): it lies inside the unit circle iff the convex hull of the dual points
+    ``D_j`` contains it (polarity). With the ``D_j`` sorted by angle, the hull contains every
+    triangle ``(0, D_m, D_m+1)`` and ``(0, D_m, D_m+2)`` spanning less than pi, and such a
+    triangle covers the unit circle in its angle when the line through its two points is at least
+    1 from the origin, i.e. when the two boundary lines meet within the circle. So: the cell is
+    surely inside when every angle between adjacent ``D_j`` is covered that way, at the cost of
+    2 K line intersections instead of K (K - 1) / 2 circumcenters; redundant neighbours make
+    the test fail, not err. A gap of pi or more between adjacent ``D_j`` leaves the cell open (all
+    neighbours on one side). Returns two (M,) bool arrays ``(inside, open)``.
+    """
+    ua, va, a, b = frame[:4]
+    x = d[0] * ua[rows, 0] + d[1] * ua[rows, 1] + d[2] * ua[rows, 2]
+    y = d[0] * va[rows, 0] + d[1] * va[rows, 1] + d[2] * va[rows, 2]
+    h = 0.5 * (x * x + y * y)
+    nx, ny = x * a[rows], y * b[rows]
+    ang = np.where(h > 0, np.arctan2(ny, nx), np.float32(np.nan))  # a coincident point bounds nothing
+    order = np.argsort(ang.T, axis=1).T
+    ang, nx, ny, h = (np.take_along_axis(t, order, axis=0) for t in (ang, nx, ny, h))
+    two_pi = np.float32(2.0 * np.pi)
+    ok = {}
+    for step in (1, 2):
+        nx1, ny1, h1, ang1 = (np.roll(t, -step, axis=0) for t in (nx, ny, h, ang))
+        span = ang1 - ang
+        span[span < 0] += two_pi  # wrapped around; NaN (coincident points) fails both tests
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            det = nx * ny1 - nx1 * ny
+            cx = (h * ny1 - h1 * ny) / det
+            cy = (nx * h1 - nx1 * h) / det
+            ok[step] = (cx * cx + cy * cy <= limit) & (span < np.float32(np.pi * 0.999))
+        if step == 1:
+            open_ = ~(span < np.float32(np.pi * 0.999)).all(axis=0)
+    # the angle from D_m to D_m+1 is covered by its own edge or by the edges from D_m-1 or D_m to two on
+    covered = ok[1] | ok[2] | np.roll(ok[2], 1, axis=0)
+    return covered.all(axis=0) & ~open_, open_
