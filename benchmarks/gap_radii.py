@@ -1,6 +1,6 @@
 """Splats grown to their Voronoi cells (``preprocess(coverage=None)``) against a global factor.
 
-Two parts, each a table in ``results/gap_radii.md``:
+Three parts, each a table in ``results/gap_radii.md``:
 
 * ``plane``: uniformly random (Poisson) points on a plane, k = 8, the bare Pajarola ellipses
   times 1.5 (the old default), times 1.0, and times 1.0 then grown by
@@ -10,6 +10,11 @@ Two parts, each a table in ``results/gap_radii.md``:
   against the nearest splat alone: the Voronoi-cell property itself); overlap: the mean number
   of ellipses over 200,000 random interior points (64 nearest splats); area: the sum of
   ``pi |u| |v|`` relative to the 1.5 ellipses'; time: ``cover_cells`` alone (wall and CPU).
+* ``border``: open squares (``scenes_faulty.stray_points()``: 20k random points and 1% strays; and
+  100k random points without strays) preprocessed with ``coverage=1.5`` and the default, drawn
+  ``flat`` top-down at 800 x 800 (far eye, narrow field of view): spill, the pixels drawn outside
+  the true square, with how far out they reach (farthest and 99th percentile, px from the edge),
+  and holes, background pixels inside the square eroded by 2 px.
 * ``peers``: the peers' 1 M-point bunny and torus (``/tmp/peers-data``, normals and colours
   given), preprocessed with ``coverage=1.5`` (the old default) and the new default; preprocess
   time, then ``ewa`` and ``flat`` at 1024 x 1024 against the mesh ground truth (PSNR inside the
@@ -17,7 +22,7 @@ Two parts, each a table in ``results/gap_radii.md``:
   silhouette) and the median frame time (wall, and CPU ``time.process_time``) of 5 frames, the
   two versions' frames alternating. Pictures are saved under ``/tmp/gap_radii/``.
 
-    python benchmarks/gap_radii.py [--part plane|peers|all] [--points 1000000]
+    python benchmarks/gap_radii.py [--part plane|border|peers|all] [--points 1000000]
 """
 
 from __future__ import annotations
@@ -29,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 from PIL import Image
-from scipy.ndimage import binary_erosion
+from scipy.ndimage import binary_erosion, distance_transform_edt
 from scipy.spatial import cKDTree
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -37,7 +42,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import RESULTS, machine_description, markdown_table  # noqa: E402
 
 import surfsplat  # noqa: E402
-from surfsplat import api  # noqa: E402
+from surfsplat import api, scenes_faulty  # noqa: E402
 from surfsplat.camera import Camera  # noqa: E402
 from surfsplat.geometry import knn, preprocess  # noqa: E402
 from surfsplat.geometry.splats import GAP_BASE, cover_cells, elliptical_splats  # noqa: E402
@@ -170,9 +175,49 @@ def peers(frames: int = 5) -> list[list]:
     return rows
 
 
+def border_view(side: float, size: int) -> tuple[Camera, np.ndarray]:
+    """A top-down camera on the square [0, side]^2 at z = 0 (far eye, narrow field of view: the plane
+    is parallel to the image, so it maps linearly) and the (size, size) bool mask of the pixels
+    whose centres lie on the square."""
+    half = 0.6 * side  # the square fills 1 / 1.2 of the frame
+    distance = 50.0 * side
+    fov = float(np.degrees(2.0 * np.arctan(half / distance)))
+    camera = Camera(eye=(side / 2, side / 2, distance), target=(side / 2, side / 2, 0.0), up=(0, 1, 0), fov=fov,
+                    width=size, height=size)
+    centre = (np.arange(size) + 0.5 - size / 2) / (size / 2) * half + side / 2  # pixel centres, model units
+    inside = (centre >= 0) & (centre <= side)
+    return camera, inside[:, None] & inside[None, :]
+
+
+def border(size: int = 800) -> list[list]:
+    """Rows of the border table: spill (pixels drawn outside the true square) and holes (background
+    pixels inside the square eroded by 2 px) of ``flat`` top-down renders of open squares, the old
+    factor 1.5 against the default. Pictures are saved under ``/tmp/gap_radii/``."""
+    PICTURES.mkdir(exist_ok=True)
+    scenes = {"stray_points (20k + 1% strays)": scenes_faulty.stray_points(),
+              "random square (100k)": scenes_faulty.stray_points(100_000, fraction=0.0)}
+    rows = []
+    for scene, faulty in scenes.items():
+        camera, square = border_view(faulty.side, size)
+        inner = binary_erosion(square, iterations=2)
+        for name, coverage, tag in (("coverage 1.5 (old default)", 1.5, "old"), ("cells (default)", None, "cells")):
+            cloud = preprocess(faulty.cloud, coverage=coverage)
+            frame = api.render(cloud, camera, technique="flat", width=size, height=size, background=(0, 0, 0))
+            drawn = np.any(frame.color > 0, axis=2)
+            png = np.round(np.clip(frame.color, 0, 1) * 255).astype(np.uint8)
+            Image.fromarray(png).save(PICTURES / f"border_{scene.split()[0]}_{tag}_{size}.png")
+            spill = drawn & ~square
+            reach = distance_transform_edt(~square)[spill]  # px from the square's edge
+            rows.append([scene, name, f"{size} x {size}", faulty.spacing * size / (1.2 * faulty.side),
+                         int(spill.sum()), float(reach.max(initial=0)), float(np.percentile(reach, 99)),
+                         int((~drawn & inner).sum())])
+            print(rows[-1], flush=True)
+    return rows
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--part", choices=("plane", "peers", "all"), default="all")
+    parser.add_argument("--part", choices=("plane", "border", "peers", "all"), default="all")
     parser.add_argument("--points", type=int, default=1_000_000, help="points of the plane (default 1 M)")
     args = parser.parse_args(argv)
     machine = machine_description("llvmpipe")
@@ -187,6 +232,12 @@ def main(argv=None) -> None:
             ["## Uniformly random points on a plane", ""] + markdown_table(
                 ["ellipses", "points", "grid points", "holes", "holes share", "outside own ellipse",
                  "mean overlap", "area / 1.5", "grown", "cover_cells s (wall / CPU)"], rows))
+    if args.part in ("border", "all"):
+        rows = border()
+        sections["Open borders, top-down flat"] = "\n".join(
+            ["## Open borders, top-down flat", ""] + markdown_table(
+                ["scene", "splats", "pixels", "mean spacing (px)", "spill (px outside the square)",
+                 "farthest spill (px)", "99th percentile spill (px)", "holes (px, square eroded 2 px)"], rows))
     if args.part in ("peers", "all"):
         rows = peers()
         sections["Peers' 1 M-point bunny and torus, 1024 x 1024"] = "\n".join(

@@ -28,7 +28,10 @@ Design choices (documented defaults):
   Voronoi cell, which leaves no hole by construction (the cells tile the
   surface). Measured on 1 M uniformly random points on a plane
   (``benchmarks/results/gap_radii.md``): no hole, about half the area and
-  overlap of the factor 1.5, a quarter of the splats grown.
+  overlap of the factor 1.5, a quarter of the splats grown. At the open
+  border of a surface the cells reach out of it: a splat is grown only to the
+  cell vertices that samples surround, so borders stay within the factor
+  1.5's (about the bare ellipses').
 * ``max_anisotropy`` (default 4.0) caps the ellipse axis ratio
   ``sqrt(lambda1 / lambda2)``: nearly collinear neighbourhoods would otherwise
   give needle-thin splats that leave gaps between scan lines.
@@ -79,6 +82,12 @@ GAP_K = (12, 16, 24)
 #: surface. On 200k uniformly random points the vertices outside the bare ellipses lie within
 #: 1.85 times the 8th-neighbour distance (~1.5 times the 12th one's).
 GAP_REACH = 1.5
+
+#: Cell vertices within this times the distance to the k-th neighbour are trusted without
+#: :func:`cover_cells`' border test: the bare ellipse of a point on an open border reaches ~0.85
+#: times that distance out of it already, the factor 1.5 ellipse ~1.3 times. On 200k uniformly
+#: random points 15% of the vertices that grow a splat lie farther (34% beyond 1.0 times).
+GAP_TRUSTED = 1.2
 
 #: Shapes :func:`cover_cells` tries: the major semi-axis relative to the minor one, as a
 #: fraction of the given ellipse's ratio (1: the same shape; smaller: rounder, down to a circle).
@@ -374,10 +383,18 @@ def cover_cells(positions, indices, u, v, *, margin: float = GAP_MARGIN, wide: t
     outside the ellipse and farther than ``reach`` times the farthest neighbour's distance
     (where the circle may hold unseen points), and cells the neighbours leave open, are
     therefore traced again among ``wide[0]`` neighbours, and those still unresolved among
-    ``wide[1]``, ...; what is left after the widest look is the border of an open surface:
-    those cells are grown only to their vertices within ``reach`` times the k-th neighbour
-    distance. Most cells are shown to lie inside their ellipse by a cheaper test first
-    (:func:`_inside`). Collinear and coincident triples have no circumcenter and are skipped.
+    ``wide[1]``, ...; what is left after the widest look is the border of an open surface.
+    There, and at every look, the cell of a border point reaches out of the surface, unbounded
+    or up to circumcenters of border triples: splats grown to them bulge out of the border. A
+    vertex farther than ``GAP_TRUSTED`` times the k-th neighbour distance is therefore trusted
+    only where samples surround it: where its triangle is acute (the circumcenter lies inside)
+    or its own 8 nearest samples leave no angular gap of pi or more around it (it lies in their
+    convex hull: the angle criterion of boundary detection, Gumhold, Wang & MacLeod 2001,
+    applied from the vertex); an interior gap's empty circle is surrounded by samples, a vertex
+    beyond an open border has them on one side only. Untrusted vertices outside the ellipse send
+    the cell to the wider look, and after the widest one they are dropped. Most cells are shown
+    to lie inside their ellipse by a cheaper test first (:func:`_inside`). Collinear and
+    coincident triples have no circumcenter and are skipped.
 
     Args:
         positions: (N, 3) float array, model units.
@@ -386,7 +403,8 @@ def cover_cells(positions, indices, u, v, *, margin: float = GAP_MARGIN, wide: t
         margin: relative depth of the farthest vertex inside the grown ellipse (>= 0).
         wide: neighbours of the wider looks (an integer or integers >= 2, those <= k ignored;
             clamped to N - 1).
-        reach: the trust radius (> 0), in units of the look's farthest neighbour distance.
+        reach: the trust radius (> 0), in units of the look's farthest neighbour distance (the widest
+            look's for the border cells left after it).
         exclude: optional (N,) bool: splats left as they are (outliers about to be dropped
             or resized); they still bound the others' cells.
         tree: the k-d tree of ``positions`` (from :func:`~surfsplat.geometry.neighbors.kdtree`),
@@ -425,23 +443,27 @@ def cover_cells(positions, indices, u, v, *, margin: float = GAP_MARGIN, wide: t
     frame = (u / a[:, None], v / b[:, None], a, b, rho)
     need = np.zeros((len(GAP_ROUNDING), n), dtype=np.float32)  # squared metric of the farthest vertex
     reach2 = np.float32(reach * reach)
+    trusted2 = np.float32(GAP_TRUSTED * GAP_TRUSTED)
     limit = np.float32((1.0 + margin) ** -2)  # a cell within this metric needs no growth
     unresolved = np.zeros(n, dtype=bool)
 
-    def trace(d, rows, bound_dist):
-        """The need of the cells of ``rows`` (offsets ``d``); marks the ones left unresolved."""
+    def trace(d, rows, bound_dist, own_dist):
+        """The need of the cells of ``rows`` (offsets ``d``, k-th neighbour distance ``own_dist``);
+        marks the ones left unresolved."""
         inside, open_ = _inside(d, rows, frame, limit)
         need[:, rows] = 0.0
         sel = np.flatnonzero(~inside & ~open_)
-        need[:, rows[sel]], far = _cell_vertices([o[:, sel] for o in d], rows[sel], frame,
-                                                 reach2 * bound_dist[sel] ** 2)
+        bounds = reach2 * bound_dist[sel] ** 2, trusted2 * own_dist[sel] ** 2
+        need[:, rows[sel]], far = _cell_vertices([o[:, sel] for o in d], rows[sel], frame, *bounds, pts, tree)
         unresolved[rows] = open_
         unresolved[rows[sel]] = far
 
     def first(sl):
         d = block_offsets(cols, idx, sl)
-        trace(d, np.arange(sl.start, sl.stop), np.sqrt((d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).max(axis=0)))
+        dist = np.sqrt((d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).max(axis=0))
+        trace(d, np.arange(sl.start, sl.stop), dist, dist)
 
+    tree = kdtree(pts) if tree is None else tree
     for_blocks(first, n)
     rows = np.flatnonzero(unresolved & ~skip)
     kw = k
@@ -449,22 +471,23 @@ def cover_cells(positions, indices, u, v, *, margin: float = GAP_MARGIN, wide: t
         if not len(rows):
             break
         # cells the neighbours leave open or bound too loosely: a wider look
-        tree = kdtree(pts) if tree is None else tree
         wide_dist, wide_idx = knn_rows(tree, rows, kw)
 
         def again(start):
             part = slice(start, start + _GAP_CHUNK)
             sel, nb = rows[part], wide_idx[part]
-            trace([np.ascontiguousarray((col[nb] - col[sel, None]).T) for col in cols], sel, wide_dist[part, -1])
+            trace([np.ascontiguousarray((col[nb] - col[sel, None]).T) for col in cols], sel, wide_dist[part, -1],
+                  wide_dist[part, k - 1])
 
         parallel(again, range(0, len(rows), _GAP_CHUNK))
         rows = rows[unresolved[rows]]
     if len(rows) and kw > k:
         # still open or loose with the widest look: the border of an open surface, whose cells reach
-        # out of it; grown only to the vertices the first look would trust
+        # out of it; grown only to the trusted vertices
         dist, nb = knn_rows(tree, rows, kw)
         d = [np.ascontiguousarray((col[nb] - col[rows, None]).T) for col in cols]
-        need[:, rows] = _cell_vertices(d, rows, frame, reach2 * dist[:, k - 1] ** 2)[0]
+        need[:, rows] = _cell_vertices(d, rows, frame, reach2 * dist[:, -1] ** 2, trusted2 * dist[:, k - 1] ** 2,
+                                       pts, tree)[0]
     # per shape: the scale that reaches the farthest vertex and keeps the given ellipse inside
     scale = np.maximum(np.sqrt(need) * np.float32(1.0 + margin), np.maximum(1.0 / rho, np.float32(1.0)))
     best = np.argmin(scale * scale * rho, axis=0)  # area relative to the given ellipse's
@@ -475,14 +498,17 @@ def cover_cells(positions, indices, u, v, *, margin: float = GAP_MARGIN, wide: t
     return u * factors[:, :1], v * factors[:, 1:], factors
 
 
-def _cell_vertices(d, rows, frame, bound):
+def _cell_vertices(d, rows, frame, bound, plain, pts, tree):
     """The farthest vertex of some points' Voronoi cells among their neighbours (see :func:`cover_cells`).
 
     d: three (K, M) float32 neighbour offsets (model units); rows: (M,) the points; frame: the
     cloud's unit axes, semi-axis lengths and the (S, N) shapes tried; bound: (M,) the largest
-    squared distance of a trusted vertex. Returns ``(need, far)``: (S, M) float32 squared
-    ellipse metric of the farthest trusted vertex in each shape (0 if none), and (M,) bool: an
-    untrusted vertex lies outside the ellipse.
+    squared distance of a trusted vertex; plain: (M,) the squared distance within which a vertex
+    is trusted without the border test; pts, tree: the (N, 3) positions and their k-d tree. A
+    vertex between ``plain`` and ``bound`` is trusted only if its triangle is acute (it lies in
+    the triangle) or its own nearest samples enclose it (:func:`_witnessed`). Returns
+    ``(need, far)``: (S, M) float32 squared ellipse metric of the farthest trusted vertex in each
+    shape (0 if none), and (M,) bool: an untrusted vertex lies outside the ellipse.
     """
     ua, va, a, b, rho = frame
     k = d[0].shape[0]
@@ -500,6 +526,9 @@ def _cell_vertices(d, rows, frame, bound):
         # (their scale keeps the given ellipse inside); NaN: no circumcenter
         pair, col = np.nonzero((cx / a[rows]) ** 2 + (cy / b[rows]) ** 2 > np.float32(0.9))
     cx, cy = cx[pair, col], cy[pair, col]
+    # the triangle's angle at the point and at P_j, P_k: obtuse where the dot products are negative
+    pj = x[jj[pair], col] * x[kk[pair], col] + y[jj[pair], col] * y[kk[pair], col]
+    obtuse = (pj < 0) | (q[jj[pair], col] < pj) | (q[kk[pair], col] < pj)
     xs, ys = x[:, col], y[:, col]
     with np.errstate(invalid="ignore", over="ignore"):
         r2 = cx * cx + cy * cy
@@ -507,16 +536,50 @@ def _cell_vertices(d, rows, frame, bound):
         vertex = ~((xs * xs + ys * ys - 2.0 * (xs * cx + ys * cy)) < np.float32(-1e-4) * r2).any(axis=0)
         near = r2 <= bound[col]
     i = rows[col]
+    keep = vertex & near
+    # beyond an open border: a far vertex is trusted only where samples surround it; an acute
+    # triangle's circumcenter lies inside it, an obtuse one's beyond its longest side
+    sel = np.flatnonzero(keep & (r2 > plain[col]) & obtuse)
+    keep[sel] = _witnessed(pts, tree, frame, i[sel], cx[sel], cy[sel])
     far = np.zeros(len(rows), dtype=bool)
     with np.errstate(over="ignore"):
         ey2 = (cy / b[i]) ** 2
-        far[col[vertex & ~near & ((cx / a[i]) ** 2 + ey2 > 1.0)]] = True
-    keep = vertex & near
+        far[col[vertex & ~keep & ((cx / a[i]) ** 2 + ey2 > 1.0)]] = True
     col, i, cx, ey2 = col[keep], i[keep], cx[keep], ey2[keep]
     need = np.zeros((len(rho), len(rows)), dtype=np.float32)
     for s in range(len(rho)):
         np.maximum.at(need[s], col, (cx / (a[i] * rho[s, i])) ** 2 + ey2)
     return need, far
+
+
+def _enclosed(x, y, cx, cy):
+    """Whether the vertices ``(cx, cy)`` (V,) lie in the convex hull of the origin and the points
+    ``(x, y)`` (K, V): the directions from the vertex to them leave no angular gap of pi or more.
+
+    The empty circle of a Voronoi vertex inside a sampled surface is surrounded by samples; one
+    beyond an open border has samples on one side only (the criterion of boundary detection by
+    the largest angular gap, Gumhold, Wang & MacLeod 2001, applied from the vertex).
+    """
+    with np.errstate(invalid="ignore"):
+        ang = np.sort(np.concatenate([np.arctan2(y - cy, x - cx), np.arctan2(-cy, -cx)[None]]), axis=0)
+        gap = np.maximum(np.diff(ang, axis=0).max(axis=0), ang[0] + np.float32(2.0 * np.pi) - ang[-1])
+        return gap < np.float32(np.pi * (1.0 + 1e-4))  # on a hull edge counts as inside; NaN fails
+
+
+def _witnessed(pts, tree, frame, i, cx, cy, k=8):
+    """Whether the cell vertices ``(cx, cy)`` (V,) in the frames of the points ``i`` (V,) lie in the
+    convex hull of their own ``k`` nearest samples (:func:`_enclosed`, seen in ``i``'s tangent plane;
+    ``pts``: the (N, 3) positions, ``tree``: their k-d tree)."""
+    ua, va = frame[:2]
+    if not len(i):
+        return np.zeros(0, dtype=bool)
+    at = pts[i] + cx[:, None] * ua[i] + cy[:, None] * va[i]
+    _, nb = tree.query(at, k=min(k, len(pts)))  # called from parallel blocks already
+    nb = nb.reshape(len(i), -1).T
+    rel = pts[nb] - pts[i]
+    x = np.einsum("kvc,vc->kv", rel, ua[i])
+    y = np.einsum("kvc,vc->kv", rel, va[i])
+    return _enclosed(x, y, cx, cy)
 
 
 def _inside(d, rows, frame, limit):
