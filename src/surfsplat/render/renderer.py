@@ -349,8 +349,7 @@ class Renderer:
         self._non_finite, self._background = 0, np.ones(3, "f4")   # of the render in progress
         self._parking_rb = self.ctx.renderbuffer((1, 1))
         self._parking = self.ctx.framebuffer([self._parking_rb])
-        # the full-screen passes: normalization (by edge coverage: False, True) and "cracks"
-        self._fullscreen: dict[bool | str, moderngl.VertexArray] = {}
+        self._fullscreen: dict[tuple, moderngl.VertexArray] = {}   # by (fragment shader, defines)
         self._max_point = float(self.ctx.info["GL_POINT_SIZE_RANGE"][1])
 
     # -- resources ---------------------------------------------------------
@@ -649,10 +648,8 @@ class Renderer:
         # Pass 3: normalization (Guennebaud 2003, eq. 18).
         out = output or targets["fbo_out"]
         out.use()
-        if edges not in self._fullscreen:
-            self._fullscreen[edges] = self.ctx.vertex_array(
-                self.program("fullscreen.vert", "normalize.frag", {EDGE_COVERAGE_DEFINE: 1} if edges else {}), [])
-        normalize = self._fullscreen[edges].program
+        normalization = self._fullscreen_pass("normalize.frag", {EDGE_COVERAGE_DEFINE: 1} if edges else {})
+        normalize = normalization.program
         targets["accum"].use(location=0)
         targets["aux"].use(location=1)
         targets["cracks" if technique.blended else "side"].use(location=SIDE_TEXTURE_UNIT)
@@ -662,14 +659,20 @@ class Renderer:
                                               "u_edge_fringe": technique.vertex in FRINGE_SHADERS,
                                               "u_background": tuple(map(float, background))},
                           OPTIONAL_FRAME_UNIFORMS)
-        self._fullscreen[edges].render(moderngl.TRIANGLES, vertices=3)
+        normalization.render(moderngl.TRIANGLES, vertices=3)
+
+    def _fullscreen_pass(self, fragment: str, defines: dict | None = None) -> moderngl.VertexArray:
+        """The full-screen triangle drawn with a fragment shader (``normalize.frag``, ``cracks.frag``)
+        and ``defines``, built once."""
+        key = (fragment, tuple(sorted((defines or {}).items())))
+        if key not in self._fullscreen:
+            self._fullscreen[key] = self.ctx.vertex_array(self.program("fullscreen.vert", fragment, defines), [])
+        return self._fullscreen[key]
 
     def _mark_cracks(self, targets: dict, frame: dict) -> None:
         """Between the visibility and the accumulation pass: the visibility record copied into the
         ``cracks`` target with the uncovered pixels between covered ones marked (``cracks.frag``)."""
-        if "cracks" not in self._fullscreen:
-            self._fullscreen["cracks"] = self.ctx.vertex_array(self.program("fullscreen.vert", "cracks.frag"), [])
-        vao = self._fullscreen["cracks"]
+        vao = self._fullscreen_pass("cracks.frag")
         self.ctx.disable(moderngl.DEPTH_TEST)
         self.ctx.disable(moderngl.BLEND)
         targets["fbo_cracks"].use()
@@ -677,7 +680,6 @@ class Renderer:
         self.set_uniforms(vao.program, {"u_viewport": frame["u_viewport"], "u_tile": frame["u_tile"],
                                         "u_side": SIDE_TEXTURE_UNIT})
         vao.render(moderngl.TRIANGLES, vertices=3)
-        self.ctx.enable(moderngl.DEPTH_TEST)
 
     def _read_tile(self) -> SubPixels:
         """The tile's sub-pixels from the targets of the last :meth:`draw` (the normalization pass's
