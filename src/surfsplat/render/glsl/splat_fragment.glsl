@@ -68,10 +68,15 @@ float footprint_depth(vec2 st) {
 }
 
 #if PASS == PASS_ACCUMULATION
-// The visibility pass's record at the fragment's pixel (side, offset depth); the compiler merges the
-// calls of one fragment into one fetch.
+// The visibility pass's record at the fragment's pixel (side, offset depth), fetched at the first call
+// and kept: the depth test, the fringe test and emit each read it, and calls in different branches are
+// not merged by the compiler (measured on the bunny, 1M splats at 1024x1024, three alternated runs:
+// 6-7% of the accumulation pass).
+vec2 g_nearest = vec2(-1.0);   // x < 0: not fetched yet (the sides are in [0, 1])
+
 vec2 nearest_here() {
-    return texelFetch(u_side, ivec2(gl_FragCoord.xy), 0).rg;
+    if (g_nearest.x < 0.0) g_nearest = texelFetch(u_side, ivec2(gl_FragCoord.xy), 0).rg;
+    return g_nearest;
 }
 #endif
 
