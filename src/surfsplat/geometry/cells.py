@@ -39,7 +39,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..frames import tangent_frame
-from .common import BLOCK, parallel
+from .common import BLOCK, columns, neighbour_offsets, parallel
 from .neighbors import knn_rows
 from .normals import smallest_eigenvectors
 
@@ -232,18 +232,12 @@ def _cells(tree, pts, rows, k, big, bound, normals, shape, coverage, max_anisotr
     out_v = np.empty((r, 3), dtype=np.float32)
     out_i = np.empty((r, k), dtype=np.int64)
     out_d = np.empty((r, k), dtype=np.float32)
-    cols = [np.ascontiguousarray(pts[:, j]) for j in range(3)]
+    cols = columns(pts)
 
     def block(sl):
         at = sl if where is None else where[sl]
         nb, nd = idx_k[at], dist_k[at]
-        it = np.ascontiguousarray(nb.T)  # (K, B)
-        centers = rows[sl]
-        d = []
-        for col in cols:
-            o = col[it]
-            o -= col[centers]
-            d.append(o)
+        d = neighbour_offsets(cols, rows[sl], nb)   # (K, B) each
         m = np.float32(big + 1)
         mean = [o.sum(axis=0) / m for o in d]
         cov = [(np.einsum("ij,ij->j", d[a], d[b]) / m - mean[a] * mean[b]).astype(np.float64)

@@ -50,7 +50,7 @@ import numpy as np
 from ..errors import InputError
 from ..frames import tangent_frame
 from .common import (block_covariance, block_offsets, check_indices, check_oriented_points, check_vectors, columns,
-                     for_blocks, parallel, row_norms)
+                     for_blocks, neighbour_offsets, parallel, row_norms)
 from .neighbors import kdtree, knn_rows
 from .normals import smallest_eigenvectors
 
@@ -476,8 +476,7 @@ def cover_cells(positions, indices, u, v, *, margin: float = GAP_MARGIN, wide: t
         def again(start):
             part = slice(start, start + _GAP_CHUNK)
             sel, nb = rows[part], wide_idx[part]
-            trace([np.ascontiguousarray((col[nb] - col[sel, None]).T) for col in cols], sel, wide_dist[part, -1],
-                  wide_dist[part, k - 1])
+            trace(neighbour_offsets(cols, sel, nb), sel, wide_dist[part, -1], wide_dist[part, k - 1])
 
         parallel(again, range(0, len(rows), _GAP_CHUNK))
         rows = rows[unresolved[rows]]
@@ -485,9 +484,8 @@ def cover_cells(positions, indices, u, v, *, margin: float = GAP_MARGIN, wide: t
         # still open or loose with the widest look: the border of an open surface, whose cells reach
         # out of it; grown only to the trusted vertices
         dist, nb = knn_rows(tree, rows, kw)
-        d = [np.ascontiguousarray((col[nb] - col[rows, None]).T) for col in cols]
-        need[:, rows] = _cell_vertices(d, rows, frame, reach2 * dist[:, -1] ** 2, trusted2 * dist[:, k - 1] ** 2,
-                                       pts, tree)[0]
+        need[:, rows] = _cell_vertices(neighbour_offsets(cols, rows, nb), rows, frame, reach2 * dist[:, -1] ** 2,
+                                       trusted2 * dist[:, k - 1] ** 2, pts, tree)[0]
     # per shape: the scale that reaches the farthest vertex and keeps the given ellipse inside
     scale = np.maximum(np.sqrt(need) * np.float32(1.0 + margin), np.maximum(1.0 / rho, np.float32(1.0)))
     best = np.argmin(scale * scale * rho, axis=0)  # area relative to the given ellipse's
@@ -496,6 +494,14 @@ def cover_cells(positions, indices, u, v, *, margin: float = GAP_MARGIN, wide: t
     factors[:, 0] = np.maximum(factors[:, 1] * rho[best, pick], np.float32(1.0))  # >= 1 after rounding too
     factors[skip] = 1.0
     return u * factors[:, :1], v * factors[:, 1:], factors
+
+
+def _in_plane(d, rows, ua, va) -> tuple[np.ndarray, np.ndarray]:
+    """The (K, M) coordinates of neighbour offsets ``d`` in the tangent frames (unit axes ``ua``,
+    ``va``) of their points ``rows``."""
+    x = d[0] * ua[rows, 0] + d[1] * ua[rows, 1] + d[2] * ua[rows, 2]
+    y = d[0] * va[rows, 0] + d[1] * va[rows, 1] + d[2] * va[rows, 2]
+    return x, y
 
 
 def _cell_vertices(d, rows, frame, bound, plain, pts, tree):
@@ -512,9 +518,7 @@ def _cell_vertices(d, rows, frame, bound, plain, pts, tree):
     """
     ua, va, a, b, rho = frame
     k = d[0].shape[0]
-    # neighbour offsets in i's own ellipse frame (the splat's tangent plane)
-    x = d[0] * ua[rows, 0] + d[1] * ua[rows, 1] + d[2] * ua[rows, 2]
-    y = d[0] * va[rows, 0] + d[1] * va[rows, 1] + d[2] * va[rows, 2]
+    x, y = _in_plane(d, rows, ua, va)   # in i's own ellipse frame (the splat's tangent plane)
     q = x * x + y * y
     jj, kk = np.triu_indices(k, 1)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
@@ -600,8 +604,7 @@ def _inside(d, rows, frame, limit):
     neighbours on one side). Returns two (M,) bool arrays ``(inside, open)``.
     """
     ua, va, a, b = frame[:4]
-    x = d[0] * ua[rows, 0] + d[1] * ua[rows, 1] + d[2] * ua[rows, 2]
-    y = d[0] * va[rows, 0] + d[1] * va[rows, 1] + d[2] * va[rows, 2]
+    x, y = _in_plane(d, rows, ua, va)
     h = 0.5 * (x * x + y * y)
     nx, ny = x * a[rows], y * b[rows]
     ang = np.where(h > 0, np.arctan2(ny, nx), np.float32(np.nan))  # a coincident point bounds nothing
