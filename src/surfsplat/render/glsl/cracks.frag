@@ -10,10 +10,16 @@
 
 layout(location = 0) out vec2 out_side;
 
+// The nearest offset depth of the visibility pass's disks at a texel (NO_DEPTH: none).
+float nearest_depth(ivec2 texel) {
+    vec2 depths = texelFetch(u_side, texel, 0).rg;
+    return min(depths.x, depths.y);
+}
+
 // Whether a disk of the visibility pass covers the pixel at this offset.
 bool drawn_at(ivec2 offset) {
     ivec2 texel;
-    return texel_at(offset, texel) && min(texelFetch(u_side, texel, 0).r, texelFetch(u_side, texel, 0).g) < NO_DEPTH;
+    return texel_at(offset, texel) && nearest_depth(texel) < NO_DEPTH;
 }
 
 void main() {

@@ -226,15 +226,11 @@ void emit(vec3 ray, float z, float w, vec3 color, vec3 normal) {
 #endif
     out_color = vec4(color * w, w);
     out_aux = vec4(z, normal) * w;
-#if PASS == PASS_ACCUMULATION
-#ifdef EDGE_COVERAGE
+#if PASS == PASS_ACCUMULATION && defined(EDGE_COVERAGE)
     vec2 cd = disk_coverage();
     float e = exp(COVER_SHARPNESS * (cd.x - 1.0));
     float ed = exp(DISTANCE_SHARPNESS * (cd.y - COVER_REACH));
     out_cover = vec4(e, cd.x * e, ed, cd.y * ed);
-#else
-    out_cover = vec4(0.0);
-#endif
 #else
     out_cover = vec4(0.0);
 #endif
