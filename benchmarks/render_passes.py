@@ -5,9 +5,11 @@ The input is the peers' scenes (../shared/peers: ``bench.py`` writes ``bunny_100
 preprocessed as ``bench_peers.py`` does, back faces culled where ``api.cull_automatically`` culls
 them, uploaded once, drawn at 1024x1024 with the peers' cameras. Every draw call is wrapped in
 glFinish and timed in process CPU time (llvmpipe's threads included), which a busy machine disturbs
-less than wall time; the frame is also timed whole (wall and CPU, median of ``--repeat``).
+less than wall time, and so are the compute passes of the small splats (``render/compute_visibility.py``,
+where the context has OpenGL 4.3; ``--raster-only`` draws every splat instead); the frame is also timed whole
+(wall and CPU, median of ``--repeat``).
 
-    python benchmarks/render_passes.py [--work /tmp/peers-data] [--techniques ewa flat blend]
+    python benchmarks/render_passes.py [--work /tmp/peers-data] [--techniques ewa flat blend] [--raster-only]
 
 Table: results/render_passes.md.
 """
@@ -31,6 +33,7 @@ from surfsplat.camera import Camera  # noqa: E402
 from surfsplat.geometry.preprocess import preprocess  # noqa: E402
 from surfsplat.io import load  # noqa: E402
 from surfsplat.lighting import Lights  # noqa: E402
+from surfsplat.render import compute_visibility  # noqa: E402
 from surfsplat.render.options import RenderOptions, VisibilityOptions  # noqa: E402
 from surfsplat.render.renderer import Renderer  # noqa: E402
 
@@ -44,7 +47,9 @@ PASS_NAMES = {0: "opaque", 1: "visibility", 2: "accumulation"}
 
 def pass_name(key: tuple) -> str:
     """A readable name of a program cache key of Renderer.program."""
-    vertex, fragment, defines = key
+    vertex, fragment, defines = key[:3]
+    if fragment == "opaque_resolve.frag":
+        return "resolve"
     if fragment == "normalize.frag":
         return "normalization"
     if fragment == "cracks.frag":
@@ -52,7 +57,7 @@ def pass_name(key: tuple) -> str:
     return PASS_NAMES.get(dict(defines).get("PASS"), fragment)
 
 
-def measure(scene: str, path: Path, techniques: list[str], repeat: int, size: int) -> list[list]:
+def measure(scene: str, path: Path, techniques: list[str], repeat: int, size: int, compute: bool | None) -> list[list]:
     """Rows of the table for one scene."""
     spec = SCENES[scene]
     cloud = preprocess(load(path))
@@ -62,7 +67,7 @@ def measure(scene: str, path: Path, techniques: list[str], repeat: int, size: in
     lights = Lights(directions=[tuple(light)], ambient=0.2, diffuse=0.8, specular=0.3, shininess=32)
     cloud, cull = api.cull_automatically(cloud, camera, closed=False)
     options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=cull))
-    renderer = Renderer()
+    renderer = Renderer(compute=compute)
     gpu = renderer.upload(cloud)
     local = api.local_camera(cloud, camera)
     ctx, rows = renderer.ctx, []
@@ -86,12 +91,23 @@ def measure(scene: str, path: Path, techniques: list[str], repeat: int, size: in
             name = names.get(id(vao.program), "?")
             spent[name] = spent.get(name, 0.0) + (time.process_time() - start) / repeat
 
+        dispatch = compute_visibility.dispatch
+
+        def timed_dispatch(*args, **kwargs):
+            ctx.finish()
+            start = time.process_time()
+            dispatch(*args, **kwargs)
+            ctx.finish()
+            spent["compute"] = spent.get("compute", 0.0) + (time.process_time() - start) / repeat
+
         moderngl.VertexArray.render = timed
+        compute_visibility.dispatch = timed_dispatch
         try:
             for _ in range(repeat):
                 renderer.render(gpu, local, technique, lights, options, background=(0, 0, 0))
         finally:
             moderngl.VertexArray.render = original
+            compute_visibility.dispatch = dispatch
         passes = sum(spent.values())
         frame_cpu = float(np.median(cpu))
         rows.append([scene, technique, len(cloud), f"{size}x{size}", round(1000 * float(np.median(wall))),
@@ -112,6 +128,7 @@ def main() -> None:
     parser.add_argument("--techniques", nargs="+", default=["ewa", "flat", "blend"])
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--size", type=int, default=1024)
+    parser.add_argument("--raster-only", action="store_true", help="no compute visibility pass")
     args = parser.parse_args()
     rows = []
     for scene in args.scenes:
@@ -119,11 +136,12 @@ def main() -> None:
         if not path.exists():
             raise SystemExit(f"{path} is missing: run the peers' bench (../shared/peers/bench.py --work {args.work}) "
                              f"or benchmarks/bench_peers.py --run once to create it")
-        rows += measure(scene, path, args.techniques, args.repeat, args.size)
-    columns = ["scene", "technique", "splats", "resolution", "frame wall ms", "frame CPU ms", "visibility CPU ms",
-               "cracks CPU ms", "accumulation CPU ms", "opaque pass CPU ms", "normalization CPU ms",
+        rows += measure(scene, path, args.techniques, args.repeat, args.size, False if args.raster_only else None)
+    columns = ["scene", "technique", "splats", "resolution", "frame wall ms", "frame CPU ms", "compute passes CPU ms",
+               "visibility raster CPU ms",
+               "cracks CPU ms", "accumulation CPU ms", "opaque pass CPU ms", "opaque resolve CPU ms", "normalization CPU ms",
                "rest CPU ms (clears, read-back, Python)"]
-    write_table("render_passes", columns, rows, machine_description("Mesa llvmpipe") +
+    write_table("render_passes_raster" if args.raster_only else "render_passes", columns, rows, machine_description("Mesa llvmpipe") +
                 "; CPU time of each draw call between glFinish calls, process-wide (llvmpipe's threads)")
 
 

@@ -79,10 +79,14 @@ cloud = SplatCloud(data["positions"], normals=data["normals"] if "normals" in da
 best = None
 for _ in range(int(sys.argv[3])):
     start = time.perf_counter()
-    out = preprocess(cloud)
+    try:   # a version with a report: the input rows its splats come from (duplicates and outliers go)
+        out, report = preprocess(cloud, return_report=True)
+        kept = report.kept
+    except TypeError:
+        out, kept = preprocess(cloud), np.arange(len(cloud))
     elapsed = time.perf_counter() - start
     best = elapsed if best is None else min(best, elapsed)
-np.savez(sys.argv[2], positions=out.positions, normals=out.normals, u=out.u, v=out.v,
+np.savez(sys.argv[2], positions=out.positions, normals=out.normals, u=out.u, v=out.v, kept=kept,
          colors=out.colors if out.colors is not None else np.zeros((0, 3), np.float32), seconds=best)
 """
 
@@ -99,8 +103,9 @@ class Before:
         self.commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], check=True,
                                      capture_output=True, text=True).stdout.strip()
 
-    def preprocess(self, cloud: SplatCloud, repeats: int = 1) -> tuple[SplatCloud, float]:
-        """HEAD's ``preprocess(cloud)`` and its best time of ``repeats`` runs (seconds)."""
+    def preprocess(self, cloud: SplatCloud, repeats: int = 1) -> tuple[SplatCloud, float, np.ndarray]:
+        """HEAD's ``preprocess(cloud)``, its best time of ``repeats`` runs (seconds) and the input rows
+        its splats come from."""
         with tempfile.TemporaryDirectory() as tmp:
             arrays = {"positions": cloud.positions}
             if cloud.normals is not None:
@@ -114,7 +119,7 @@ class Before:
             data = np.load(Path(tmp) / "out.npz")
             colors = data["colors"] if len(data["colors"]) else None
             return (SplatCloud(data["positions"], data["normals"], colors, data["u"], data["v"]),
-                    float(data["seconds"]))
+                    float(data["seconds"]), data["kept"])
 
 
 def after(cloud: SplatCloud, repeats: int = 1, **options):
@@ -190,8 +195,7 @@ def case_rows(name, raw: SplatCloud, spacing: float, camera: Camera, footprint: 
     previous = None
     for version in ("before", "after"):
         if version == "before":
-            out, seconds = before.preprocess(raw)
-            kept = np.arange(len(raw))
+            out, seconds, kept = before.preprocess(raw)
             counts = ""
         else:
             out, report, seconds = after(raw)

@@ -18,7 +18,8 @@ from surfsplat.metrics import psnr
 from surfsplat.render.lod_auto import (AUTO, AUTO_LOD_PX, AUTO_MIN_DENSITY, auto_lod_tolerance, auto_merged,
                                       merge_in_pixels, points_per_pixel)
 from surfsplat.render.options import RenderOptions
-from surfsplat.render.renderer import CLASSES_PER_OCTAVE, Renderer, point_radius, radius_classes
+from surfsplat.render.gpu_splats import CLASSES_PER_OCTAVE, radius_classes
+from surfsplat.render.renderer import Renderer, point_radius
 from surfsplat.render.techniques import get_technique
 
 

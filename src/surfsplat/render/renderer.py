@@ -29,7 +29,6 @@ from __future__ import annotations
 import itertools
 import warnings
 import zlib
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Sequence
 
@@ -42,12 +41,15 @@ from ..errors import InputError, RenderError
 from ..io.atomic import memory_limit
 from ..lighting import MAX_LIGHTS, Lights
 from .context import headless_context, reset_headless_context
+from . import compute_visibility
 from .edl import apply_edl
 from .frame import Frame
 from ..reference import prefilter_variance
+from .gpu_splats import GpuSplats, radius_classes, splat_arrays
 from .options import RenderOptions
 from .points import POINT_SIZE_RANGE
-from .shaders import NO_DEPTH, PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBILITY, BuiltProgram, build_program, undeclared
+from .shaders import (COMPUTE_GLSL_VERSION, GLSL_VERSION, NO_DEPTH, PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBILITY, BuiltProgram,
+                      build_compute, build_program, undeclared)
 from .technique import Technique
 from .tiles import MAX_SUPERSAMPLE, MAX_TILE, SubPixels, box_reduce, tile_rects, tile_side
 from .techniques import get_technique
@@ -115,166 +117,6 @@ POINT_SPLAT_PX = 64.0
 DRAW_BATCH = 1 << 17
 #: Vertex shaders that emit GL_POINTS for the small splats (``splat_primitive.glsl``, POINT_PRIMITIVE).
 POINT_SHADERS = frozenset({"ewa.vert", "disk.vert", "points.vert"})
-#: Radius classes per octave: the splats are uploaded ordered by class, largest first, so the quads
-#: and the points of a frame are two contiguous ranges.
-CLASSES_PER_OCTAVE = 4
-#: Classes kept apart (32 octaves below the largest radius); smaller splats share the last one.
-MAX_CLASSES = 128
-#: Splats checked and converted per step of :meth:`Renderer.upload` (bounds its temporary memory).
-UPLOAD_CHUNK = 1 << 20
-
-
-@dataclass
-class GpuSplats:
-    """A SplatCloud uploaded to the GPU: one buffer per attribute, float32.
-
-    The splats are stored ordered by radius class, largest first: ``class_radius[i]`` is the
-    largest radius (GPU units) of the splats from ``class_start[i]`` on.
-
-    The buffers hold the cloud's positions relative to its float64 ``origin``, times ``scale`` (a
-    power of two, :func:`gpu_scale`: GPU units); ``bounds`` and ``max_radius`` are in world units.
-    Cameras given to the renderer are world cameras; :meth:`local_camera` is the one the GPU draws with.
-    """
-
-    buffers: dict[str, moderngl.Buffer]
-    count: int
-    bounds: tuple[np.ndarray, np.ndarray]
-    max_radius: float
-    _vaos: dict = field(default_factory=dict)
-    class_start: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64))
-    class_radius: np.ndarray = field(default_factory=lambda: np.full(1, np.inf))
-    origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    scale: float = 1.0
-    #: Attribute buffers read beyond the technique's (``in_<name>``; a sequential layout's ``lod``).
-    extra_attributes: tuple[str, ...] = ()
-    #: Shader defines of every program drawing these splats (a sequential layout's ``SEQUENTIAL_LOD``).
-    defines: dict = field(default_factory=dict)
-
-    def draw_ranges(self, camera: Camera, point_radius: float) -> tuple[list, list]:
-        """``(quads, points)``: the ``(first, count)`` ranges of splats a frame draws as instanced quads
-        and as GL_POINTS points (``camera``: the GPU frame's): all splats, the quads first
-        (:meth:`quad_count`). A sequential layout draws a prefix of each radius class
-        (``render/sequential.py``)."""
-        quads = self.quad_count(point_radius)
-        return ([(0, quads)] if quads else []), ([(quads, self.count - quads)] if quads < self.count else [])
-
-    def extra_uniforms(self, camera: Camera) -> dict:
-        """Uniforms these splats add to a frame's (``camera``: the GPU frame's): none here; a
-        sequential layout's LOD scale."""
-        return {}
-
-    def local_camera(self, camera: Camera) -> Camera:
-        """The world ``camera`` in the buffers' frame: eye and target moved by ``-origin`` in float64,
-        then scaled by ``scale`` (exact: a power of two), so that the GPU composes its float32
-        transform from numbers of the size of the model wherever it sits."""
-        return camera.translated(-self.origin).scaled(self.scale)
-
-    @property
-    def gpu_bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """The bounds in GPU units (relative to ``origin``, times ``scale``)."""
-        return tuple((np.asarray(b, dtype=np.float64) - self.origin) * self.scale for b in self.bounds)
-
-    def quad_count(self, point_radius: float) -> int:
-        """Number of leading splats drawn as quads when splats of radius <= ``point_radius`` (model
-        units) may be points: those of every class whose largest radius exceeds it."""
-        if not point_radius > 0:   # no points (0: none allowed; degenerate radii draw as quads too)
-            return self.count
-        big = int(np.count_nonzero(self.class_radius > point_radius))   # a prefix: radii descend
-        return self.count if big == len(self.class_radius) else int(self.class_start[big])
-
-    def release(self) -> None:
-        """Free the GPU buffers."""
-        for vao in self._vaos.values():
-            vao.release()
-        for buffer in self.buffers.values():
-            buffer.release()
-        self._vaos.clear()
-        self.buffers.clear()
-
-
-#: Largest magnitude of a splat's coordinates and axes: their squares stay finite in float32.
-MAX_COORDINATE = 1e18
-
-#: Local extents (model units) the renderer draws as they are; a model outside this range is drawn
-#: scaled by a power of two to about unit size (:func:`gpu_scale`): the shaders' products of axes
-#: (a splat's normal is ``u x v``, its squared length a 4th power) leave float32's range for
-#: splat radii below ~1e-9 or above ~1e9; within 1e-6..1e6 the picture is drawn bit for bit as given.
-GPU_EXTENT_RANGE = (2.0 ** -20, 2.0 ** 20)
-
-
-def gpu_scale(cloud: SplatCloud) -> float:
-    """The power of two the renderer scales a cloud's local coordinates (and the camera) by: 1 when
-    their extent (and largest splat radius) is within :data:`GPU_EXTENT_RANGE`, else the one
-    bringing it to about 1 (exact in float32)."""
-    if len(cloud) == 0:
-        return 1.0
-    lo, hi = cloud.positions.min(axis=0), cloud.positions.max(axis=0)
-    extent = float(np.max(hi.astype(np.float64) - lo))
-    if cloud.u is not None:
-        extent = max(extent, float(cloud.radii.max()))
-    if not np.isfinite(extent) or extent <= 0 or GPU_EXTENT_RANGE[0] <= extent <= GPU_EXTENT_RANGE[1]:
-        return 1.0
-    return float(2.0 ** -np.round(np.log2(extent)))
-
-
-def _check_gpu_values(arrays: dict[str, np.ndarray]) -> None:
-    """InputError for splats the GPU cannot draw: non-finite values, zero normals, coordinates or axes
-    beyond :data:`MAX_COORDINATE` (``SplatCloud.validated`` drops the first two kinds)."""
-    for name, values in arrays.items():
-        values = np.asarray(values)
-        bad = 0
-        for start in range(0, len(values), UPLOAD_CHUNK):   # temporaries of one chunk at a time
-            chunk = values[start:start + UPLOAD_CHUNK]
-            with np.errstate(invalid="ignore", over="ignore"):
-                wrong = ~np.isfinite(chunk).all(axis=-1)
-                if name in ("position", "u", "v"):
-                    wrong |= (np.abs(chunk) > MAX_COORDINATE).any(axis=-1)
-                if name == "normal":
-                    wrong |= ~(np.einsum("ij,ij->i", chunk, chunk) > 0)
-            bad += int(np.count_nonzero(wrong))
-        if bad:
-            limit = f" or beyond +-{MAX_COORDINATE:g}" if name in ("position", "u", "v") else ""
-            raise InputError(f"{bad:,} splats have non-finite{limit} {name} values"
-                             f"{' (or zero normals)' if name == 'normal' else ''}; SplatCloud.validated() drops "
-                             f"invalid splats")
-
-
-def splat_arrays(cloud: SplatCloud) -> tuple[dict[str, np.ndarray], float]:
-    """The per-splat vertex attributes of a preprocessed cloud as the GPU gets them (float32, lengths
-    multiplied by the power-of-two :func:`gpu_scale`, checked by :func:`_check_gpu_values`), and that
-    scale."""
-    arrays = {"position": cloud.positions, "normal": cloud.normals, "color": cloud.albedo,
-              "u": cloud.u, "v": cloud.v}
-    if cloud.clip_lines is not None:
-        arrays["clip0"], arrays["clip1"] = cloud.clip_lines[:, 0], cloud.clip_lines[:, 1]
-    if cloud.normal_field is not None:
-        arrays["normal_field"] = cloud.normal_field
-    _check_gpu_values(arrays)
-    scale = gpu_scale(cloud)
-    if scale != 1.0:   # a power of two: exact
-        for name in ("position", "u", "v"):
-            arrays[name] = arrays[name] * np.float32(scale)
-    return arrays, scale
-
-
-def radius_classes(radii: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Splats ordered by radius class, largest first: (order, first index of each non-empty class,
-    the largest radius a splat of that class may have). Class ``c`` holds the radii in
-    ``(top 2^-(c+1)/k, top 2^-c/k]`` (k = :data:`CLASSES_PER_OCTAVE`); a stable counting sort."""
-    radii = np.asarray(radii, dtype=np.float32)
-    top = float(radii.max())
-    with np.errstate(divide="ignore", invalid="ignore"):
-        octaves = np.log2(np.float32(top) / radii) if top > 0 else np.zeros_like(radii)
-    key = np.nan_to_num(np.floor(octaves * CLASSES_PER_OCTAVE), nan=0.0, posinf=MAX_CLASSES - 1)
-    key = np.clip(key, 0, MAX_CLASSES - 1).astype(np.uint8)
-    del octaves
-    order = np.argsort(key, kind="stable")
-    counts = np.bincount(key, minlength=MAX_CLASSES)
-    present = np.flatnonzero(counts)
-    starts = (np.cumsum(counts) - counts)[present]
-    return order, starts, top * 2.0 ** (-present / CLASSES_PER_OCTAVE)
-
-
 def point_radius(camera: Camera, splats: GpuSplats, technique: Technique, options: RenderOptions,
                  supersample: int = 1, point_px: float = POINT_SPLAT_PX) -> float:
     """Largest splat radius (model units) drawn as a GL_POINTS point in this frame: its window box is at
@@ -332,11 +174,19 @@ class Renderer:
         point_px: splats whose window box is at most this many sub-pixels wide are drawn as
             GL_POINTS (:data:`POINT_SPLAT_PX`; 0: every splat as an instanced quad).
         draw_batch: splats per draw call (:data:`DRAW_BATCH`).
+        compute: run the visibility pass of the small splats as a compute shader
+            (:data:`~surfsplat.render.compute_visibility.COMPUTE_SPLAT_PX`): None where the context has OpenGL 4.3, False never (GL_POINTS
+            and quads only), True always (RenderError without OpenGL 4.3). The pictures are the same.
     """
 
     def __init__(self, ctx: moderngl.Context | None = None, *, search_path: Sequence[Path] = (),
-                 point_px: float = POINT_SPLAT_PX, draw_batch: int = DRAW_BATCH):
+                 point_px: float = POINT_SPLAT_PX, draw_batch: int = DRAW_BATCH, compute: bool | None = None):
         self.ctx = ctx or headless_context()
+        has_compute = compute_visibility.has_compute(self.ctx)
+        if compute and not has_compute:
+            raise RenderError(f"the compute visibility pass needs OpenGL 4.3; this context has "
+                              f"{self.ctx.version_code // 100}.{self.ctx.version_code // 10 % 10}")
+        self.compute = has_compute if compute is None else bool(compute)
         self.point_px = float(point_px)
         self.draw_batch = max(1, int(draw_batch))
         self._uploaded: GpuSplats | None = None   # the last SplatCloud render() drew, and its checksums
@@ -354,20 +204,24 @@ class Renderer:
 
     # -- resources ---------------------------------------------------------
 
-    def program(self, vertex: str, fragment: str, defines: dict[str, object] | None = None) -> moderngl.Program:
+    def program(self, vertex: str, fragment: str, defines: dict[str, object] | None = None,
+                version: str = GLSL_VERSION) -> moderngl.Program:
         """The linked program of two shader files with ``defines`` (built once, then cached).
 
         Files come from ``search_path``, then the package's ``glsl/``; see
-        :func:`~surfsplat.render.shaders.compose` for includes and the shared defines.
+        :func:`~surfsplat.render.shaders.compose` for includes and the shared defines. ``version``:
+        the ``#version`` line (:data:`~surfsplat.render.shaders.COMPUTE_GLSL_VERSION` for the passes
+        that read the attribute buffers, OpenGL 4.3).
 
         Raises:
             RenderError: the shaders failed to build; compiler positions name
                 the shader file and line (``ewa.vert:8(3): error: ...``).
         """
-        key = (vertex, fragment, tuple(sorted((defines or {}).items())))
+        key = (vertex, fragment, tuple(sorted((defines or {}).items()))) + (() if version == GLSL_VERSION else (version,))
         built = self._programs.get(key)
         if built is None:
-            built = build_program(self.ctx, vertex, fragment, dict(key[2]), search_path=self.search_path)
+            built = build_program(self.ctx, vertex, fragment, dict(key[2]), search_path=self.search_path,
+                                  version=version)
             self._programs[key] = built
             self._built[id(built.program)] = built
         return built.program
@@ -417,7 +271,7 @@ class Renderer:
         if len(cloud) == 0:
             raise InputError("the SplatCloud is empty")
         arrays, scale = splat_arrays(cloud)
-        order, class_start, class_radius = radius_classes(cloud.radii * np.float32(scale))
+        order, class_start, class_radius = radius_classes(cloud.radii * np.float32(scale), cloud.positions)
         buffers = {}
         for name, values in arrays.items():   # one attribute's copy at a time
             values = np.asarray(values, dtype="f4")[order]
@@ -519,6 +373,8 @@ class Renderer:
                 "fbo_accum_cover": ctx.framebuffer([accum, aux, cover], depth),   # with edge coverage
                 "fbo_out": ctx.framebuffer([out, depth_sum]),
             }
+            if self.compute:
+                self._targets |= compute_visibility.image_targets(ctx, size)
         return self._targets
 
     # -- drawing -----------------------------------------------------------
@@ -601,9 +457,20 @@ class Renderer:
         quads, points = splats.draw_ranges(camera, point_radius(camera, splats, technique, options, supersample,
                                                                 self.point_px))
         uniforms |= splats.extra_uniforms(camera)
+        raster, computed = (quads, points), []   # the first pass's ranges: drawn, and computed
+        if self.compute and (technique.blended or technique.fragment in compute_visibility.OPAQUE_FRAGMENTS):
+            small = point_radius(camera, splats, get_technique("flat"), options, supersample,
+                                 compute_visibility.COMPUTE_SPLAT_PX)
+            (vis_quads, computed_quads), (vis_points, computed_points) = (splats.split_ranges(quads, small),
+                                                                         splats.split_ranges(points, small))
+            raster, computed = (vis_quads, vis_points), computed_quads + computed_points
         for pass_id in passes:
+            pass_quads, pass_points = (quads, points) if pass_id == PASS_ACCUMULATION else raster
+            if pass_id == PASS_VISIBILITY and computed:
+                compute_visibility.begin(targets)
+                self._compute(splats, computed, uniforms, defines, compute_visibility.COMPUTE_VISIBILITY_PASS)
             if pass_id == PASS_ACCUMULATION:
-                self._mark_cracks(targets, frame)
+                self._mark_cracks(targets, frame, bool(computed))
                 targets["cracks"].use(location=SIDE_TEXTURE_UNIT)
                 fbo = accumulation
                 fbo.use()
@@ -624,22 +491,24 @@ class Renderer:
                 ctx.depth_func = "<"
                 ctx.disable(moderngl.BLEND)
             # the large splats (first in the buffers) as instanced quads, the small ones as points
-            if quads:
+            if pass_quads:
                 program = self.program(technique.vertex, technique.fragment, {"PASS": pass_id} | defines)
                 self.set_uniforms(program, uniforms, optional)
-                for start, count in quads:
+                for start, count in pass_quads:
                     self._draw_quads(splats, program, technique, count, start)
-            if points:
+            if pass_points:
                 program = self.program(technique.vertex, technique.fragment,
                                        {"PASS": pass_id, "POINT_PRIMITIVE": 1} | defines)
                 self.set_uniforms(program, uniforms | {"u_max_point": self._max_point}, optional)
                 ctx.enable(moderngl.PROGRAM_POINT_SIZE)
                 vao = self._vao(splats, program, technique, points=True)
-                for start, count in points:
+                for start, count in pass_points:
                     for first in range(start, start + count, self.draw_batch):
                         vao.render(moderngl.POINTS, vertices=min(self.draw_batch, start + count - first), first=first)
                         ctx.finish()
                 ctx.disable(moderngl.PROGRAM_POINT_SIZE)
+            if pass_id == PASS_OPAQUE and computed:   # after the large splats: they win ties
+                self._opaque_compute(splats, computed, uniforms, defines, targets)
         accumulation.depth_mask = True
         ctx.blend_equation = moderngl.FUNC_ADD
         ctx.disable(moderngl.BLEND)
@@ -661,25 +530,70 @@ class Renderer:
                           OPTIONAL_FRAME_UNIFORMS)
         normalization.render(moderngl.TRIANGLES, vertices=3)
 
-    def _fullscreen_pass(self, fragment: str, defines: dict | None = None) -> moderngl.VertexArray:
-        """The full-screen triangle drawn with a fragment shader (``normalize.frag``, ``cracks.frag``)
-        and ``defines``, built once."""
-        key = (fragment, tuple(sorted((defines or {}).items())))
+    def _fullscreen_pass(self, fragment: str, defines: dict | None = None,
+                         version: str = GLSL_VERSION) -> moderngl.VertexArray:
+        """The full-screen triangle drawn with a fragment shader (``normalize.frag``, ``cracks.frag``,
+        ``opaque_resolve.frag``) and ``defines``, built once."""
+        key = (fragment, tuple(sorted((defines or {}).items())), version)
         if key not in self._fullscreen:
-            self._fullscreen[key] = self.ctx.vertex_array(self.program("fullscreen.vert", fragment, defines), [])
+            self._fullscreen[key] = self.ctx.vertex_array(self.program("fullscreen.vert", fragment, defines, version),
+                                                          [])
         return self._fullscreen[key]
 
-    def _mark_cracks(self, targets: dict, frame: dict) -> None:
+    def _compute(self, splats: GpuSplats, ranges: list, uniforms: dict, defines: dict, compute_pass: int) -> None:
+        """One pass of ``visibility.comp`` (``compute_pass``) over the splats of ``ranges``."""
+        program = self.compute_program("visibility.comp",
+                                       compute_visibility.shader_defines(splats.buffers, defines, compute_pass))
+        declared = self._built_program(program).uniforms
+        self.set_uniforms(program, {k: v for k, v in uniforms.items() if k in declared})
+        compute_visibility.dispatch(program, splats.buffers, ranges)
+
+    def _opaque_compute(self, splats: GpuSplats, ranges: list, uniforms: dict, defines: dict, targets: dict) -> None:
+        """The small splats of an opaque technique (``compute_visibility.OPAQUE_FRAGMENTS``) into the bound
+        targets, with the depth test on: per pixel the nearest disk's depth, then the first splat at
+        that depth (two compute passes), then ``opaque_resolve.frag`` writes its fragment."""
+        compute_visibility.begin(targets)
+        self._compute(splats, ranges, uniforms, defines, compute_visibility.COMPUTE_OPAQUE_DEPTH)
+        self.ctx.memory_barrier()
+        self._compute(splats, ranges, uniforms, defines, compute_visibility.COMPUTE_OPAQUE_INDEX)
+        units = (compute_visibility.OPAQUE_DEPTH_UNIT, compute_visibility.OPAQUE_INDEX_UNIT)
+        compute_visibility.bind_images(self.ctx, targets, units)
+        vao = self._fullscreen_pass("opaque_resolve.frag", compute_visibility.shader_defines(splats.buffers, defines)
+                                    | {"READ_COLOR": 1}, COMPUTE_GLSL_VERSION)
+        declared = self._built_program(vao.program).uniforms
+        self.set_uniforms(vao.program, {k: v for k, v in uniforms.items() if k in declared}
+                          | {"u_opaque_depth": units[0], "u_opaque_index": units[1]})
+        for name, binding in compute_visibility.COMPUTE_BINDINGS.items():
+            if name in splats.buffers:
+                splats.buffers[name].bind_to_storage_buffer(binding)
+        vao.render(moderngl.TRIANGLES, vertices=3)
+
+    def _mark_cracks(self, targets: dict, frame: dict, computed: bool = False) -> None:
         """Between the visibility and the accumulation pass: the visibility record copied into the
-        ``cracks`` target with the uncovered pixels between covered ones marked (``cracks.frag``)."""
-        vao = self._fullscreen_pass("cracks.frag")
+        ``cracks`` target with the uncovered pixels between covered ones marked (``cracks.frag``);
+        ``computed``: with the compute pass's depths (:meth:`_compute_visibility`)."""
+        vao = self._fullscreen_pass("cracks.frag", {compute_visibility.COMPUTE_VISIBILITY_DEFINE: 1} if computed else {})
         self.ctx.disable(moderngl.DEPTH_TEST)
         self.ctx.disable(moderngl.BLEND)
         targets["fbo_cracks"].use()
         targets["side"].use(location=SIDE_TEXTURE_UNIT)
-        self.set_uniforms(vao.program, {"u_viewport": frame["u_viewport"], "u_tile": frame["u_tile"],
-                                        "u_side": SIDE_TEXTURE_UNIT})
+        uniforms = {"u_viewport": frame["u_viewport"], "u_tile": frame["u_tile"], "u_side": SIDE_TEXTURE_UNIT}
+        if computed:
+            units = (compute_visibility.FRONT_DEPTH_UNIT, compute_visibility.BACK_DEPTH_UNIT)
+            compute_visibility.bind_images(self.ctx, targets, units)
+            uniforms |= {"u_front_depth": units[0], "u_back_depth": units[1]}
+        self.set_uniforms(vao.program, uniforms)
         vao.render(moderngl.TRIANGLES, vertices=3)
+
+    def compute_program(self, name: str, defines: dict[str, object] | None = None) -> moderngl.ComputeShader:
+        """The compute shader of a file with ``defines`` (built once, then cached; OpenGL 4.3)."""
+        key = (name, None, tuple(sorted((defines or {}).items())))
+        built = self._programs.get(key)
+        if built is None:
+            built = build_compute(self.ctx, name, dict(key[2]), search_path=self.search_path)
+            self._programs[key] = built
+            self._built[id(built.program)] = built
+        return built.program
 
     def _read_tile(self) -> SubPixels:
         """The tile's sub-pixels from the targets of the last :meth:`draw` (the normalization pass's

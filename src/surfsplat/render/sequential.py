@@ -35,7 +35,8 @@ import numpy as np
 from ..camera import Camera
 from ..cloud import SplatCloud
 from ..errors import InputError
-from .renderer import GpuSplats, Renderer, _with_clip_planes, radius_classes, splat_arrays
+from .gpu_splats import GpuSplats, radius_classes, splat_arrays
+from .renderer import Renderer, _with_clip_planes
 
 #: Entries between two tested ones when a frame's ranges are searched: a range may hold up to this
 #: many entries more than needed at each end (each then rejected by its vertex shader).

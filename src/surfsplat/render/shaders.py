@@ -42,6 +42,12 @@ from ..reference import EDGE_ON_TOLERANCE, PERSPECTIVE_MAX_CONDITION, PERSPECTIV
 
 GLSL_VERSION = "#version 330 core"
 
+#: The version line of compute shaders (``*.comp``), used only where the context has OpenGL 4.3.
+COMPUTE_GLSL_VERSION = "#version 430 core"
+
+#: Invocations per work group of the compute shaders (their ``COMPUTE_GROUP`` macro).
+COMPUTE_GROUP = 64
+
 #: Pass ids: the value of a splat program's ``PASS`` macro (renderer.py runs the passes).
 #: PASS_OPAQUE: the one pass of an opaque technique; PASS_VISIBILITY: depth only, offset
 #: by epsilon; PASS_ACCUMULATION: additive blending of weighted colors, depths, normals.
@@ -137,9 +143,9 @@ def _define_value(key: str, value) -> str:
     return str(value)
 
 
-def prologue(defines: dict[str, object] | None = None) -> list[str]:
+def prologue(defines: dict[str, object] | None = None, version: str = GLSL_VERSION) -> list[str]:
     """The version line and the ``#define`` lines: :data:`SHARED_DEFINES`, then ``defines`` (sorted)."""
-    lines = [GLSL_VERSION]
+    lines = [version]
     own = dict(defines or {})
     for key, value in list(SHARED_DEFINES.items()) + sorted(own.items()):
         if not _DEFINE_NAME.fullmatch(key):
@@ -152,7 +158,7 @@ def prologue(defines: dict[str, object] | None = None) -> list[str]:
 
 
 def compose(name: str, defines: dict[str, object] | None = None, *, search_path: Sequence[Path] = (),
-            files: list[str] | None = None) -> ComposedSource:
+            files: list[str] | None = None, version: str = GLSL_VERSION) -> ComposedSource:
     """The complete source of shader file ``name``: prologue, includes pasted in, ``#line`` directives.
 
     Args:
@@ -161,6 +167,7 @@ def compose(name: str, defines: dict[str, object] | None = None, *, search_path:
         search_path: folders searched for files before the package's ``glsl/``.
         files: the source-string numbering to extend (``files[k]`` is file k;
             give both stages of a program the same list); a new one by default.
+        version: the ``#version`` line (:data:`COMPUTE_GLSL_VERSION` for compute shaders).
 
     Raises:
         RenderError: a file is missing, an include cycle, a bad define, a file
@@ -169,7 +176,7 @@ def compose(name: str, defines: dict[str, object] | None = None, *, search_path:
     files = [PROLOGUE] if files is None else files
     if not files:
         files.append(PROLOGUE)
-    lines = prologue(defines)
+    lines = prologue(defines, version)
     origins: list[tuple[str, int] | None] = [(PROLOGUE, i + 1) for i in range(len(lines))]
     seen: set[str] = set()
 
@@ -276,22 +283,41 @@ class BuiltProgram:
 
 
 def build_program(ctx: moderngl.Context, vertex: str, fragment: str, defines: dict[str, object] | None = None,
-                  *, search_path: Sequence[Path] = ()) -> BuiltProgram:
-    """Compose (:func:`compose`, one file numbering for both stages), compile and link a program.
+                  *, search_path: Sequence[Path] = (), version: str = GLSL_VERSION) -> BuiltProgram:
+    """Compose (:func:`compose`, one file numbering for both stages, ``version`` their ``#version`` line),
+    compile and link a program.
 
     Raises:
         RenderError: composing failed, or the driver's log, positions
             translated to ``file:line`` (:func:`translate_log`).
     """
     files = [PROLOGUE]
-    vs = compose(vertex, defines, search_path=search_path, files=files)
-    fs = compose(fragment, defines, search_path=search_path, files=files)
+    vs = compose(vertex, defines, search_path=search_path, files=files, version=version)
+    fs = compose(fragment, defines, search_path=search_path, files=files, version=version)
     name = f"{vertex}/{fragment}"
     try:
         program = ctx.program(vertex_shader=vs.text, fragment_shader=fs.text)
     except moderngl.Error as exc:
         raise RenderError(f"shader {name} failed to build: {translate_log(str(exc), files)}") from None
     return BuiltProgram(program, name, vs.uniforms | fs.uniforms)
+
+
+def build_compute(ctx: moderngl.Context, name: str, defines: dict[str, object] | None = None,
+                  *, search_path: Sequence[Path] = ()) -> BuiltProgram:
+    """Compose (:func:`compose`, :data:`COMPUTE_GLSL_VERSION`, ``COMPUTE_GROUP`` defined) and compile a
+    compute shader (OpenGL 4.3).
+
+    Raises:
+        RenderError: composing failed, or the driver's log, positions translated to ``file:line``.
+    """
+    files = [PROLOGUE]
+    source = compose(name, (defines or {}) | {"COMPUTE_GROUP": COMPUTE_GROUP}, search_path=search_path,
+                     files=files, version=COMPUTE_GLSL_VERSION)
+    try:
+        program = ctx.compute_shader(source.text)
+    except moderngl.Error as exc:
+        raise RenderError(f"shader {name} failed to build: {translate_log(str(exc), files)}") from None
+    return BuiltProgram(program, name, source.uniforms)
 
 
 def undeclared(values: Iterable[str], declared: frozenset[str], optional: Iterable[str] = ()) -> list[str]:

@@ -10,9 +10,26 @@
 
 layout(location = 0) out vec2 out_side;
 
+#ifdef COMPUTE_VISIBILITY
+// The compute visibility pass's offset depths of the small splats (visibility.comp), float bits.
+uniform usampler2D u_front_depth;
+uniform usampler2D u_back_depth;
+#endif
+
+// The nearest offset depths of the front and the back disks at a texel (NO_DEPTH: none): the raster
+// pass's, and with COMPUTE_VISIBILITY the smaller of those and the compute pass's.
+vec2 side_depths(ivec2 texel) {
+    vec2 depths = texelFetch(u_side, texel, 0).rg;
+#ifdef COMPUTE_VISIBILITY
+    depths = min(depths, uintBitsToFloat(uvec2(texelFetch(u_front_depth, texel, 0).r,
+                                               texelFetch(u_back_depth, texel, 0).r)));
+#endif
+    return depths;
+}
+
 // The nearest offset depth of the visibility pass's disks at a texel (NO_DEPTH: none).
 float nearest_depth(ivec2 texel) {
-    vec2 depths = texelFetch(u_side, texel, 0).rg;
+    vec2 depths = side_depths(texel);
     return min(depths.x, depths.y);
 }
 
@@ -23,7 +40,7 @@ bool drawn_at(ivec2 offset) {
 }
 
 void main() {
-    vec2 depths = texelFetch(u_side, ivec2(gl_FragCoord.xy), 0).rg;
+    vec2 depths = side_depths(ivec2(gl_FragCoord.xy));
     float nearest = min(depths.x, depths.y);
     if (nearest < NO_DEPTH) {
         out_side = vec2(depths.x <= depths.y ? SIDE_FRONT : SIDE_BACK, nearest);

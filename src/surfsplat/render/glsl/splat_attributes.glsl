@@ -1,18 +1,24 @@
-// Per-instance splat attributes (one instance = one splat) and the quad corner.
-in vec2 in_corner;      // (-1,-1) .. (1,1): which corner of the bounding quad
-in vec3 in_position;    // model space
-in vec3 in_normal;      // unit center (shading) normal; the plane is spanned by u and v
-in vec3 in_color;       // linear RGB albedo
-in vec3 in_u;           // scaled tangent axis
-in vec3 in_v;           // scaled tangent axis, orthogonal to in_u
-in vec3 in_clip0;       // clip lines (a, b, c) in normalized (s, t): kept where a s + b t + c >= 0;
-in vec3 in_clip1;       // unbound (no clip lines) they read (0, 0, 0): nothing is clipped
-in vec2 in_normal_field; // (alpha, beta) of the linear normal field (Botsch 2004, eq. 2); unbound: (0, 0)
+// Per-instance splat attributes (one instance = one splat) and the quad corner. In the compute
+// visibility pass (visibility.comp, COMPUTE_SPLATS) they are plain globals it reads from the buffers.
+#ifdef COMPUTE_SPLATS
+#define SPLAT_IN
+#else
+#define SPLAT_IN in
+#endif
+SPLAT_IN vec2 in_corner;      // (-1,-1) .. (1,1): which corner of the bounding quad
+SPLAT_IN vec3 in_position;    // model space
+SPLAT_IN vec3 in_normal;      // unit center (shading) normal; the plane is spanned by u and v
+SPLAT_IN vec3 in_color;       // linear RGB albedo
+SPLAT_IN vec3 in_u;           // scaled tangent axis
+SPLAT_IN vec3 in_v;           // scaled tangent axis, orthogonal to in_u
+SPLAT_IN vec3 in_clip0;       // clip lines (a, b, c) in normalized (s, t): kept where a s + b t + c >= 0;
+SPLAT_IN vec3 in_clip1;       // unbound (no clip lines) they read (0, 0, 0): nothing is clipped
+SPLAT_IN vec2 in_normal_field; // (alpha, beta) of the linear normal field (Botsch 2004, eq. 2); unbound: (0, 0)
 #ifdef SEQUENTIAL_LOD
 // Sequential point trees (Dachsbacher, Vogelgsang & Stamminger 2003, sec. 3.2; hierarchy/sequential.py):
 // the hierarchy's nodes and points are one list, each entry drawn only at the eye distances of its
 // interval, so that a frame's LOD cut costs one uniform (render/sequential.py). Requires camera.glsl.
-in vec4 in_lod;              // (R, D, A, B), model units: drawn when R + max(near, s D) <= d < A + max(near, s B)
+SPLAT_IN vec4 in_lod;              // (R, D, A, B), model units: drawn when R + max(near, s D) <= d < A + max(near, s B)
 uniform float u_lod_scale;   // s = focal_px / tolerance_px
 
 // Pixels the drawn footprint may reach beyond the splat's projected bounding sphere: the EWA prefilter

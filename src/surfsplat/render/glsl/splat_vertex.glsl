@@ -1,20 +1,26 @@
 // Per-splat vertex work shared by the techniques: camera-space splat, its
 // plane and disk, and per-splat lighting (Guennebaud 2003, sec. 6: lighting in
 // the vertex program). Requires camera.glsl, lighting.glsl, splat_attributes.glsl.
-flat out vec3 v_plane;    // camera-space normal / dot(normal, center): plane is dot(v_plane, x) = 1
-flat out vec3 v_center;   // camera space
-flat out vec3 v_udual;    // u / |u|^2: dot(q, v_udual) is the s coordinate of q - center
-flat out vec3 v_vdual;
-flat out vec2 v_uvz;      // (u.z, v.z): depth change along the axes
-flat out float v_radius;  // largest semi-axis, model units
-flat out vec3 v_color;    // lit color (the albedo when shading is deferred)
-flat out vec3 v_albedo;
-flat out vec3 v_normal;   // center shading normal, on the eye's side of the plane
-flat out vec3 v_field_u;  // alpha * u_hat and beta * v_hat, signed like v_normal: the normal
-flat out vec3 v_field_v;  // at (s, t) is v_normal + s v_field_u + t v_field_v (Botsch 2004, eq. 2)
-flat out vec3 v_clip0;    // clip lines, passed through (Botsch 2004, sec. 4; Zwicker 2004, sec. 5)
-flat out vec3 v_clip1;
-flat out float v_back;    // 1: the eye sees the back of the splat (its normal faces away), else 0
+// In the compute visibility pass (visibility.comp, COMPUTE_SPLATS) the outputs are plain globals.
+#ifdef COMPUTE_SPLATS
+#define SPLAT_OUT
+#else
+#define SPLAT_OUT flat out
+#endif
+SPLAT_OUT vec3 v_plane;    // camera-space normal / dot(normal, center): plane is dot(v_plane, x) = 1
+SPLAT_OUT vec3 v_center;   // camera space
+SPLAT_OUT vec3 v_udual;    // u / |u|^2: dot(q, v_udual) is the s coordinate of q - center
+SPLAT_OUT vec3 v_vdual;
+SPLAT_OUT vec2 v_uvz;      // (u.z, v.z): depth change along the axes
+SPLAT_OUT float v_radius;  // largest semi-axis, model units
+SPLAT_OUT vec3 v_color;    // lit color (the albedo when shading is deferred)
+SPLAT_OUT vec3 v_albedo;
+SPLAT_OUT vec3 v_normal;   // center shading normal, on the eye's side of the plane
+SPLAT_OUT vec3 v_field_u;  // alpha * u_hat and beta * v_hat, signed like v_normal: the normal
+SPLAT_OUT vec3 v_field_v;  // at (s, t) is v_normal + s v_field_u + t v_field_v (Botsch 2004, eq. 2)
+SPLAT_OUT vec3 v_clip0;    // clip lines, passed through (Botsch 2004, sec. 4; Zwicker 2004, sec. 5)
+SPLAT_OUT vec3 v_clip1;
+SPLAT_OUT float v_back;    // 1: the eye sees the back of the splat (its normal faces away), else 0
 
 uniform bool u_cull_backfaces;   // closed, outward-oriented models only
 

@@ -1,0 +1,197 @@
+"""A SplatCloud's copy on the GPU: float32 attribute buffers ordered by radius class (renderer.py draws them).
+
+The splats are uploaded ordered by radius class, largest first (:func:`radius_classes`), each class in
+Morton order, so that a frame draws the large ones as quads and the small ones as GL_POINTS (or
+computes their visibility) from contiguous ranges; positions relative to the cloud's float64 origin,
+lengths scaled by a power of two (:func:`gpu_scale`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import moderngl
+import numpy as np
+
+from ..camera import Camera
+from ..cloud import SplatCloud
+from ..errors import InputError
+from ..geometry.neighbors import spatial_order
+
+
+#: Radius classes per octave: the splats are uploaded ordered by class, largest first, so the quads
+#: and the points of a frame are two contiguous ranges.
+CLASSES_PER_OCTAVE = 4
+#: Classes kept apart (32 octaves below the largest radius); smaller splats share the last one.
+MAX_CLASSES = 128
+#: Splats checked and converted per step of :meth:`Renderer.upload` (bounds its temporary memory).
+UPLOAD_CHUNK = 1 << 20
+
+
+@dataclass
+class GpuSplats:
+    """A SplatCloud uploaded to the GPU: one buffer per attribute, float32.
+
+    The splats are stored ordered by radius class, largest first: ``class_radius[i]`` is the
+    largest radius (GPU units) of the splats from ``class_start[i]`` on.
+
+    The buffers hold the cloud's positions relative to its float64 ``origin``, times ``scale`` (a
+    power of two, :func:`gpu_scale`: GPU units); ``bounds`` and ``max_radius`` are in world units.
+    Cameras given to the renderer are world cameras; :meth:`local_camera` is the one the GPU draws with.
+    """
+
+    buffers: dict[str, moderngl.Buffer]
+    count: int
+    bounds: tuple[np.ndarray, np.ndarray]
+    max_radius: float
+    _vaos: dict = field(default_factory=dict)
+    class_start: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64))
+    class_radius: np.ndarray = field(default_factory=lambda: np.full(1, np.inf))
+    origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    scale: float = 1.0
+    #: Attribute buffers read beyond the technique's (``in_<name>``; a sequential layout's ``lod``).
+    extra_attributes: tuple[str, ...] = ()
+    #: Shader defines of every program drawing these splats (a sequential layout's ``SEQUENTIAL_LOD``).
+    defines: dict = field(default_factory=dict)
+
+    def draw_ranges(self, camera: Camera, point_radius: float) -> tuple[list, list]:
+        """``(quads, points)``: the ``(first, count)`` ranges of splats a frame draws as instanced quads
+        and as GL_POINTS points (``camera``: the GPU frame's): all splats, the quads first
+        (:meth:`quad_count`). A sequential layout draws a prefix of each radius class
+        (``render/sequential.py``)."""
+        quads = self.quad_count(point_radius)
+        return ([(0, quads)] if quads else []), ([(quads, self.count - quads)] if quads < self.count else [])
+
+    def extra_uniforms(self, camera: Camera) -> dict:
+        """Uniforms these splats add to a frame's (``camera``: the GPU frame's): none here; a
+        sequential layout's LOD scale."""
+        return {}
+
+    def local_camera(self, camera: Camera) -> Camera:
+        """The world ``camera`` in the buffers' frame: eye and target moved by ``-origin`` in float64,
+        then scaled by ``scale`` (exact: a power of two), so that the GPU composes its float32
+        transform from numbers of the size of the model wherever it sits."""
+        return camera.translated(-self.origin).scaled(self.scale)
+
+    @property
+    def gpu_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """The bounds in GPU units (relative to ``origin``, times ``scale``)."""
+        return tuple((np.asarray(b, dtype=np.float64) - self.origin) * self.scale for b in self.bounds)
+
+    def quad_count(self, point_radius: float) -> int:
+        """Number of leading splats drawn as quads when splats of radius <= ``point_radius`` (model
+        units) may be points: those of every class whose largest radius exceeds it."""
+        if not point_radius > 0:   # no points (0: none allowed; degenerate radii draw as quads too)
+            return self.count
+        big = int(np.count_nonzero(self.class_radius > point_radius))   # a prefix: radii descend
+        return self.count if big == len(self.class_radius) else int(self.class_start[big])
+
+    def split_ranges(self, ranges: list, radius: float) -> tuple[list, list]:
+        """``(larger, smaller)``: the ``(first, count)`` ranges cut where the splats' radius class drops
+        to ``radius`` (model units) or below (the buffers hold the classes in order, largest first)."""
+        cut = self.quad_count(radius)
+        larger = [(f, min(n, cut - f)) for f, n in ranges if f < cut]
+        smaller = [(max(f, cut), f + n - max(f, cut)) for f, n in ranges if f + n > cut]
+        return larger, smaller
+
+    def release(self) -> None:
+        """Free the GPU buffers."""
+        for vao in self._vaos.values():
+            vao.release()
+        for buffer in self.buffers.values():
+            buffer.release()
+        self._vaos.clear()
+        self.buffers.clear()
+
+
+#: Largest magnitude of a splat's coordinates and axes: their squares stay finite in float32.
+MAX_COORDINATE = 1e18
+
+#: Local extents (model units) the renderer draws as they are; a model outside this range is drawn
+#: scaled by a power of two to about unit size (:func:`gpu_scale`): the shaders' products of axes
+#: (a splat's normal is ``u x v``, its squared length a 4th power) leave float32's range for
+#: splat radii below ~1e-9 or above ~1e9; within 1e-6..1e6 the picture is drawn bit for bit as given.
+GPU_EXTENT_RANGE = (2.0 ** -20, 2.0 ** 20)
+
+
+def gpu_scale(cloud: SplatCloud) -> float:
+    """The power of two the renderer scales a cloud's local coordinates (and the camera) by: 1 when
+    their extent (and largest splat radius) is within :data:`GPU_EXTENT_RANGE`, else the one
+    bringing it to about 1 (exact in float32)."""
+    if len(cloud) == 0:
+        return 1.0
+    lo, hi = cloud.positions.min(axis=0), cloud.positions.max(axis=0)
+    extent = float(np.max(hi.astype(np.float64) - lo))
+    if cloud.u is not None:
+        extent = max(extent, float(cloud.radii.max()))
+    if not np.isfinite(extent) or extent <= 0 or GPU_EXTENT_RANGE[0] <= extent <= GPU_EXTENT_RANGE[1]:
+        return 1.0
+    return float(2.0 ** -np.round(np.log2(extent)))
+
+
+def _check_gpu_values(arrays: dict[str, np.ndarray]) -> None:
+    """InputError for splats the GPU cannot draw: non-finite values, zero normals, coordinates or axes
+    beyond :data:`MAX_COORDINATE` (``SplatCloud.validated`` drops the first two kinds)."""
+    for name, values in arrays.items():
+        values = np.asarray(values)
+        bad = 0
+        for start in range(0, len(values), UPLOAD_CHUNK):   # temporaries of one chunk at a time
+            chunk = values[start:start + UPLOAD_CHUNK]
+            with np.errstate(invalid="ignore", over="ignore"):
+                wrong = ~np.isfinite(chunk).all(axis=-1)
+                if name in ("position", "u", "v"):
+                    wrong |= (np.abs(chunk) > MAX_COORDINATE).any(axis=-1)
+                if name == "normal":
+                    wrong |= ~(np.einsum("ij,ij->i", chunk, chunk) > 0)
+            bad += int(np.count_nonzero(wrong))
+        if bad:
+            limit = f" or beyond +-{MAX_COORDINATE:g}" if name in ("position", "u", "v") else ""
+            raise InputError(f"{bad:,} splats have non-finite{limit} {name} values"
+                             f"{' (or zero normals)' if name == 'normal' else ''}; SplatCloud.validated() drops "
+                             f"invalid splats")
+
+
+def splat_arrays(cloud: SplatCloud) -> tuple[dict[str, np.ndarray], float]:
+    """The per-splat vertex attributes of a preprocessed cloud as the GPU gets them (float32, lengths
+    multiplied by the power-of-two :func:`gpu_scale`, checked by :func:`_check_gpu_values`), and that
+    scale."""
+    arrays = {"position": cloud.positions, "normal": cloud.normals, "color": cloud.albedo,
+              "u": cloud.u, "v": cloud.v}
+    if cloud.clip_lines is not None:
+        arrays["clip0"], arrays["clip1"] = cloud.clip_lines[:, 0], cloud.clip_lines[:, 1]
+    if cloud.normal_field is not None:
+        arrays["normal_field"] = cloud.normal_field
+    _check_gpu_values(arrays)
+    scale = gpu_scale(cloud)
+    if scale != 1.0:   # a power of two: exact
+        for name in ("position", "u", "v"):
+            arrays[name] = arrays[name] * np.float32(scale)
+    return arrays, scale
+
+
+def radius_classes(radii: np.ndarray, positions: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Splats ordered by radius class, largest first: (order, first index of each non-empty class,
+    the largest radius a splat of that class may have). Class ``c`` holds the radii in
+    ``(top 2^-(c+1)/k, top 2^-c/k]`` (k = :data:`CLASSES_PER_OCTAVE`); a stable counting sort.
+
+    With ``positions`` ((N, 3)), each class in Morton order (:func:`~surfsplat.geometry.neighbors.spatial_order`),
+    else in the given order. Neighbouring splats then run together: llvmpipe shades a point's pixels
+    in 4x4 blocks and bins the primitives per tile, the compute visibility pass runs 8 splats per SIMD
+    loop, and neighbours share a facing (culled together) and a size. Measured on the peers' bunny
+    (1M splats sampled in random order, 1024x1024, ewa): 20-25% less CPU time per frame."""
+    if positions is not None:
+        spatial = spatial_order(positions)
+        order, starts, radius = radius_classes(np.asarray(radii)[spatial])
+        return spatial[order], starts, radius
+    radii = np.asarray(radii, dtype=np.float32)
+    top = float(radii.max())
+    with np.errstate(divide="ignore", invalid="ignore"):
+        octaves = np.log2(np.float32(top) / radii) if top > 0 else np.zeros_like(radii)
+    key = np.nan_to_num(np.floor(octaves * CLASSES_PER_OCTAVE), nan=0.0, posinf=MAX_CLASSES - 1)
+    key = np.clip(key, 0, MAX_CLASSES - 1).astype(np.uint8)
+    del octaves
+    order = np.argsort(key, kind="stable")
+    counts = np.bincount(key, minlength=MAX_CLASSES)
+    present = np.flatnonzero(counts)
+    starts = (np.cumsum(counts) - counts)[present]
+    return order, starts, top * 2.0 ** (-present / CLASSES_PER_OCTAVE)

@@ -1,0 +1,167 @@
+"""The compute passes of the small splats (render/compute_visibility.py, glsl/visibility.comp) and the
+upload order.
+
+The compute visibility pass runs the raster visibility pass's own per-splat and per-pixel code and keeps
+the same minima, so every blended frame must equal the raster-only frame bit for bit: clip lines, normal
+fields, back faces, tiles, sub-pixels, the GPU LOD cut. "flat" keeps per pixel the nearest disk and, of
+those at that depth, the first splat, as a depth test in draw order does: its frames equal the raster
+ones except where two disks tie (the same depth, another splat's colour). The upload's Morton order
+inside each radius class only changes the order in which fragments are summed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from surfsplat import scenes
+from surfsplat.camera import frame_bounds
+from surfsplat.errors import RenderError
+from surfsplat.geometry.neighbors import spatial_order
+from surfsplat.hierarchy import build_hierarchy
+from surfsplat.hierarchy.sequential import sequential_layout
+from surfsplat.lighting import Lights
+from surfsplat.render import compute_visibility
+from surfsplat.render.gpu_splats import radius_classes
+from surfsplat.render.options import RenderOptions, VisibilityOptions
+from surfsplat.render.renderer import Renderer
+from surfsplat.render.sequential import render_sequential
+
+BLENDED = ("ewa", "blend", "phong", "perspective")
+TECHNIQUES = BLENDED + ("flat",)
+
+
+@pytest.fixture(scope="module")
+def pair(gl_renderer):
+    """(raster only, compute) renderers on the session's context."""
+    made = Renderer(gl_renderer.ctx, compute=False), Renderer(gl_renderer.ctx, compute=True)
+    yield made
+    for r in made:
+        r.release()
+
+
+@pytest.fixture
+def counted(monkeypatch):
+    """Splats the compute pass was given, per frame (a list of counts)."""
+    counts = []
+    original = compute_visibility.dispatch
+
+    def dispatch(program, buffers, ranges):
+        counts.append(sum(n for _, n in ranges))
+        original(program, buffers, ranges)
+
+    monkeypatch.setattr(compute_visibility, "dispatch", dispatch)
+    return counts
+
+
+def view(cloud, width=96, height=80, direction=(0.4, 0.7, 1.0)):
+    camera = frame_bounds(*cloud.bounds(), width=width, height=height, direction=direction)
+    return camera.with_clip_from_bounds(*cloud.bounds(), margin=float(cloud.radii.max()))
+
+
+def assert_same(a, b, technique="ewa"):
+    """Bit for bit; "flat": the same depths and coverage, colours equal but where disks tie."""
+    for name in ("depth", "weight", "alpha") if technique == "flat" else ("color", "depth", "weight", "alpha"):
+        x, y = getattr(a, name), getattr(b, name)
+        assert np.array_equal(np.isnan(x), np.isnan(y)), name
+        assert np.array_equal(np.nan_to_num(x), np.nan_to_num(y)), name
+    if technique == "flat":
+        assert np.mean(np.all(a.color == b.color, axis=-1)) > 0.999
+
+
+@pytest.mark.parametrize("technique", TECHNIQUES)
+def test_sharp_cube_equals_raster(pair, counted, technique):
+    """Clip lines (the sphere-cube's edges) and a view where every small splat is computed."""
+    cloud = scenes.sphere_cube(20_000)
+    camera = view(cloud)
+    raster, compute = (r.render(cloud, camera, technique, Lights()) for r in pair)
+    assert counted and counted[-1] > 0.9 * len(cloud)
+    assert raster.weight.max() > 0 and (raster.alpha > 0).mean() > 0.2
+    assert_same(raster, compute, technique)
+
+
+@pytest.mark.parametrize("technique", ("ewa", "phong", "flat"))
+def test_back_faces_tiles_and_subpixels_equal_raster(pair, counted, technique):
+    """An open sheet seen from both sides without culling (the back record), drawn in several tiles
+    at 2x2 sub-pixels, with a normal field (phong)."""
+    torus = scenes.torus(120, 48)
+    keep = torus.positions[:, 2] > -0.1   # cut open: inner back sides show
+    cloud = torus.subset(np.flatnonzero(keep))
+    if technique == "phong":
+        field = np.random.default_rng(0).uniform(-0.3, 0.3, (len(cloud), 2)).astype("f4")
+        cloud = cloud.replace(normal_field=field)
+    camera = view(cloud, 70, 60, direction=(0.2, -0.9, -0.6))
+    options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=False))
+    raster, compute = (r.render(cloud, camera, technique, Lights(), options, supersample=2, max_tile=48)
+                       for r in pair)
+    assert counted and min(counted) > 0
+    assert_same(raster, compute, technique)
+
+
+@pytest.mark.parametrize("technique", ("ewa", "flat"))
+def test_gpu_lod_cut_equals_raster(pair, counted, technique):
+    """The sequential layout's ranges (the viewer's GPU LOD cut) split the same way."""
+    cloud = scenes.torus(200, 80)
+    hierarchy = build_hierarchy(cloud)
+    camera = view(cloud, 90, 70)
+    layout = sequential_layout(hierarchy)
+    frames = [render_sequential(r, layout.splats, layout.lod, camera, technique, Lights(), RenderOptions(),
+                                (1.0, 1.0, 1.0), 2.0)[0] for r in pair]
+    assert counted and counted[-1] > 0
+    assert_same(*frames, technique)
+
+
+def test_large_splats_stay_raster(pair, counted):
+    """Splats whose box may exceed COMPUTE_SPLAT_PX are drawn, not computed; the frame is the same."""
+    cloud = scenes.checkerboard(12)   # 144 splats over the view: tens of pixels each
+    camera = view(cloud, 120, 100, direction=(0.0, 0.3, 1.0))
+    raster, compute = (r.render(cloud, camera, "ewa", Lights()) for r in pair)
+    assert counted == [] or counted[-1] == 0
+    assert (raster.alpha > 0).mean() > 0.3
+    assert_same(raster, compute)
+
+
+def test_compute_needs_opengl_43(gl_renderer, monkeypatch):
+    monkeypatch.setattr(compute_visibility, "has_compute", lambda ctx: False)
+    with pytest.raises(RenderError, match="OpenGL 4.3"):
+        Renderer(gl_renderer.ctx, compute=True)
+    fallback = Renderer(gl_renderer.ctx)   # automatic: raster only
+    assert fallback.compute is False
+    fallback.release()
+
+
+def test_split_ranges_partition_at_the_class_boundary(gl_renderer):
+    cloud = scenes.sphere(4000)
+    radii = cloud.radii.copy()
+    radii[:1000] *= 8.0   # two well separated radius populations
+    cloud = cloud.replace(u=cloud.u * (radii / cloud.radii)[:, None], v=cloud.v * (radii / cloud.radii)[:, None])
+    gpu = gl_renderer.upload(cloud)
+    try:
+        threshold = float(gpu.class_radius[-1])   # the small population's class bound
+        cut = gpu.quad_count(threshold)
+        assert 0 < cut < gpu.count
+        ranges = [(0, 700), (900, gpu.count - 900)]
+        larger, smaller = gpu.split_ranges(ranges, threshold)
+        covered = sorted(i for f, n in larger + smaller for i in range(f, f + n))
+        assert covered == sorted(i for f, n in ranges for i in range(f, f + n))
+        assert all(f + n <= cut for f, n in larger) and all(f >= cut for f, n in smaller)
+        assert all(n > 0 for _, n in larger + smaller)
+    finally:
+        gpu.release()
+
+
+def test_radius_classes_keep_morton_order_inside_each_class():
+    rng = np.random.default_rng(4)
+    positions = rng.uniform(-1.0, 1.0, (3000, 3))
+    radii = rng.choice([0.01, 0.02, 0.05], 3000).astype("f4")
+    order, start, top = radius_classes(radii, positions)
+    assert sorted(order.tolist()) == list(range(3000))
+    plain_order, plain_start, plain_top = radius_classes(radii)
+    assert np.array_equal(start, plain_start) and np.array_equal(top, plain_top)
+    ends = np.append(start[1:], len(radii))
+    rank = np.empty(3000, np.int64)
+    rank[spatial_order(positions)] = np.arange(3000)
+    for s, e in zip(start, ends):
+        members = order[s:e]
+        assert np.all(np.diff(rank[members]) > 0)   # the class's splats in Morton order
+        assert np.array_equal(np.sort(members), np.sort(plain_order[s:e]))
