@@ -113,7 +113,7 @@ def measure(scene: str, path: Path, techniques: list[str], repeat: int, size: in
         rows.append([scene, technique, len(cloud), f"{size}x{size}", round(1000 * float(np.median(wall))),
                      round(1000 * frame_cpu)]
                     + [round(1000 * spent.get(name, 0.0)) for name in
-                       ("visibility", "cracks", "accumulation", "opaque", "normalization")]
+                       ("compute", "visibility", "cracks", "accumulation", "opaque", "resolve", "normalization")]
                     + [round(1000 * max(frame_cpu - passes, 0.0))])
         print(rows[-1], flush=True)
     gpu.release()

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from surfsplat import scenes
-from surfsplat.camera import frame_bounds
+from surfsplat.camera import Camera, frame_bounds
 from surfsplat.errors import RenderError
 from surfsplat.geometry.neighbors import spatial_order
 from surfsplat.hierarchy import build_hierarchy
@@ -130,22 +130,45 @@ def test_compute_needs_opengl_43(gl_renderer, monkeypatch):
     fallback.release()
 
 
-def test_split_ranges_partition_at_the_class_boundary(gl_renderer):
-    cloud = scenes.sphere(4000)
-    radii = cloud.radii.copy()
-    radii[:1000] *= 8.0   # two well separated radius populations
-    cloud = cloud.replace(u=cloud.u * (radii / cloud.radii)[:, None], v=cloud.v * (radii / cloud.radii)[:, None])
+def test_small_blocks_partition_the_ranges_and_bound_every_box(gl_renderer):
+    """GpuSplats.split_small: the ranges cut at block boundaries into two parts that cover them exactly,
+    and every splat of the small part covers a window box of at most the limit (NumPy: the projected
+    corners of its parallelogram, as disk_bounds bounds it); a view from far away makes every block small,
+    a close-up leaves the near ones to the raster pass."""
+    from surfsplat.render.gpu_splats import BLOCK
+
+    cloud = scenes.torus(400, 100)   # 40,000 splats: 10 blocks
     gpu = gl_renderer.upload(cloud)
     try:
-        threshold = float(gpu.class_radius[-1])   # the small population's class bound
-        cut = gpu.quad_count(threshold)
-        assert 0 < cut < gpu.count
-        ranges = [(0, 700), (900, gpu.count - 900)]
-        larger, smaller = gpu.split_ranges(ranges, threshold)
-        covered = sorted(i for f, n in larger + smaller for i in range(f, f + n))
-        assert covered == sorted(i for f, n in ranges for i in range(f, f + n))
-        assert all(f + n <= cut for f, n in larger) and all(f >= cut for f, n in smaller)
-        assert all(n > 0 for _, n in larger + smaller)
+        ranges = [(0, 1000), (1500, gpu.count - 1500)]
+        want = sorted(i for f, n in ranges for i in range(f, f + n))
+        box = 6.0
+        for distance, expect_small, expect_others in ((40.0, True, False), (4.0, True, True), (1.5, False, True)):
+            eye = distance * np.array([0.3, -0.8, 0.5]) / np.linalg.norm([0.3, -0.8, 0.5])   # the torus is at 0
+            camera = Camera(eye=tuple(eye), target=(0, 0, 0), up=(0, 0, 1), fov=40, width=200, height=160)
+            camera = gpu.local_camera(camera.with_clip_from_bounds(*cloud.bounds(), margin=float(cloud.radii.max())))
+            others, small = gpu.split_small(ranges, camera, box)
+            got = sorted(i for f, n in others + small for i in range(f, f + n))
+            assert got == want
+            assert bool(small) == expect_small and bool(others) == expect_others
+            starts = {f for f, _ in ranges}
+            assert all(f % BLOCK == 0 or f in starts for f, _ in others + small)   # cut at block boundaries
+            if not small:
+                continue
+            # every small splat's parallelogram projects into a box of at most `box` pixels
+            picked = np.concatenate([np.arange(f, f + n) for f, n in small])
+            p = np.frombuffer(gpu.buffers["position"].read(), "f4").reshape(-1, 3)[picked].astype(np.float64)
+            u = np.frombuffer(gpu.buffers["u"].read(), "f4").reshape(-1, 3)[picked].astype(np.float64)
+            v = np.frombuffer(gpu.buffers["v"].read(), "f4").reshape(-1, 3)[picked].astype(np.float64)
+            m = camera.view_matrix
+            px = []
+            for su in (-1, 1):
+                for sv in (-1, 1):
+                    q = (p + su * u + sv * v) @ m[:3, :3].T + m[:3, 3]
+                    px.append(camera.focal_px * q[:, :2] / -q[:, 2:])
+            px = np.stack(px)
+            width = (px.max(axis=0) - px.min(axis=0)).max(axis=1)
+            assert width.max() <= box
     finally:
         gpu.release()
 

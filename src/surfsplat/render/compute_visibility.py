@@ -18,9 +18,11 @@ tie in depth (``tests/test_compute_visibility.py``).
 Why: llvmpipe spends most of a GL_POINTS pass per primitive (vertex pipeline, setup, binning, and a
 4x4-pixel block shaded for each block a point touches). Measured on the peers' bunny (1M splats,
 1024x1024, Morton order, alternated): ewa 666 -> 517 ms per frame, flat 314 -> 227 ms
-(``benchmarks/render_passes.py``). Splats whose box may exceed :data:`COMPUTE_SPLAT_PX` sub-pixels stay
-raster: one invocation would loop over all their pixels while its neighbours idle. Without OpenGL 4.3
-(macOS stops at 4.1) every splat is drawn.
+(``benchmarks/render_passes.py``). Which splats: per frame, the blocks of 4,096 consecutive splats
+(``GpuSplats.split_small``; the buffers hold radius classes, each in Morton order, so a block is compact)
+whose every box is at most :data:`COMPUTE_SPLAT_PX` pixels wide; the others stay raster, where one
+invocation would loop over all their pixels while its neighbours idle. Without OpenGL 4.3 (macOS stops
+at 4.1) every splat is drawn.
 """
 
 from __future__ import annotations
@@ -29,11 +31,10 @@ import moderngl
 
 from .shaders import COMPUTE_GROUP, NO_DEPTH
 
-#: Splats whose exact disk box is at most this many sub-pixels wide (estimated per frame as for
-#: ``renderer.POINT_SPLAT_PX``, at the nearest depth of the cloud's bounds) go through the compute
-#: visibility pass. Measured on llvmpipe (the bunny at 1024x1024; CPU time per frame of ewa): 1M
-#: splats: 16 and 32 alike, 8 leaves most splats raster (its estimate is conservative); 100k splats:
-#: 16 best, 32 and 64 slower than raster; 20k splats (large ones): 8-64 alike.
+#: Blocks of splats whose disks' window boxes are all at most this many (sub-)pixels wide
+#: (``GpuSplats.split_small``, per frame) go through the compute passes. Measured on llvmpipe (the bunny
+#: at 1024x1024; CPU time per frame of ewa, with the estimate per model then in use): 1M splats: 16 and
+#: 32 alike; 100k splats: 16 best, 32 and 64 slower than raster; 20k splats (large ones): 8-64 alike.
 COMPUTE_SPLAT_PX = 16.0
 
 #: Attribute buffers read by ``visibility.comp`` and their shader storage bindings.

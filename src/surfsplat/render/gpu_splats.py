@@ -26,6 +26,9 @@ CLASSES_PER_OCTAVE = 4
 MAX_CLASSES = 128
 #: Splats checked and converted per step of :meth:`Renderer.upload` (bounds its temporary memory).
 UPLOAD_CHUNK = 1 << 20
+#: Consecutive splats per block of :attr:`GpuSplats.blocks`: per frame, the blocks whose splats are all
+#: small in the view go through the compute passes (:meth:`GpuSplats.split_small`).
+BLOCK = 4096
 
 
 @dataclass
@@ -53,6 +56,9 @@ class GpuSplats:
     extra_attributes: tuple[str, ...] = ()
     #: Shader defines of every program drawing these splats (a sequential layout's ``SEQUENTIAL_LOD``).
     defines: dict = field(default_factory=dict)
+    #: Per block of :data:`BLOCK` consecutive splats (:func:`block_bounds`, GPU units): lower and upper
+    #: corner of the centers, largest radius; None: no block is split off.
+    blocks: np.ndarray | None = None
 
     def draw_ranges(self, camera: Camera, point_radius: float) -> tuple[list, list]:
         """``(quads, points)``: the ``(first, count)`` ranges of splats a frame draws as instanced quads
@@ -86,13 +92,38 @@ class GpuSplats:
         big = int(np.count_nonzero(self.class_radius > point_radius))   # a prefix: radii descend
         return self.count if big == len(self.class_radius) else int(self.class_start[big])
 
-    def split_ranges(self, ranges: list, radius: float) -> tuple[list, list]:
-        """``(larger, smaller)``: the ``(first, count)`` ranges cut where the splats' radius class drops
-        to ``radius`` (model units) or below (the buffers hold the classes in order, largest first)."""
-        cut = self.quad_count(radius)
-        larger = [(f, min(n, cut - f)) for f, n in ranges if f < cut]
-        smaller = [(max(f, cut), f + n - max(f, cut)) for f, n in ranges if f + n > cut]
-        return larger, smaller
+    def split_small(self, ranges: list, camera: Camera, box_px: float) -> tuple[list, list]:
+        """``(others, small)``: the ``(first, count)`` ranges cut at the blocks whose every splat has a
+        window box at most ``box_px`` pixels wide in this view (``camera``: the GPU frame's).
+
+        A splat of radius r whose center is at depth z covers a box at most ``2 sqrt(2) r f / (z cos
+        phi)`` wide (its parallelogram's corners; phi the largest angle off the axis in the image), plus
+        a pixel of rounding; a block's nearest depth is that of its centers' bounding box less its
+        largest radius, at least the near plane's. Splats in the buffers' order (radius classes, each
+        in Morton order) make compact blocks: the estimate is a close bound, per block, not per model.
+        """
+        if self.blocks is None or not ranges:
+            return ranges, []
+        lo, hi, radius = self.blocks[:, :3], self.blocks[:, 3:6], self.blocks[:, 6]
+        view = camera.view_matrix
+        depth = np.full(len(radius), np.inf)
+        for corner in np.ndindex(2, 2, 2):   # the 8 corners of each block's box
+            point = np.where(np.array(corner, bool), hi, lo)
+            depth = np.minimum(depth, -(point @ view[2, :3] + view[2, 3]))
+        z = np.maximum(depth - radius, float(camera.near))
+        f = float(camera.focal_px)
+        stretch = float(np.hypot(1.0, np.hypot(camera.width, camera.height) / (2.0 * f)))   # 1 / cos(phi)
+        small = 2.0 * np.sqrt(2.0) * radius * f * stretch / z + 1.0 <= box_px
+        others, picked = [], []
+        for first, count in ranges:
+            blocks = np.arange(first // BLOCK, (first + count - 1) // BLOCK + 1)
+            flags = small[blocks]
+            cuts = np.flatnonzero(np.diff(flags)) + 1   # runs of blocks of one kind
+            bounds = np.concatenate([[first], blocks[cuts] * BLOCK, [first + count]])
+            kinds = np.concatenate([flags[:1], flags[cuts]])
+            for start, end, kind in zip(bounds[:-1].tolist(), bounds[1:].tolist(), kinds.tolist()):
+                (picked if kind else others).append((start, end - start))
+        return others, picked
 
     def release(self) -> None:
         """Free the GPU buffers."""
@@ -195,3 +226,12 @@ def radius_classes(radii: np.ndarray, positions: np.ndarray | None = None) -> tu
     present = np.flatnonzero(counts)
     starts = (np.cumsum(counts) - counts)[present]
     return order, starts, top * 2.0 ** (-present / CLASSES_PER_OCTAVE)
+
+
+def block_bounds(positions: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """(B, 7) float64 per block of :data:`BLOCK` consecutive splats (the last one shorter): the lower
+    and upper corner of their centers' bounding box and their largest radius (the units given)."""
+    p = np.asarray(positions, dtype=np.float64)
+    starts = np.arange(0, len(p), BLOCK)
+    return np.column_stack([np.minimum.reduceat(p, starts, axis=0), np.maximum.reduceat(p, starts, axis=0),
+                            np.maximum.reduceat(np.asarray(radii, dtype=np.float64), starts)])

@@ -45,7 +45,7 @@ from . import compute_visibility
 from .edl import apply_edl
 from .frame import Frame
 from ..reference import prefilter_variance
-from .gpu_splats import GpuSplats, radius_classes, splat_arrays
+from .gpu_splats import GpuSplats, block_bounds, radius_classes, splat_arrays
 from .options import RenderOptions
 from .points import POINT_SIZE_RANGE
 from .shaders import (COMPUTE_GLSL_VERSION, GLSL_VERSION, NO_DEPTH, PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBILITY, BuiltProgram,
@@ -174,9 +174,10 @@ class Renderer:
         point_px: splats whose window box is at most this many sub-pixels wide are drawn as
             GL_POINTS (:data:`POINT_SPLAT_PX`; 0: every splat as an instanced quad).
         draw_batch: splats per draw call (:data:`DRAW_BATCH`).
-        compute: run the visibility pass of the small splats as a compute shader
-            (:data:`~surfsplat.render.compute_visibility.COMPUTE_SPLAT_PX`): None where the context has OpenGL 4.3, False never (GL_POINTS
-            and quads only), True always (RenderError without OpenGL 4.3). The pictures are the same.
+        compute: the first pass of the small splats (the blended techniques' visibility, flat's
+            nearest disk) as compute shaders (:mod:`~surfsplat.render.compute_visibility`): None where
+            the context has OpenGL 4.3, False never (GL_POINTS and quads only), True always
+            (RenderError without OpenGL 4.3). The pictures are the same (flat: but where disks tie).
     """
 
     def __init__(self, ctx: moderngl.Context | None = None, *, search_path: Sequence[Path] = (),
@@ -273,13 +274,14 @@ class Renderer:
         arrays, scale = splat_arrays(cloud)
         order, class_start, class_radius = radius_classes(cloud.radii * np.float32(scale), cloud.positions)
         buffers = {}
+        blocks = block_bounds(arrays["position"][order], (cloud.radii * np.float32(scale))[order])
         for name, values in arrays.items():   # one attribute's copy at a time
             values = np.asarray(values, dtype="f4")[order]
             if name == "color":
                 np.clip(values, 0.0, 1.0, out=values)
             buffers[name] = self.ctx.buffer(values)
             del values
-        return GpuSplats(buffers, len(cloud), cloud.bounds(), float(class_radius[0]) / scale,
+        return GpuSplats(buffers, len(cloud), cloud.bounds(), float(class_radius[0]) / scale, blocks=blocks,
                          class_start=class_start, class_radius=class_radius,
                          origin=np.asarray(cloud.origin, dtype=np.float64), scale=scale)
 
@@ -459,10 +461,9 @@ class Renderer:
         uniforms |= splats.extra_uniforms(camera)
         raster, computed = (quads, points), []   # the first pass's ranges: drawn, and computed
         if self.compute and (technique.blended or technique.fragment in compute_visibility.OPAQUE_FRAGMENTS):
-            small = point_radius(camera, splats, get_technique("flat"), options, supersample,
-                                 compute_visibility.COMPUTE_SPLAT_PX)
-            (vis_quads, computed_quads), (vis_points, computed_points) = (splats.split_ranges(quads, small),
-                                                                         splats.split_ranges(points, small))
+            box = compute_visibility.COMPUTE_SPLAT_PX
+            (vis_quads, computed_quads), (vis_points, computed_points) = (splats.split_small(quads, camera, box),
+                                                                         splats.split_small(points, camera, box))
             raster, computed = (vis_quads, vis_points), computed_quads + computed_points
         for pass_id in passes:
             pass_quads, pass_points = (quads, points) if pass_id == PASS_ACCUMULATION else raster

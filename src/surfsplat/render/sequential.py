@@ -35,7 +35,7 @@ import numpy as np
 from ..camera import Camera
 from ..cloud import SplatCloud
 from ..errors import InputError
-from .gpu_splats import GpuSplats, radius_classes, splat_arrays
+from .gpu_splats import GpuSplats, block_bounds, radius_classes, splat_arrays
 from .renderer import Renderer, _with_clip_planes
 
 #: Entries between two tested ones when a frame's ranges are searched: a range may hold up to this
@@ -194,6 +194,7 @@ def upload_sequential(renderer: Renderer, splats: SplatCloud, lod: np.ndarray,
     by = np.lexsort((key, kind, klass))   # class, then the kind, then the key
     order, klass, kind = order[by], klass[by], kind[by]
     buffers = {}
+    blocks = block_bounds(arrays["position"][order], (splats.radii * np.float32(scale))[order])
     for name, values in arrays.items():
         values = np.asarray(values, dtype="f4")[order]
         if name == "color":
@@ -217,7 +218,7 @@ def upload_sequential(renderer: Renderer, splats: SplatCloud, lod: np.ndarray,
     # farther than its extent times s from the eye
     points = lod[:, 0] < 0
     extent = float(splats.radii[points].max()) if points.any() else float(class_radius[0]) / scale
-    return GpuSequential(buffers, len(order), splats.bounds(), extent,
+    return GpuSequential(buffers, len(order), splats.bounds(), extent, blocks=blocks,
                          class_start=np.searchsorted(klass, np.arange(len(class_radius))), class_radius=class_radius,
                          origin=np.asarray(splats.origin, dtype=np.float64), scale=scale,
                          extra_attributes=("lod",), defines={SEQUENTIAL_DEFINE: 1},
