@@ -10,8 +10,10 @@ where the context has OpenGL 4.3; ``--raster-only`` draws every splat instead); 
 (wall and CPU, median of ``--repeat``).
 
     python benchmarks/render_passes.py [--work /tmp/peers-data] [--techniques ewa flat blend] [--raster-only]
+    python benchmarks/render_passes.py --interleaved   # compute passes against raster only, alternated
 
-Table: results/render_passes.md.
+Tables: results/render_passes.md (render_passes_raster.md with ``--raster-only``; compute_passes.md with
+``--interleaved``).
 """
 
 from __future__ import annotations
@@ -57,8 +59,9 @@ def pass_name(key: tuple) -> str:
     return PASS_NAMES.get(dict(defines).get("PASS"), fragment)
 
 
-def measure(scene: str, path: Path, techniques: list[str], repeat: int, size: int, compute: bool | None) -> list[list]:
-    """Rows of the table for one scene."""
+def scene_setup(scene: str, path: Path, size: int):
+    """``(cloud, camera, lights, options)`` of a peers' scene: its points preprocessed, back faces culled
+    where ``api.cull_automatically`` culls them, its camera at ``size`` x ``size`` and its light."""
     spec = SCENES[scene]
     cloud = preprocess(load(path))
     camera = Camera(eye=spec["eye"], target=spec["target"], up=spec["up"], fov=spec["fov"], width=size, height=size)
@@ -66,7 +69,12 @@ def measure(scene: str, path: Path, techniques: list[str], repeat: int, size: in
     light = np.asarray(spec["light"], float) / np.linalg.norm(spec["light"])
     lights = Lights(directions=[tuple(light)], ambient=0.2, diffuse=0.8, specular=0.3, shininess=32)
     cloud, cull = api.cull_automatically(cloud, camera, closed=False)
-    options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=cull))
+    return cloud, camera, lights, RenderOptions(visibility=VisibilityOptions(cull_backfaces=cull))
+
+
+def measure(scene: str, path: Path, techniques: list[str], repeat: int, size: int, compute: bool | None) -> list[list]:
+    """Rows of the table for one scene."""
+    cloud, camera, lights, options = scene_setup(scene, path, size)
     renderer = Renderer(compute=compute)
     gpu = renderer.upload(cloud)
     local = api.local_camera(cloud, camera)
@@ -121,6 +129,36 @@ def measure(scene: str, path: Path, techniques: list[str], repeat: int, size: in
     return rows
 
 
+def interleaved(scene: str, path: Path, techniques: list[str], repeat: int, size: int) -> list[list]:
+    """Rows comparing the compute passes with the raster-only renderer (``Renderer(compute=False)``) in one
+    process, frame for frame alternated: per technique, median wall and CPU time of each, and the largest
+    colour difference of their pictures."""
+    cloud, camera, lights, options = scene_setup(scene, path, size)
+    renderers = {"compute": Renderer(), "raster": Renderer(compute=False)}
+    uploads = {name: r.upload(cloud) for name, r in renderers.items()}
+    local = api.local_camera(cloud, camera)
+    rows = []
+    for technique in techniques:
+        frames = {name: r.render(uploads[name], local, technique, lights, options, background=(0, 0, 0))
+                  for name, r in renderers.items()}   # compile, warm up
+        difference = float(np.abs(frames["compute"].color - frames["raster"].color).max())
+        times: dict[str, list] = {name: [] for name in renderers}
+        for _ in range(repeat):
+            for name, r in renderers.items():
+                r.ctx.finish()
+                t, c = time.perf_counter(), time.process_time()
+                r.render(uploads[name], local, technique, lights, options, background=(0, 0, 0))
+                times[name].append((time.perf_counter() - t, time.process_time() - c))
+        (cw, cc), (rw, rc) = (np.median(times[name], axis=0) * 1000 for name in ("compute", "raster"))
+        rows.append([scene, technique, len(cloud), f"{size}x{size}", round(rw), round(rc), round(cw), round(cc),
+                     f"{cw / rw - 1:+.0%}", f"{difference:.2g}"])
+        print(rows[-1], flush=True)
+    for name, r in renderers.items():
+        uploads[name].release()
+        r.release()
+    return rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--work", default="/tmp/peers-data", help="the peers' bench folder holding the scenes")
@@ -129,6 +167,8 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--size", type=int, default=1024)
     parser.add_argument("--raster-only", action="store_true", help="no compute visibility pass")
+    parser.add_argument("--interleaved", action="store_true",
+                        help="compute passes against raster only, frames alternated (results/compute_passes.md)")
     args = parser.parse_args()
     rows = []
     for scene in args.scenes:
@@ -136,7 +176,16 @@ def main() -> None:
         if not path.exists():
             raise SystemExit(f"{path} is missing: run the peers' bench (../shared/peers/bench.py --work {args.work}) "
                              f"or benchmarks/bench_peers.py --run once to create it")
-        rows += measure(scene, path, args.techniques, args.repeat, args.size, False if args.raster_only else None)
+        if args.interleaved:
+            rows += interleaved(scene, path, args.techniques, args.repeat, args.size)
+        else:
+            rows += measure(scene, path, args.techniques, args.repeat, args.size, False if args.raster_only else None)
+    if args.interleaved:
+        columns = ["scene", "technique", "splats", "resolution", "raster only: wall ms", "raster only: CPU ms",
+                   "compute passes: wall ms", "compute passes: CPU ms", "wall change", "largest colour difference"]
+        write_table("compute_passes", columns, rows, machine_description("Mesa llvmpipe") +
+                    "; the two renderers' frames alternated in one process, median of --repeat")
+        return
     columns = ["scene", "technique", "splats", "resolution", "frame wall ms", "frame CPU ms", "compute passes CPU ms",
                "visibility raster CPU ms",
                "cracks CPU ms", "accumulation CPU ms", "opaque pass CPU ms", "opaque resolve CPU ms", "normalization CPU ms",
