@@ -188,9 +188,10 @@ def main() -> None:
         return
     columns = ["scene", "technique", "splats", "resolution", "frame wall ms", "frame CPU ms", "compute passes CPU ms",
                "visibility raster CPU ms",
-               "cracks CPU ms", "accumulation CPU ms", "opaque pass CPU ms", "opaque resolve CPU ms", "normalization CPU ms",
-               "rest CPU ms (clears, read-back, Python)"]
-    write_table("render_passes_raster" if args.raster_only else "render_passes", columns, rows, machine_description("Mesa llvmpipe") +
+               "cracks CPU ms", "accumulation CPU ms", "opaque pass CPU ms", "opaque resolve CPU ms",
+               "normalization CPU ms", "rest CPU ms (clears, read-back, Python)"]
+    name = "render_passes_raster" if args.raster_only else "render_passes"
+    write_table(name, columns, rows, machine_description("Mesa llvmpipe") +
                 "; CPU time of each draw call between glFinish calls, process-wide (llvmpipe's threads)")
 
 

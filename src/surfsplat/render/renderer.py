@@ -48,8 +48,8 @@ from ..reference import prefilter_variance
 from .gpu_splats import GpuSplats, block_bounds, radius_classes, splat_arrays
 from .options import RenderOptions
 from .points import POINT_SIZE_RANGE
-from .shaders import (COMPUTE_GLSL_VERSION, GLSL_VERSION, NO_DEPTH, PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBILITY, BuiltProgram,
-                      build_compute, build_program, undeclared)
+from .shaders import (COMPUTE_GLSL_VERSION, GLSL_VERSION, NO_DEPTH, PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBILITY,
+                      BuiltProgram, build_compute, build_program, undeclared)
 from .technique import Technique
 from .tiles import MAX_SUPERSAMPLE, MAX_TILE, SubPixels, box_reduce, tile_rects, tile_side
 from .techniques import get_technique
@@ -80,10 +80,11 @@ FRINGE_SHADERS = frozenset({"ewa.vert", "perspective.vert"})
 #: Memory a render holds per splat (the upload's sorting and copies, the driver's buffers and one draw
 #: call's primitives; measured on llvmpipe by benchmarks/bench_render.py --memory: 31-83 B per splat,
 #: 1M and 5M splats; these add margin), per output pixel (the Frame, the image a caller writes) and per
-#: sub-pixel of a tile (the targets, 84 B, and the read-back buffers, 24 B): :func:`render_memory`.
+#: sub-pixel of a tile (the targets, 100 B with the compute passes' two images, and the read-back
+#: buffers, 24 B): :func:`render_memory`.
 BYTES_PER_SPLAT = 160
 BYTES_PER_PIXEL = 100
-BYTES_PER_SUBPIXEL = 120
+BYTES_PER_SUBPIXEL = 128
 
 
 def render_memory(splats: int, width: int, height: int, supersample: int = 1, max_tile: int = MAX_TILE) -> int:
@@ -218,7 +219,8 @@ class Renderer:
             RenderError: the shaders failed to build; compiler positions name
                 the shader file and line (``ewa.vert:8(3): error: ...``).
         """
-        key = (vertex, fragment, tuple(sorted((defines or {}).items()))) + (() if version == GLSL_VERSION else (version,))
+        key = (vertex, fragment, tuple(sorted((defines or {}).items())))
+        key += () if version == GLSL_VERSION else (version,)
         built = self._programs.get(key)
         if built is None:
             built = build_program(self.ctx, vertex, fragment, dict(key[2]), search_path=self.search_path,
@@ -573,7 +575,8 @@ class Renderer:
         """Between the visibility and the accumulation pass: the visibility record copied into the
         ``cracks`` target with the uncovered pixels between covered ones marked (``cracks.frag``);
         ``computed``: with the compute pass's depths (:meth:`_compute_visibility`)."""
-        vao = self._fullscreen_pass("cracks.frag", {compute_visibility.COMPUTE_VISIBILITY_DEFINE: 1} if computed else {})
+        defines = {compute_visibility.COMPUTE_VISIBILITY_DEFINE: 1} if computed else {}
+        vao = self._fullscreen_pass("cracks.frag", defines)
         self.ctx.disable(moderngl.DEPTH_TEST)
         self.ctx.disable(moderngl.BLEND)
         targets["fbo_cracks"].use()
