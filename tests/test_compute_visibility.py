@@ -131,10 +131,10 @@ def test_compute_needs_opengl_43(gl_renderer, monkeypatch):
 
 
 def test_small_blocks_partition_the_ranges_and_bound_every_box(gl_renderer):
-    """GpuSplats.split_small: the ranges cut at block boundaries into two parts that cover them exactly,
-    and every splat of the small part covers a window box of at most the limit (NumPy: the projected
-    corners of its parallelogram, as disk_bounds bounds it); a view from far away makes every block small,
-    a close-up leaves the near ones to the raster pass."""
+    """GpuSplats.small_blocks and split_small: the ranges cut at block boundaries into two parts that cover
+    them exactly, and every splat of the small part covers a window box of at most the limit (NumPy: the
+    projected corners of its parallelogram, as disk_bounds bounds it); a view from far away makes every
+    block small, a close-up leaves the near ones to the raster pass."""
     from surfsplat.render.gpu_splats import BLOCK
 
     cloud = scenes.torus(400, 100)   # 40,000 splats: 10 blocks
@@ -147,7 +147,7 @@ def test_small_blocks_partition_the_ranges_and_bound_every_box(gl_renderer):
             eye = distance * np.array([0.3, -0.8, 0.5]) / np.linalg.norm([0.3, -0.8, 0.5])   # the torus is at 0
             camera = Camera(eye=tuple(eye), target=(0, 0, 0), up=(0, 0, 1), fov=40, width=200, height=160)
             camera = gpu.local_camera(camera.with_clip_from_bounds(*cloud.bounds(), margin=float(cloud.radii.max())))
-            others, small = gpu.split_small(ranges, camera, box)
+            others, small = gpu.split_small(ranges, gpu.small_blocks(camera, box))
             got = sorted(i for f, n in others + small for i in range(f, f + n))
             assert got == want
             assert bool(small) == expect_small and bool(others) == expect_others

@@ -19,7 +19,7 @@ Why: llvmpipe spends most of a GL_POINTS pass per primitive (vertex pipeline, se
 4x4-pixel block shaded for each block a point touches). Measured on the peers' bunny (1M splats,
 1024x1024, Morton order, alternated): ewa 666 -> 517 ms per frame, flat 314 -> 227 ms
 (``benchmarks/render_passes.py``). Which splats: per frame, the blocks of 4,096 consecutive splats
-(``GpuSplats.split_small``; the buffers hold radius classes, each in Morton order, so a block is compact)
+(``GpuSplats.small_blocks``; the buffers hold radius classes, each in Morton order, so a block is compact)
 whose every box is at most :data:`COMPUTE_SPLAT_PX` pixels wide; the others stay raster, where one
 invocation would loop over all their pixels while its neighbours idle. Without OpenGL 4.3 (macOS stops
 at 4.1) every splat is drawn.
@@ -32,7 +32,7 @@ import moderngl
 from .shaders import COMPUTE_GROUP, NO_DEPTH
 
 #: Blocks of splats whose disks' window boxes are all at most this many (sub-)pixels wide
-#: (``GpuSplats.split_small``, per frame) go through the compute passes. Measured on llvmpipe (the bunny
+#: (``GpuSplats.small_blocks``, per frame) go through the compute passes. Measured on llvmpipe (the bunny
 #: at 1024x1024; CPU time per frame of ewa, with the estimate per model then in use): 1M splats: 16 and
 #: 32 alike; 100k splats: 16 best, 32 and 64 slower than raster; 20k splats (large ones): 8-64 alike.
 COMPUTE_SPLAT_PX = 16.0
@@ -44,9 +44,9 @@ COMPUTE_BINDINGS = {"position": 0, "normal": 1, "u": 2, "v": 3, "clip0": 4, "cli
 #: Work groups per dispatch (OpenGL guarantees 65535 along x).
 MAX_COMPUTE_GROUPS = 65535
 
-#: Texture units of the depth images while the cracks pass reads them (units 0-3 serve the other passes).
-FRONT_DEPTH_UNIT = 4
-BACK_DEPTH_UNIT = 5
+#: Texture units of the two images while a full-screen pass reads them (the cracks pass: front and back
+#: depths; the opaque resolve: depth and splat); units 0-3 serve the other passes.
+IMAGE_UNITS = (4, 5)
 
 #: The define of ``cracks.frag`` that reads the depth images too.
 COMPUTE_VISIBILITY_DEFINE = "COMPUTE_VISIBILITY"
@@ -58,10 +58,6 @@ COMPUTE_VISIBILITY_PASS, COMPUTE_OPAQUE_DEPTH, COMPUTE_OPAQUE_INDEX = 1, 2, 3
 #: Opaque techniques (their fragment shader) whose small splats are computed too: the nearest disk per
 #: pixel, then ``opaque_resolve.frag`` writes what the fragment shader would have.
 OPAQUE_FRAGMENTS = frozenset({"flat.frag"})
-
-#: Texture units of the opaque passes' images while ``opaque_resolve.frag`` reads them.
-OPAQUE_DEPTH_UNIT = 4
-OPAQUE_INDEX_UNIT = 5
 
 
 def has_compute(ctx: moderngl.Context) -> bool:
@@ -94,12 +90,17 @@ def begin(targets: dict) -> None:
     targets["compute_b"].bind_to_image(1, read=True, write=True)
 
 
-def dispatch(program: moderngl.ComputeShader, buffers: dict, ranges: list) -> None:
-    """Run ``program`` (``visibility.comp``, its frame uniforms set) over the splats of ``ranges``
-    (``(first, count)``) read from the attribute ``buffers``."""
+def bind_buffers(buffers: dict) -> None:
+    """Bind the splats' attribute ``buffers`` as shader storage (:data:`COMPUTE_BINDINGS`)."""
     for name, binding in COMPUTE_BINDINGS.items():
         if name in buffers:
             buffers[name].bind_to_storage_buffer(binding)
+
+
+def dispatch(program: moderngl.ComputeShader, buffers: dict, ranges: list) -> None:
+    """Run ``program`` (``visibility.comp``, its frame uniforms set) over the splats of ``ranges``
+    (``(first, count)``) read from the attribute ``buffers``."""
+    bind_buffers(buffers)
     most = COMPUTE_GROUP * MAX_COMPUTE_GROUPS
     for first, count in ranges:
         for start in range(first, first + count, most):
@@ -108,8 +109,10 @@ def dispatch(program: moderngl.ComputeShader, buffers: dict, ranges: list) -> No
             program.run(group_x=-(-n // COMPUTE_GROUP))
 
 
-def bind_images(ctx: moderngl.Context, targets: dict, units: tuple[int, int]) -> None:
-    """After the compute passes: wait for the images' writes and bind them as textures to ``units``."""
+def bind_images(ctx: moderngl.Context, targets: dict) -> tuple[int, int]:
+    """After the compute passes: wait for the images' writes and bind them as textures
+    (:data:`IMAGE_UNITS`, returned)."""
     ctx.memory_barrier()
-    targets["compute_a"].use(location=units[0])
-    targets["compute_b"].use(location=units[1])
+    targets["compute_a"].use(location=IMAGE_UNITS[0])
+    targets["compute_b"].use(location=IMAGE_UNITS[1])
+    return IMAGE_UNITS

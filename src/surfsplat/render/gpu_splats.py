@@ -27,7 +27,7 @@ MAX_CLASSES = 128
 #: Splats checked and converted per step of :meth:`Renderer.upload` (bounds its temporary memory).
 UPLOAD_CHUNK = 1 << 20
 #: Consecutive splats per block of :attr:`GpuSplats.blocks`: per frame, the blocks whose splats are all
-#: small in the view go through the compute passes (:meth:`GpuSplats.split_small`).
+#: small in the view go through the compute passes (:meth:`GpuSplats.small_blocks`).
 BLOCK = 4096
 
 
@@ -92,9 +92,9 @@ class GpuSplats:
         big = int(np.count_nonzero(self.class_radius > point_radius))   # a prefix: radii descend
         return self.count if big == len(self.class_radius) else int(self.class_start[big])
 
-    def split_small(self, ranges: list, camera: Camera, box_px: float) -> tuple[list, list]:
-        """``(others, small)``: the ``(first, count)`` ranges cut at the blocks whose every splat has a
-        window box at most ``box_px`` pixels wide in this view (``camera``: the GPU frame's).
+    def small_blocks(self, camera: Camera, box_px: float) -> np.ndarray | None:
+        """(B,) bool per block of :attr:`blocks`: every splat of it has a window box at most ``box_px``
+        pixels wide in this view (``camera``: the GPU frame's); None without blocks.
 
         A splat of radius r whose center is at depth z covers a box at most ``2 sqrt(2) r f / (z cos
         phi)`` wide (its parallelogram's corners; phi the largest angle off the axis in the image), plus
@@ -102,8 +102,8 @@ class GpuSplats:
         largest radius, at least the near plane's. Splats in the buffers' order (radius classes, each
         in Morton order) make compact blocks: the estimate is a close bound, per block, not per model.
         """
-        if self.blocks is None or not ranges:
-            return ranges, []
+        if self.blocks is None:
+            return None
         lo, hi, radius = self.blocks[:, :3], self.blocks[:, 3:6], self.blocks[:, 6]
         view = camera.view_matrix
         depth = np.full(len(radius), np.inf)
@@ -113,7 +113,13 @@ class GpuSplats:
         z = np.maximum(depth - radius, float(camera.near))
         f = float(camera.focal_px)
         stretch = float(np.hypot(1.0, np.hypot(camera.width, camera.height) / (2.0 * f)))   # 1 / cos(phi)
-        small = 2.0 * np.sqrt(2.0) * radius * f * stretch / z + 1.0 <= box_px
+        return 2.0 * np.sqrt(2.0) * radius * f * stretch / z + 1.0 <= box_px
+
+    def split_small(self, ranges: list, small: np.ndarray | None) -> tuple[list, list]:
+        """``(others, small)``: the ``(first, count)`` ranges cut at the blocks flagged ``small``
+        (:meth:`small_blocks`; None: nothing is small)."""
+        if small is None or not ranges:
+            return ranges, []
         others, picked = [], []
         for first, count in ranges:
             blocks = np.arange(first // BLOCK, (first + count - 1) // BLOCK + 1)

@@ -221,10 +221,14 @@ class Renderer:
         """
         key = (vertex, fragment, tuple(sorted((defines or {}).items())))
         key += () if version == GLSL_VERSION else (version,)
+        return self._built_once(key, lambda: build_program(self.ctx, vertex, fragment, dict(key[2]),
+                                                           search_path=self.search_path, version=version))
+
+    def _built_once(self, key: tuple, build) -> moderngl.Program | moderngl.ComputeShader:
+        """The program cached under ``key``, made by ``build()`` (a BuiltProgram) the first time."""
         built = self._programs.get(key)
         if built is None:
-            built = build_program(self.ctx, vertex, fragment, dict(key[2]), search_path=self.search_path,
-                                  version=version)
+            built = build()
             self._programs[key] = built
             self._built[id(built.program)] = built
         return built.program
@@ -463,9 +467,9 @@ class Renderer:
         uniforms |= splats.extra_uniforms(camera)
         raster, computed = (quads, points), []   # the first pass's ranges: drawn, and computed
         if self.compute and (technique.blended or technique.fragment in compute_visibility.OPAQUE_FRAGMENTS):
-            box = compute_visibility.COMPUTE_SPLAT_PX
-            (vis_quads, computed_quads), (vis_points, computed_points) = (splats.split_small(quads, camera, box),
-                                                                         splats.split_small(points, camera, box))
+            small = splats.small_blocks(camera, compute_visibility.COMPUTE_SPLAT_PX)
+            (vis_quads, computed_quads), (vis_points, computed_points) = (splats.split_small(quads, small),
+                                                                         splats.split_small(points, small))
             raster, computed = (vis_quads, vis_points), computed_quads + computed_points
         for pass_id in passes:
             pass_quads, pass_points = (quads, points) if pass_id == PASS_ACCUMULATION else raster
@@ -547,8 +551,7 @@ class Renderer:
         """One pass of ``visibility.comp`` (``compute_pass``) over the splats of ``ranges``."""
         program = self.compute_program("visibility.comp",
                                        compute_visibility.shader_defines(splats.buffers, defines, compute_pass))
-        declared = self._built_program(program).uniforms
-        self.set_uniforms(program, {k: v for k, v in uniforms.items() if k in declared})
+        self.set_uniforms(program, uniforms, optional=uniforms)   # the frame's, where declared
         compute_visibility.dispatch(program, splats.buffers, ranges)
 
     def _opaque_compute(self, splats: GpuSplats, ranges: list, uniforms: dict, defines: dict, targets: dict) -> None:
@@ -559,22 +562,18 @@ class Renderer:
         self._compute(splats, ranges, uniforms, defines, compute_visibility.COMPUTE_OPAQUE_DEPTH)
         self.ctx.memory_barrier()
         self._compute(splats, ranges, uniforms, defines, compute_visibility.COMPUTE_OPAQUE_INDEX)
-        units = (compute_visibility.OPAQUE_DEPTH_UNIT, compute_visibility.OPAQUE_INDEX_UNIT)
-        compute_visibility.bind_images(self.ctx, targets, units)
+        units = compute_visibility.bind_images(self.ctx, targets)
         vao = self._fullscreen_pass("opaque_resolve.frag", compute_visibility.shader_defines(splats.buffers, defines)
                                     | {"READ_COLOR": 1}, COMPUTE_GLSL_VERSION)
-        declared = self._built_program(vao.program).uniforms
-        self.set_uniforms(vao.program, {k: v for k, v in uniforms.items() if k in declared}
-                          | {"u_opaque_depth": units[0], "u_opaque_index": units[1]})
-        for name, binding in compute_visibility.COMPUTE_BINDINGS.items():
-            if name in splats.buffers:
-                splats.buffers[name].bind_to_storage_buffer(binding)
+        self.set_uniforms(vao.program, uniforms | {"u_opaque_depth": units[0], "u_opaque_index": units[1]},
+                          optional=uniforms)
+        compute_visibility.bind_buffers(splats.buffers)
         vao.render(moderngl.TRIANGLES, vertices=3)
 
     def _mark_cracks(self, targets: dict, frame: dict, computed: bool = False) -> None:
         """Between the visibility and the accumulation pass: the visibility record copied into the
         ``cracks`` target with the uncovered pixels between covered ones marked (``cracks.frag``);
-        ``computed``: with the compute pass's depths (:meth:`_compute_visibility`)."""
+        ``computed``: with the compute visibility pass's depths (:meth:`_compute`)."""
         defines = {compute_visibility.COMPUTE_VISIBILITY_DEFINE: 1} if computed else {}
         vao = self._fullscreen_pass("cracks.frag", defines)
         self.ctx.disable(moderngl.DEPTH_TEST)
@@ -583,8 +582,7 @@ class Renderer:
         targets["side"].use(location=SIDE_TEXTURE_UNIT)
         uniforms = {"u_viewport": frame["u_viewport"], "u_tile": frame["u_tile"], "u_side": SIDE_TEXTURE_UNIT}
         if computed:
-            units = (compute_visibility.FRONT_DEPTH_UNIT, compute_visibility.BACK_DEPTH_UNIT)
-            compute_visibility.bind_images(self.ctx, targets, units)
+            units = compute_visibility.bind_images(self.ctx, targets)
             uniforms |= {"u_front_depth": units[0], "u_back_depth": units[1]}
         self.set_uniforms(vao.program, uniforms)
         vao.render(moderngl.TRIANGLES, vertices=3)
@@ -592,12 +590,7 @@ class Renderer:
     def compute_program(self, name: str, defines: dict[str, object] | None = None) -> moderngl.ComputeShader:
         """The compute shader of a file with ``defines`` (built once, then cached; OpenGL 4.3)."""
         key = (name, None, tuple(sorted((defines or {}).items())))
-        built = self._programs.get(key)
-        if built is None:
-            built = build_compute(self.ctx, name, dict(key[2]), search_path=self.search_path)
-            self._programs[key] = built
-            self._built[id(built.program)] = built
-        return built.program
+        return self._built_once(key, lambda: build_compute(self.ctx, name, dict(key[2]), search_path=self.search_path))
 
     def _read_tile(self) -> SubPixels:
         """The tile's sub-pixels from the targets of the last :meth:`draw` (the normalization pass's
