@@ -22,7 +22,8 @@ Driver (one run of the peers' bench with surfsplat's techniques added; the table
 results/peers.md)::
 
     python benchmarks/bench_peers.py --run --peers-python $PEERS_VENV/bin/python \\
-        [--techniques ewa flat] [--only vtk_points,vtk_disks,open3d_points] [--sizes 1000000] [--gpu-lod 1]
+        [--techniques ewa flat] [--only vtk_points,vtk_disks,open3d_points] [--sizes 1000000] [--gpu-lod 1] \\
+        [--raster-too]   # also every splat drawn, the compute passes off (same run)
 """
 
 from __future__ import annotations
@@ -59,6 +60,7 @@ def runner(argv: list[str]) -> None:
     parser.add_argument("--technique", default="ewa")
     parser.add_argument("--lod-tolerance", default=None, help="auto or pixels: time the hierarchy's cut")
     parser.add_argument("--lod-mode", default="cpu", choices=["cpu", "gpu"], help="where the cut is made")
+    parser.add_argument("--no-compute", action="store_true", help="RenderOptions(compute=False): every splat drawn")
     args = parser.parse_args(argv)
     timer = Timer()
     points = read_points_ply(args.input)
@@ -77,7 +79,7 @@ def runner(argv: list[str]) -> None:
     if args.lod_tolerance is not None:
         tolerance = args.lod_tolerance if args.lod_tolerance == "auto" else float(args.lod_tolerance)
         cloud, cull = api.cull_automatically(cloud, camera, closed=False)
-        options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=cull))
+        options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=cull), compute=not args.no_compute)
         model = cloud if tolerance == "auto" else api.as_hierarchy(cloud)   # auto: a cloud merged per view
         render_once = lambda: api.render_model(model, camera, technique=args.technique, lights=lights,  # noqa: E731
                                                background=background, options=options, lod_tolerance=tolerance,
@@ -86,7 +88,7 @@ def runner(argv: list[str]) -> None:
     else:
         # the default a user gets: back faces culled where the cloud is closed and seen from outside
         cloud, cull = api.cull_automatically(cloud, camera, closed=False)
-        options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=cull))
+        options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=cull), compute=not args.no_compute)
         renderer = Renderer()
         gpu = renderer.upload(cloud)
         local = api.local_camera(cloud, camera)
@@ -96,6 +98,7 @@ def runner(argv: list[str]) -> None:
     image, times = time_frames(render_once, args.repeat)
     save_png(args.out, np.round(np.clip(image, 0.0, 1.0) * 255.0).astype(np.uint8))
     suffix = "" if args.lod_tolerance is None else f"_{'gpu_' if args.lod_mode == 'gpu' else ''}lod_{args.lod_tolerance}"
+    suffix += "_raster" if args.no_compute else ""
     report(f"surfsplat_{args.technique}{suffix}", args, len(cloud), times, timer)
 
 
@@ -109,6 +112,8 @@ def driver(argv: list[str]) -> None:
     parser.add_argument("--peers-python", required=True, help="the Python of the peers' venv (VTK, Open3D)")
     parser.add_argument("--techniques", nargs="+", default=["ewa", "flat"])
     parser.add_argument("--lod-auto", action="store_true", help="also the default technique at --lod-tolerance auto")
+    parser.add_argument("--raster-too", action="store_true",
+                        help="also each technique with every splat drawn (RenderOptions(compute=False))")
     parser.add_argument("--gpu-lod", type=float, default=None, metavar="PX",
                         help="also each technique cut on the GPU at this tolerance (the viewer's path)")
     parser.add_argument("--only", default="vtk_points,vtk_disks,open3d_points")
@@ -122,6 +127,8 @@ def driver(argv: list[str]) -> None:
     if args.gpu_lod is not None:
         adds += [f"surfsplat_{t}_gpu_lod={me} --technique {t} --lod-tolerance {args.gpu_lod:g} --lod-mode gpu"
                  for t in args.techniques]
+    if args.raster_too:
+        adds += [f"surfsplat_{t}_raster={me} --technique {t} --no-compute" for t in args.techniques]
     if args.lod_auto:
         first = args.techniques[0]
         adds.append(f"surfsplat_{first}_lod_auto={me} --technique {first} --lod-tolerance auto")

@@ -19,6 +19,7 @@ Tables: results/render_passes.md (render_passes_raster.md with ``--raster-only``
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 import sys
 import time
 from pathlib import Path
@@ -72,10 +73,11 @@ def scene_setup(scene: str, path: Path, size: int):
     return cloud, camera, lights, RenderOptions(visibility=VisibilityOptions(cull_backfaces=cull))
 
 
-def measure(scene: str, path: Path, techniques: list[str], repeat: int, size: int, compute: bool | None) -> list[list]:
-    """Rows of the table for one scene."""
+def measure(scene: str, path: Path, techniques: list[str], repeat: int, size: int, compute: bool) -> list[list]:
+    """Rows of the table for one scene (``compute``: ``RenderOptions.compute``)."""
     cloud, camera, lights, options = scene_setup(scene, path, size)
-    renderer = Renderer(compute=compute)
+    options = replace(options, compute=compute)
+    renderer = Renderer()
     gpu = renderer.upload(cloud)
     local = api.local_camera(cloud, camera)
     ctx, rows = renderer.ctx, []
@@ -130,32 +132,32 @@ def measure(scene: str, path: Path, techniques: list[str], repeat: int, size: in
 
 
 def interleaved(scene: str, path: Path, techniques: list[str], repeat: int, size: int) -> list[list]:
-    """Rows comparing the compute passes with the raster-only renderer (``Renderer(compute=False)``) in one
-    process, frame for frame alternated: per technique, median wall and CPU time of each, and the largest
-    colour difference of their pictures."""
+    """Rows comparing the compute passes with raster only (``RenderOptions(compute=False)``) in one process,
+    frame for frame alternated on the same upload: per technique, median wall and CPU time of each, and
+    the largest colour difference of their pictures."""
     cloud, camera, lights, options = scene_setup(scene, path, size)
-    renderers = {"compute": Renderer(), "raster": Renderer(compute=False)}
-    uploads = {name: r.upload(cloud) for name, r in renderers.items()}
+    modes = {"compute": replace(options, compute=True), "raster": replace(options, compute=False)}
+    renderer = Renderer()
+    gpu = renderer.upload(cloud)
     local = api.local_camera(cloud, camera)
     rows = []
     for technique in techniques:
-        frames = {name: r.render(uploads[name], local, technique, lights, options, background=(0, 0, 0))
-                  for name, r in renderers.items()}   # compile, warm up
+        frames = {name: renderer.render(gpu, local, technique, lights, mode, background=(0, 0, 0))
+                  for name, mode in modes.items()}   # compile, warm up
         difference = float(np.abs(frames["compute"].color - frames["raster"].color).max())
-        times: dict[str, list] = {name: [] for name in renderers}
+        times: dict[str, list] = {name: [] for name in modes}
         for _ in range(repeat):
-            for name, r in renderers.items():
-                r.ctx.finish()
+            for name, mode in modes.items():
+                renderer.ctx.finish()
                 t, c = time.perf_counter(), time.process_time()
-                r.render(uploads[name], local, technique, lights, options, background=(0, 0, 0))
+                renderer.render(gpu, local, technique, lights, mode, background=(0, 0, 0))
                 times[name].append((time.perf_counter() - t, time.process_time() - c))
         (cw, cc), (rw, rc) = (np.median(times[name], axis=0) * 1000 for name in ("compute", "raster"))
         rows.append([scene, technique, len(cloud), f"{size}x{size}", round(rw), round(rc), round(cw), round(cc),
                      f"{cw / rw - 1:+.0%}", f"{difference:.2g}"])
         print(rows[-1], flush=True)
-    for name, r in renderers.items():
-        uploads[name].release()
-        r.release()
+    gpu.release()
+    renderer.release()
     return rows
 
 
@@ -179,7 +181,7 @@ def main() -> None:
         if args.interleaved:
             rows += interleaved(scene, path, args.techniques, args.repeat, args.size)
         else:
-            rows += measure(scene, path, args.techniques, args.repeat, args.size, False if args.raster_only else None)
+            rows += measure(scene, path, args.techniques, args.repeat, args.size, not args.raster_only)
     if args.interleaved:
         columns = ["scene", "technique", "splats", "resolution", "raster only: wall ms", "raster only: CPU ms",
                    "compute passes: wall ms", "compute passes: CPU ms", "wall change", "largest colour difference"]

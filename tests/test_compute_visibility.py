@@ -11,12 +11,14 @@ inside each radius class only changes the order in which fragments are summed.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from surfsplat import scenes
 from surfsplat.camera import Camera, frame_bounds
-from surfsplat.errors import RenderError
+from surfsplat.errors import InputError
 from surfsplat.geometry.neighbors import spatial_order
 from surfsplat.hierarchy import build_hierarchy
 from surfsplat.hierarchy.sequential import sequential_layout
@@ -31,13 +33,9 @@ BLENDED = ("ewa", "blend", "phong", "perspective")
 TECHNIQUES = BLENDED + ("flat",)
 
 
-@pytest.fixture(scope="module")
-def pair(gl_renderer):
-    """(raster only, compute) renderers on the session's context."""
-    made = Renderer(gl_renderer.ctx, compute=False), Renderer(gl_renderer.ctx, compute=True)
-    yield made
-    for r in made:
-        r.release()
+def modes(options=RenderOptions()):
+    """``options`` drawing every splat through the raster pipeline, then with the compute passes."""
+    return replace(options, compute=False), replace(options, compute=True)
 
 
 @pytest.fixture
@@ -70,18 +68,18 @@ def assert_same(a, b, technique="ewa"):
 
 
 @pytest.mark.parametrize("technique", TECHNIQUES)
-def test_sharp_cube_equals_raster(pair, counted, technique):
+def test_sharp_cube_equals_raster(gl_renderer, counted, technique):
     """Clip lines (the sphere-cube's edges) and a view where every small splat is computed."""
     cloud = scenes.sphere_cube(20_000)
     camera = view(cloud)
-    raster, compute = (r.render(cloud, camera, technique, Lights()) for r in pair)
+    raster, compute = (gl_renderer.render(cloud, camera, technique, Lights(), options) for options in modes())
     assert counted and counted[-1] > 0.9 * len(cloud)
     assert raster.weight.max() > 0 and (raster.alpha > 0).mean() > 0.2
     assert_same(raster, compute, technique)
 
 
 @pytest.mark.parametrize("technique", ("ewa", "phong", "flat"))
-def test_back_faces_tiles_and_subpixels_equal_raster(pair, counted, technique):
+def test_back_faces_tiles_and_subpixels_equal_raster(gl_renderer, counted, technique):
     """An open sheet seen from both sides without culling (the back record), drawn in several tiles
     at 2x2 sub-pixels, with a normal field (phong)."""
     torus = scenes.torus(120, 48)
@@ -91,43 +89,61 @@ def test_back_faces_tiles_and_subpixels_equal_raster(pair, counted, technique):
         field = np.random.default_rng(0).uniform(-0.3, 0.3, (len(cloud), 2)).astype("f4")
         cloud = cloud.replace(normal_field=field)
     camera = view(cloud, 70, 60, direction=(0.2, -0.9, -0.6))
-    options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=False))
-    raster, compute = (r.render(cloud, camera, technique, Lights(), options, supersample=2, max_tile=48)
-                       for r in pair)
+    raster, compute = (gl_renderer.render(cloud, camera, technique, Lights(), options, supersample=2, max_tile=48)
+                       for options in modes(RenderOptions(visibility=VisibilityOptions(cull_backfaces=False))))
     assert counted and min(counted) > 0
     assert_same(raster, compute, technique)
 
 
 @pytest.mark.parametrize("technique", ("ewa", "flat"))
-def test_gpu_lod_cut_equals_raster(pair, counted, technique):
+def test_gpu_lod_cut_equals_raster(gl_renderer, counted, technique):
     """The sequential layout's ranges (the viewer's GPU LOD cut) split the same way."""
     cloud = scenes.torus(200, 80)
     hierarchy = build_hierarchy(cloud)
     camera = view(cloud, 90, 70)
     layout = sequential_layout(hierarchy)
-    frames = [render_sequential(r, layout.splats, layout.lod, camera, technique, Lights(), RenderOptions(),
-                                (1.0, 1.0, 1.0), 2.0)[0] for r in pair]
+    frames = [render_sequential(gl_renderer, layout.splats, layout.lod, camera, technique, Lights(), options,
+                                (1.0, 1.0, 1.0), 2.0)[0] for options in modes()]
     assert counted and counted[-1] > 0
     assert_same(*frames, technique)
 
 
-def test_large_splats_stay_raster(pair, counted):
+def test_large_splats_stay_raster(gl_renderer, counted):
     """Splats whose box may exceed COMPUTE_SPLAT_PX are drawn, not computed; the frame is the same."""
     cloud = scenes.checkerboard(12)   # 144 splats over the view: tens of pixels each
     camera = view(cloud, 120, 100, direction=(0.0, 0.3, 1.0))
-    raster, compute = (r.render(cloud, camera, "ewa", Lights()) for r in pair)
+    raster, compute = (gl_renderer.render(cloud, camera, "ewa", Lights(), options) for options in modes())
     assert counted == [] or counted[-1] == 0
     assert (raster.alpha > 0).mean() > 0.3
     assert_same(raster, compute)
 
 
-def test_compute_needs_opengl_43(gl_renderer, monkeypatch):
+def test_without_opengl_43_every_splat_is_drawn(gl_renderer, counted, monkeypatch):
+    """A context without compute shaders draws the raster passes alone, whatever the option asks."""
     monkeypatch.setattr(compute_visibility, "has_compute", lambda ctx: False)
-    with pytest.raises(RenderError, match="OpenGL 4.3"):
-        Renderer(gl_renderer.ctx, compute=True)
-    fallback = Renderer(gl_renderer.ctx)   # automatic: raster only
-    assert fallback.compute is False
-    fallback.release()
+    fallback = Renderer(gl_renderer.ctx)
+    try:
+        assert fallback.has_compute is False
+        cloud = scenes.sphere(4000)
+        frame = fallback.render(cloud, view(cloud), "ewa", Lights())
+        assert counted == [] and (frame.alpha > 0).mean() > 0.1
+    finally:
+        fallback.release()
+
+
+def test_compute_option_is_checked_and_reachable_from_the_cli(counted, tmp_path):
+    """RenderOptions(compute=...) takes a bool; ``--no-compute`` on the command line turns the passes off."""
+    with pytest.raises(InputError, match="compute must be True or False"):
+        RenderOptions(compute="no")
+    from surfsplat.cli import main
+
+    assert main(["-q", "demo", "--scene", "sphere", "-o", str(tmp_path / "a.png"), "--width", "64",
+                 "--height", "64"]) == 0
+    assert counted and counted[-1] > 0
+    counted.clear()
+    assert main(["-q", "demo", "--scene", "sphere", "-o", str(tmp_path / "b.png"), "--width", "64",
+                 "--height", "64", "--no-compute"]) == 0
+    assert counted == []
 
 
 def test_small_blocks_partition_the_ranges_and_bound_every_box(gl_renderer):

@@ -245,6 +245,10 @@ def add_render_options(p: argparse.ArgumentParser, *, window: bool = False) -> N
                    help="antialias silhouettes over the background without supersampling: a rim pixel's alpha is "
                         "the area of it the splats' disks cover (ewa/perspective both sides of the rim, blend/phong "
                         "its inner side; best with splats of a pixel or more)")
+    p.add_argument("--no-compute", action="store_true",
+                   help="draw every splat through the raster pipeline, not the small splats' first pass with "
+                        "compute shaders (used where OpenGL 4.3 is there: faster on the CPU renderer, the same "
+                        "pictures)")
     p.add_argument("--deferred", action="store_true",
                    help="deferred shading: blend albedo and normals, light each pixel once (any technique; "
                         "better on smooth surfaces, worse at creases)")
@@ -285,7 +289,8 @@ def render_options(args) -> RenderOptions:
         kernel=KernelOptions(name=args.kernel, a=args.kernel_a, b=args.kernel_b, n=args.kernel_n,
                              sigma=args.kernel_sigma),
         deferred=args.deferred,
-        edl=EdlOptions(strength=args.edl_strength, radius_px=args.edl_radius) if args.edl else None)
+        edl=EdlOptions(strength=args.edl_strength, radius_px=args.edl_radius) if args.edl else None,
+        compute=not args.no_compute)
 
 
 def lights(args) -> Lights:

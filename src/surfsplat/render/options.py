@@ -210,6 +210,10 @@ class RenderOptions:
             mesh (and per-splat lighting) averages the two lit colours: 3.9 dB worse
             inside the CAD part.
         edl: eye-dome lighting (:class:`EdlOptions`) of the rendered image; None: off.
+        compute: draw the small splats' first pass (the blended techniques' visibility, ``flat``'s
+            nearest disk) with compute shaders where the context has OpenGL 4.3
+            (:mod:`~surfsplat.render.compute_visibility`: faster on llvmpipe); False: every splat through
+            the raster pipeline. The pictures are the same (``flat``: but where two disks tie in depth).
     """
 
     filter: FilterOptions = field(default_factory=FilterOptions)
@@ -217,8 +221,11 @@ class RenderOptions:
     kernel: KernelOptions = field(default_factory=KernelOptions)
     deferred: bool = False
     edl: EdlOptions | None = None
+    compute: bool = True
 
     def __post_init__(self) -> None:
+        if not isinstance(self.compute, bool):
+            raise InputError(f"render option compute must be True or False, got {self.compute!r}")
         if self.edl is not None and not isinstance(self.edl, EdlOptions):
             raise InputError(f"render option edl must be an EdlOptions or None, got {type(self.edl).__name__}")
         for name, kind in (("filter", FilterOptions), ("visibility", VisibilityOptions), ("kernel", KernelOptions)):

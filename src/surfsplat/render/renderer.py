@@ -175,20 +175,16 @@ class Renderer:
         point_px: splats whose window box is at most this many sub-pixels wide are drawn as
             GL_POINTS (:data:`POINT_SPLAT_PX`; 0: every splat as an instanced quad).
         draw_batch: splats per draw call (:data:`DRAW_BATCH`).
-        compute: the first pass of the small splats (the blended techniques' visibility, flat's
-            nearest disk) as compute shaders (:mod:`~surfsplat.render.compute_visibility`): None where
-            the context has OpenGL 4.3, False never (GL_POINTS and quads only), True always
-            (RenderError without OpenGL 4.3). The pictures are the same (flat: but where disks tie).
+
+    Attributes:
+        has_compute: the context runs the compute passes (OpenGL 4.3): frames use them where
+            ``RenderOptions.compute`` asks (:mod:`~surfsplat.render.compute_visibility`).
     """
 
     def __init__(self, ctx: moderngl.Context | None = None, *, search_path: Sequence[Path] = (),
-                 point_px: float = POINT_SPLAT_PX, draw_batch: int = DRAW_BATCH, compute: bool | None = None):
+                 point_px: float = POINT_SPLAT_PX, draw_batch: int = DRAW_BATCH):
         self.ctx = ctx or headless_context()
-        has_compute = compute_visibility.has_compute(self.ctx)
-        if compute and not has_compute:
-            raise RenderError(f"the compute visibility pass needs OpenGL 4.3; this context has "
-                              f"{self.ctx.version_code // 100}.{self.ctx.version_code // 10 % 10}")
-        self.compute = has_compute if compute is None else bool(compute)
+        self.has_compute = compute_visibility.has_compute(self.ctx)
         self.point_px = float(point_px)
         self.draw_batch = max(1, int(draw_batch))
         self._uploaded: GpuSplats | None = None   # the last SplatCloud render() drew, and its checksums
@@ -381,7 +377,7 @@ class Renderer:
                 "fbo_accum_cover": ctx.framebuffer([accum, aux, cover], depth),   # with edge coverage
                 "fbo_out": ctx.framebuffer([out, depth_sum]),
             }
-            if self.compute:
+            if self.has_compute:
                 self._targets |= compute_visibility.image_targets(ctx, size)
         return self._targets
 
@@ -466,7 +462,8 @@ class Renderer:
                                                                 self.point_px))
         uniforms |= splats.extra_uniforms(camera)
         raster, computed = (quads, points), []   # the first pass's ranges: drawn, and computed
-        if self.compute and (technique.blended or technique.fragment in compute_visibility.OPAQUE_FRAGMENTS):
+        if (options.compute and self.has_compute
+                and (technique.blended or technique.fragment in compute_visibility.OPAQUE_FRAGMENTS)):
             small = splats.small_blocks(camera, compute_visibility.COMPUTE_SPLAT_PX)
             (vis_quads, computed_quads), (vis_points, computed_points) = (splats.split_small(quads, small),
                                                                          splats.split_small(points, small))
