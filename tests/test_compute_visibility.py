@@ -118,6 +118,18 @@ def test_large_splats_stay_raster(gl_renderer, counted):
     assert_same(raster, compute)
 
 
+@pytest.mark.parametrize("technique", ("ewa", "flat"))
+def test_dispatches_split_at_the_work_group_limit(gl_renderer, counted, monkeypatch, technique):
+    """Ranges longer than one dispatch's work groups (65,535 of 64 splats: 4.2 M splats) are run in
+    several dispatches: with the limit lowered to 3 groups the frame still equals the raster one."""
+    monkeypatch.setattr(compute_visibility, "MAX_COMPUTE_GROUPS", 3)
+    cloud = scenes.sphere(3000)
+    camera = view(cloud)
+    raster, compute = (gl_renderer.render(cloud, camera, technique, Lights(), options) for options in modes())
+    assert counted and counted[-1] > 0.9 * len(cloud)
+    assert_same(raster, compute, technique)
+
+
 def test_without_opengl_43_every_splat_is_drawn(gl_renderer, counted, monkeypatch):
     """A context without compute shaders draws the raster passes alone, whatever the option asks."""
     monkeypatch.setattr(compute_visibility, "has_compute", lambda ctx: False)
