@@ -92,32 +92,58 @@ class GpuSplats:
         big = int(np.count_nonzero(self.class_radius > point_radius))   # a prefix: radii descend
         return self.count if big == len(self.class_radius) else int(self.class_start[big])
 
+    def block_depths(self, camera: Camera) -> np.ndarray | None:
+        """(B,) the nearest depth (GPU units, at least the near plane's) any splat of each block of
+        :attr:`blocks` can reach in this view (``camera``: the GPU frame's): that of its centers'
+        bounding box less its largest radius; None without blocks."""
+        if self.blocks is None:
+            return None
+        depth = -_block_corners(self.blocks[:, :3], self.blocks[:, 3:6], camera.view_matrix)[..., 2].max(axis=1)
+        return np.maximum(depth - self.blocks[:, 6], float(camera.near))
+
     def small_blocks(self, camera: Camera, box_px: float) -> np.ndarray | None:
         """(B,) bool per block of :attr:`blocks`: every splat of it has a window box at most ``box_px``
         pixels wide in this view (``camera``: the GPU frame's); None without blocks.
 
         A splat of radius r whose center is at depth z covers a box at most ``2 sqrt(2) r f / (z cos
         phi)`` wide (its parallelogram's corners; phi the largest angle off the axis in the image), plus
-        a pixel of rounding; a block's nearest depth is that of its centers' bounding box less its
-        largest radius, at least the near plane's. Splats in the buffers' order (radius classes, each
-        in Morton order) make compact blocks: the estimate is a close bound, per block, not per model.
+        a pixel of rounding; a block's nearest depth is :meth:`block_depths`. Splats in the buffers'
+        order (radius classes, each in Morton order) make compact blocks: the estimate is a close
+        bound, per block, not per model.
         """
         if self.blocks is None:
             return None
-        lo, hi, radius = self.blocks[:, :3], self.blocks[:, 3:6], self.blocks[:, 6]
-        view = camera.view_matrix
-        depth = np.full(len(radius), np.inf)
-        for corner in np.ndindex(2, 2, 2):   # the 8 corners of each block's box
-            point = np.where(np.array(corner, bool), hi, lo)
-            depth = np.minimum(depth, -(point @ view[2, :3] + view[2, 3]))
-        z = np.maximum(depth - radius, float(camera.near))
         f = float(camera.focal_px)
         stretch = float(np.hypot(1.0, np.hypot(camera.width, camera.height) / (2.0 * f)))   # 1 / cos(phi)
-        return 2.0 * np.sqrt(2.0) * radius * f * stretch / z + 1.0 <= box_px
+        return 2.0 * np.sqrt(2.0) * self.blocks[:, 6] * f * stretch / self.block_depths(camera) + 1.0 <= box_px
+
+    def visible_blocks(self, camera: Camera, margin_px: float) -> np.ndarray | None:
+        """(B,) bool per block of :attr:`blocks`: some splat of it may reach the view (``camera``: the
+        GPU frame's) grown by ``margin_px`` pixels on each side (a filter's footprint beyond the disk);
+        None without blocks. Conservative: a block is dropped only when its centers' box grown by its
+        largest radius lies wholly before the near plane or beyond the far one (where the vertex
+        shaders cull each of its splats), or beyond a side of the grown frustum while its splats are
+        small for their depth: EWA draws a splat's footprint through the affine approximation at its
+        center (Guennebaud 2003, eq. 8), which can reach pixels its disk does not, by about
+        ``f (r / z)^2`` pixels; a block is tested against the sides only where that stays within
+        the margin."""
+        if self.blocks is None:
+            return None
+        radius = self.blocks[:, 6:7]
+        corners = _block_corners(self.blocks[:, :3] - radius, self.blocks[:, 3:6] + radius, camera.view_matrix)
+        x, y, depth = corners[..., 0], corners[..., 1], -corners[..., 2]
+        f = float(camera.focal_px)
+        half_w, half_h = 0.5 * camera.width + margin_px, 0.5 * camera.height + margin_px
+        beyond_side = ((f * x > half_w * depth).all(axis=1) | (-f * x > half_w * depth).all(axis=1)
+                       | (f * y > half_h * depth).all(axis=1) | (-f * y > half_h * depth).all(axis=1))
+        affine = radius[:, 0] * np.sqrt(f / margin_px) <= self.block_depths(camera)
+        outside = ((depth < float(camera.near)).all(axis=1) | (depth > float(camera.far)).all(axis=1)
+                   | (beyond_side & affine))
+        return ~outside
 
     def split_small(self, ranges: list, small: np.ndarray | None) -> tuple[list, list]:
         """``(others, small)``: the ``(first, count)`` ranges cut at the blocks flagged ``small``
-        (:meth:`small_blocks`; None: nothing is small)."""
+        (per block of :attr:`blocks`, e.g. :meth:`small_blocks`; None: nothing is flagged)."""
         if small is None or not ranges:
             return ranges, []
         others, picked = [], []
@@ -232,6 +258,24 @@ def radius_classes(radii: np.ndarray, positions: np.ndarray | None = None) -> tu
     present = np.flatnonzero(counts)
     starts = (np.cumsum(counts) - counts)[present]
     return order, starts, top * 2.0 ** (-present / CLASSES_PER_OCTAVE)
+
+
+def merge_ranges(ranges: list) -> list:
+    """The ``(first, count)`` ranges sorted, those that touch joined into one."""
+    merged: list = []
+    for first, count in sorted(ranges):
+        if merged and merged[-1][0] + merged[-1][1] == first:
+            merged[-1] = (merged[-1][0], merged[-1][1] + count)
+        else:
+            merged.append((first, count))
+    return merged
+
+
+def _block_corners(lo: np.ndarray, hi: np.ndarray, view: np.ndarray) -> np.ndarray:
+    """(B, 8, 3) the 8 corners of each box ``[lo, hi]`` ((B, 3) each) in camera space (``view``: the
+    4x4 world-to-camera matrix)."""
+    corners = np.stack([np.where(np.array(c, bool), hi, lo) for c in np.ndindex(2, 2, 2)], axis=1)
+    return corners @ view[:3, :3].T + view[:3, 3]
 
 
 def block_bounds(positions: np.ndarray, radii: np.ndarray) -> np.ndarray:

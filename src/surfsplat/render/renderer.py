@@ -45,7 +45,7 @@ from . import compute_visibility
 from .edl import apply_edl
 from .frame import Frame
 from ..reference import prefilter_variance
-from .gpu_splats import GpuSplats, block_bounds, radius_classes, splat_arrays
+from .gpu_splats import GpuSplats, block_bounds, merge_ranges, radius_classes, splat_arrays
 from .options import RenderOptions
 from .points import POINT_SIZE_RANGE
 from .shaders import (COMPUTE_GLSL_VERSION, GLSL_VERSION, NO_DEPTH, PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBILITY,
@@ -112,31 +112,30 @@ def check_render_memory(splats: int, width: int, height: int, supersample: int =
 #: frame, all quads against this limit): 12 px splats 338 -> 263 ms (ewa), 38 px splats 163 -> 158 ms;
 #: a limit of 128 made the 38 px ones slower (186 ms).
 POINT_SPLAT_PX = 64.0
+#: Pixels (of the drawn camera's, per sub-pixel factor) by which the view is grown before blocks of
+#: splats outside it are skipped (``Renderer._drawn_ranges``): a filter's footprint reaches beyond
+#: its disk by about its prefilter radius (sqrt(2 c h), 1.4 px by default) and a point is drawn at
+#: least one pixel wide.
+FRUSTUM_MARGIN_PX = 8.0
 #: Splats per draw call, each followed by a glFinish: Mesa llvmpipe bins every primitive of a frame
 #: until the frame is flushed (measured: 180 bytes per splat drawn as quads, 300 as points, 1M splats),
 #: so the splats are drawn in batches and the driver holds one batch's primitives at a time.
 DRAW_BATCH = 1 << 17
 #: Vertex shaders that emit GL_POINTS for the small splats (``splat_primitive.glsl``, POINT_PRIMITIVE).
 POINT_SHADERS = frozenset({"ewa.vert", "disk.vert", "points.vert"})
-def point_radius(camera: Camera, splats: GpuSplats, technique: Technique, options: RenderOptions,
-                 supersample: int = 1, point_px: float = POINT_SPLAT_PX) -> float:
-    """Largest splat radius (model units) drawn as a GL_POINTS point in this frame: its window box is at
-    most ``point_px`` sub-pixels wide anywhere in the view (0: every splat is a quad).
+def point_scale(camera: Camera, technique: Technique, options: RenderOptions, supersample: int = 1,
+                point_px: float = POINT_SPLAT_PX) -> float:
+    """The largest splat radius drawn as a GL_POINTS point, per unit of depth (both in the units of
+    ``camera``, the GPU frame's): a splat of radius r nearer than z is a point where ``r <= scale * z``,
+    its window box at most ``point_px`` sub-pixels wide anywhere in the view (0: every splat is a quad).
 
     The box of a splat of radius r at depth z is at most ``2 sqrt(2) r f / (z cos phi)`` wide (the
     parallelogram's corners; phi the largest angle off the axis in the image) plus a pixel of rounding;
-    EWA adds its prefilter (Guennebaud 2003, eq. 6: ``+ 2 sqrt(2 c h)``); the depth is at least the
-    near plane's and the bounds' nearest corner's. The estimate only selects the primitive: a point's
-    fragments are tested as exactly as a quad's.
+    EWA adds its prefilter (Guennebaud 2003, eq. 6: ``+ 2 sqrt(2 c h)``). The estimate only selects the
+    primitive: a point's fragments are tested as exactly as a quad's.
     """
     if technique.vertex not in POINT_SHADERS or point_px <= 0:
         return 0.0
-    lo, hi = splats.gpu_bounds   # ``camera`` is the GPU frame's (GpuSplats.local_camera)
-    lo, hi = lo - splats.max_radius * splats.scale, hi + splats.max_radius * splats.scale
-    corners = np.array(list(itertools.product(*zip(lo, hi))))
-    view = camera.view_matrix
-    depth = -(corners @ view[:3, :3].T + view[:3, 3])[:, 2]
-    z = max(float(camera.near), float(depth.min()))
     f = float(camera.focal_px)
     stretch = float(np.hypot(1.0, np.hypot(camera.width, camera.height) / (2.0 * f)))   # 1 / cos(phi)
     side = point_px - 1.0
@@ -146,8 +145,25 @@ def point_radius(camera: Camera, splats: GpuSplats, technique: Technique, option
         side = point_px - 1.0   # the diameter 2 r f / z, clamped from below by the smallest size
         if POINT_SIZE_RANGE[0] * supersample > side:
             return 0.0
-        return side * z / (2.0 * f * stretch)
-    return max(side, 0.0) * z / (2.0 * np.sqrt(2.0) * f * stretch)
+        return side / (2.0 * f * stretch)
+    return max(side, 0.0) / (2.0 * np.sqrt(2.0) * f * stretch)
+
+
+def point_radius(camera: Camera, splats: GpuSplats, technique: Technique, options: RenderOptions,
+                 supersample: int = 1, point_px: float = POINT_SPLAT_PX) -> float:
+    """Largest splat radius (GPU units) drawn as a GL_POINTS point anywhere in this frame
+    (:func:`point_scale` at the nearest depth of the splats' bounds, at least the near plane's;
+    ``camera``: the GPU frame's; 0: every splat is a quad). Blocks farther away may be points with
+    larger splats (:meth:`Renderer.draw`)."""
+    scale = point_scale(camera, technique, options, supersample, point_px)
+    if scale <= 0:
+        return 0.0
+    lo, hi = splats.gpu_bounds
+    lo, hi = lo - splats.max_radius * splats.scale, hi + splats.max_radius * splats.scale
+    corners = np.array(list(itertools.product(*zip(lo, hi))))
+    view = camera.view_matrix
+    depth = -(corners @ view[:3, :3].T + view[:3, 3])[:, 2]
+    return scale * max(float(camera.near), float(depth.min()))
 
 
 def _components(splats: GpuSplats, name: str) -> int:
@@ -321,6 +337,28 @@ class Renderer:
             splats._vaos[key] = self.ctx.vertex_array(program, content)
         return splats._vaos[key]
 
+    def _drawn_ranges(self, splats: GpuSplats, camera: Camera, technique: Technique, options: RenderOptions,
+                      supersample: int) -> tuple[list, list]:
+        """``(quads, points)``: the ``(first, count)`` ranges of splats a frame draws as instanced quads
+        and as GL_POINTS (``camera``: the GPU frame's). Per block of consecutive splats
+        (:attr:`GpuSplats.blocks`), where the splats have them: those that cannot reach the view are
+        not drawn (:meth:`GpuSplats.visible_blocks`: a close view of a large model no longer runs the
+        vertex shaders of the splats behind the eye), and a block of quads whose own nearest depth
+        lets all its splats be points (:func:`point_scale`) is drawn as points (the global choice
+        takes the nearest depth of the whole model)."""
+        quads, points = splats.draw_ranges(camera, point_radius(camera, splats, technique, options, supersample,
+                                                                self.point_px))
+        visible = splats.visible_blocks(camera, FRUSTUM_MARGIN_PX * supersample)
+        if visible is None:
+            return quads, points
+        quads, points = splats.split_small(quads, visible)[1], splats.split_small(points, visible)[1]
+        scale = point_scale(camera, technique, options, supersample, self.point_px)
+        if quads and scale > 0:
+            as_points = splats.blocks[:, 6] <= scale * splats.block_depths(camera)
+            quads, promoted = splats.split_small(quads, as_points)
+            points = merge_ranges(points + promoted)
+        return quads, points
+
     def _draw_quads(self, splats: GpuSplats, program: moderngl.Program, technique: Technique, count: int,
                     start: int = 0) -> None:
         """Splats ``start .. start + count`` as instanced quads, ``draw_batch`` instances per draw call
@@ -458,8 +496,7 @@ class Renderer:
             targets["fbo_visibility"].clear(NO_DEPTH, NO_DEPTH, 0.0, 0.0)
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)
-        quads, points = splats.draw_ranges(camera, point_radius(camera, splats, technique, options, supersample,
-                                                                self.point_px))
+        quads, points = self._drawn_ranges(splats, camera, technique, options, supersample)
         uniforms |= splats.extra_uniforms(camera)
         raster, computed = (quads, points), []   # the first pass's ranges: drawn, and computed
         if (options.compute and self.has_compute
