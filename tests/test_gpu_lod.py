@@ -270,7 +270,7 @@ def test_the_viewer_cuts_in_memory_hierarchies_on_the_gpu(renderer):
     h = build_hierarchy(sphere(20_000))
     lod = LevelOfDetail(renderer, h, lod_mode="gpu")
     try:
-        near, far = view(h.points, 1.0), view(h.points, 6.0)
+        near, far = view(h.points, 3.0), view(h.points, 6.0)   # cuts keeping under half the points
         splats, count = lod(near, 1.0, False)
         assert isinstance(splats, GpuSequential) and count == splats.prefix_count(near)
         again, fewer = lod(far, 1.0, False)
@@ -285,6 +285,34 @@ def test_the_viewer_cuts_in_memory_hierarchies_on_the_gpu(renderer):
         assert np.allclose(gray[inside][:, 0], gray[inside][:, 1], atol=0.02)   # gray before
         assert np.median(red.color[inside][:, 1]) < 0.05 < 0.3 < np.median(red.color[inside][:, 0])   # specular aside
     finally:
+        lod.close()
+
+
+def test_the_viewer_draws_the_points_alone_where_the_gpu_cut_keeps_them(renderer):
+    """A view whose GPU cut hands over at least as many entries as there are points and keeps at least
+    ALL_POINTS_FRACTION of them (NumPy: points_drawn) draws the hierarchy's points from their own
+    upload, the frame of the plain cloud; a farther view keeps the sequential layout."""
+    from surfsplat.viewer.detail import ALL_POINTS_FRACTION, points_drawn
+
+    h = build_hierarchy(sphere(20_000))
+    layout = sequential_layout(h)
+    lod = LevelOfDetail(renderer, h, lod_mode="gpu")
+    plain = renderer.upload(h.points)
+    try:
+        close, mid = view(h.points, 1.0), view(h.points, 3.0)
+        assert points_drawn(layout, close, 1.0) >= ALL_POINTS_FRACTION > points_drawn(layout, mid, 1.0) > 0.2
+        splats, count = lod(close, 1.0, False)
+        assert not isinstance(splats, GpuSequential) and count == len(h.points)
+        assert lod(close, 1.0, False)[0] is splats   # uploaded once
+        got, want = renderer.render(splats, close, "ewa"), renderer.render(plain, close, "ewa")
+        assert np.array_equal(got.color, want.color) and np.array_equal(got.depth, want.depth, equal_nan=True)
+        cut, n = lod(mid, 1.0, False)
+        assert isinstance(cut, GpuSequential) and n == cut.prefix_count(mid)
+        # the NumPy fraction is the shader's rule: the entries the GPU draws are those it counts
+        mask = cpu_drawn(layout, cut, mid, 1.0)[layout.node_count:]
+        assert abs(mask.mean() - points_drawn(layout, mid, 1.0)) < 0.01
+    finally:
+        plain.release()
         lod.close()
 
 
