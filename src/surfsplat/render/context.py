@@ -7,11 +7,15 @@ renderer with it.
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
+
 import moderngl
 
 from ..errors import RenderError
 
 _headless: moderngl.Context | None = None
+_gl_flush = None   # glFlush of the process's OpenGL library; False: none found
 
 
 def headless_context() -> moderngl.Context:
@@ -47,3 +51,24 @@ def reset_headless_context() -> None:
 def renderer_name(ctx: moderngl.Context) -> str:
     """'GL_RENDERER (GL_VERSION)' of a context, for benchmark tables and `info`."""
     return f"{ctx.info['GL_RENDERER']} ({ctx.info['GL_VERSION']})"
+
+
+def gl_flush() -> bool:
+    """glFlush on the current context (moderngl binds glFinish only): hands the commands issued so
+    far to the driver without waiting for them. False where no OpenGL library of the system exports
+    it (the caller then waits with ``ctx.finish()``)."""
+    global _gl_flush
+    if _gl_flush is None:
+        _gl_flush = False
+        for name in ("GL", "OpenGL", "opengl32"):   # GLVND's libGL / libOpenGL, macOS, Windows
+            path = ctypes.util.find_library(name)
+            try:
+                _gl_flush = getattr(ctypes.CDLL(path), "glFlush") if path else False
+            except (OSError, AttributeError):
+                continue
+            if _gl_flush:
+                break
+    if not _gl_flush:
+        return False
+    _gl_flush()
+    return True
