@@ -65,7 +65,7 @@ def main() -> None:
     per_block = Renderer._drawn_ranges
     given: list[int] = []
 
-    def global_choice(self, splats, camera, technique, options, supersample):
+    def global_choice(self, splats, camera, technique, options, supersample, tile=None):
         return splats.draw_ranges(camera, point_radius(camera, splats, technique, options, supersample,
                                                        self.point_px))
 

@@ -37,7 +37,7 @@ def close_view(cloud, width=120, height=96):
     return camera.with_clip_from_bounds(*cloud.bounds(), margin=float(cloud.radii.max()))
 
 
-def global_ranges(self, splats, camera, technique, options, supersample):
+def global_ranges(self, splats, camera, technique, options, supersample, tile=None):
     """The ranges before the per-block choices: the radius classes' quads and points, every block."""
     return splats.draw_ranges(camera, point_radius(camera, splats, technique, options, supersample, self.point_px))
 
@@ -48,19 +48,21 @@ def test_merge_ranges():
     assert merge_ranges([]) == []
 
 
-def test_dropped_blocks_hold_only_splats_outside_the_view(gl_renderer, torus):
+@pytest.mark.parametrize("tile", [None, (0, 0, 60, 48), (60, 48, 60, 48), (30, 10, 20, 70)])
+def test_dropped_blocks_hold_only_splats_outside_the_view(gl_renderer, torus, tile):
     """NumPy: every splat (its parallelogram's four corners) of a block visible_blocks drops lies before
     the near plane, beyond the far one, or in front of the eye and projected beyond one side of the image
-    grown by the margin; a close view drops some blocks, a distant one none."""
+    (or of the tile drawn) grown by the margin; a close view drops some blocks, a distant one none."""
     gpu = gl_renderer.upload(torus)
     try:
         position, u, v = (np.frombuffer(gpu.buffers[k].read(), "f4").reshape(-1, 3).astype(np.float64)
                           for k in ("position", "u", "v"))
         far = Camera(eye=(0.0, -6.0, 4.0), target=(0, 0, 0), up=(0, 0, 1), fov=40, width=120, height=96)
         far = gpu.local_camera(far.with_clip_from_bounds(*torus.bounds(), margin=float(torus.radii.max())))
-        assert gpu.visible_blocks(far, FRUSTUM_MARGIN_PX).all()
+        if tile is None:
+            assert gpu.visible_blocks(far, FRUSTUM_MARGIN_PX).all()
         camera = gpu.local_camera(close_view(torus))
-        visible = gpu.visible_blocks(camera, FRUSTUM_MARGIN_PX)
+        visible = gpu.visible_blocks(camera, FRUSTUM_MARGIN_PX, tile)
         assert 0 < np.count_nonzero(~visible) < len(visible)
         dropped = np.concatenate([np.arange(b * BLOCK, min((b + 1) * BLOCK, gpu.count)) for b in np.flatnonzero(~visible)])
         m, f = camera.view_matrix, camera.focal_px
@@ -69,11 +71,14 @@ def test_dropped_blocks_hold_only_splats_outside_the_view(gl_renderer, torus):
         depth = -corners[..., 2]
         with np.errstate(divide="ignore", invalid="ignore"):
             px = f * corners[..., :2] / depth[..., None]
-        half = np.array([camera.width, camera.height]) / 2 + FRUSTUM_MARGIN_PX
+        x0, y0, w, h = tile or (0, 0, camera.width, camera.height)
+        center = np.array([camera.width, camera.height]) / 2
+        low = np.array([x0, y0]) - center - FRUSTUM_MARGIN_PX        # the grown rectangle, from the center
+        high = np.array([x0 + w, y0 + h]) - center + FRUSTUM_MARGIN_PX
         ahead = (depth > 0).all(axis=1)
         beyond = np.zeros(len(dropped), bool)
         for axis in (0, 1):
-            beyond |= ahead & ((px[..., axis] > half[axis]).all(axis=1) | (px[..., axis] < -half[axis]).all(axis=1))
+            beyond |= ahead & ((px[..., axis] > high[axis]).all(axis=1) | (px[..., axis] < low[axis]).all(axis=1))
         outside = (depth < camera.near).all(axis=1) | (depth > camera.far).all(axis=1) | beyond
         assert outside.all()
     finally:
@@ -89,9 +94,9 @@ def test_culled_frames_equal_the_full_draw(gl_renderer, torus, monkeypatch, tech
     gpu = gl_renderer.upload(torus)
     given = []
 
-    def culled_only(self, splats, cam, tech, opts, supersample):
+    def culled_only(self, splats, cam, tech, opts, supersample, tile=None):
         quads, points = global_ranges(self, splats, cam, tech, opts, supersample)
-        visible = splats.visible_blocks(cam, FRUSTUM_MARGIN_PX * supersample)
+        visible = splats.visible_blocks(cam, FRUSTUM_MARGIN_PX * supersample, tile)
         quads, points = splats.split_small(quads, visible)[1], splats.split_small(points, visible)[1]
         given.append(sum(n for _, n in quads + points))
         return quads, points
@@ -126,8 +131,8 @@ def test_near_blocks_of_quads_far_away_become_points(gl_renderer, monkeypatch, t
     chosen = []
     original = Renderer._drawn_ranges
 
-    def spy(self, splats, cam, tech, opts, supersample):
-        ranges = original(self, splats, cam, tech, opts, supersample)
+    def spy(self, splats, cam, tech, opts, supersample, tile=None):
+        ranges = original(self, splats, cam, tech, opts, supersample, tile)
         chosen.append((ranges, cam))
         return ranges
 
@@ -162,3 +167,29 @@ def test_near_blocks_of_quads_far_away_become_points(gl_renderer, monkeypatch, t
     assert differ.max() < (0.02 if technique != "flat" else 1.0)
     assert np.mean(differ > 1.0 / 255) < 0.002
     assert np.array_equal(before.alpha > 0, after.alpha > 0)
+
+
+@pytest.mark.parametrize("technique", ("ewa", "flat"))
+def test_tiles_draw_their_own_blocks(gl_renderer, torus, monkeypatch, technique):
+    """A frame drawn in 2 x 2 tiles gives each tile only the blocks that can reach it (fewer splats in all
+    than four whole frames) and equals the frame drawn at once."""
+    camera = close_view(torus)
+    gpu = gl_renderer.upload(torus)
+    given = []
+    original = Renderer._drawn_ranges
+
+    def counted(self, *a):
+        quads, points = original(self, *a)
+        given.append(sum(n for _, n in quads + points))
+        return quads, points
+
+    try:
+        monkeypatch.setattr(Renderer, "_drawn_ranges", counted)
+        whole = gl_renderer.render(gpu, camera, technique, Lights())
+        tiled = gl_renderer.render(gpu, camera, technique, Lights(), max_tile=64)
+    finally:
+        gpu.release()
+    assert len(given) == 5 and sum(given[1:]) < 4 * given[0]
+    for name in ("color", "depth", "alpha"):
+        a, b = getattr(whole, name), getattr(tiled, name)
+        assert np.allclose(np.nan_to_num(a, nan=-7.0), np.nan_to_num(b, nan=-7.0), atol=1e-5), name

@@ -117,9 +117,11 @@ class GpuSplats:
         stretch = float(np.hypot(1.0, np.hypot(camera.width, camera.height) / (2.0 * f)))   # 1 / cos(phi)
         return 2.0 * np.sqrt(2.0) * self.blocks[:, 6] * f * stretch / self.block_depths(camera) + 1.0 <= box_px
 
-    def visible_blocks(self, camera: Camera, margin_px: float) -> np.ndarray | None:
+    def visible_blocks(self, camera: Camera, margin_px: float,
+                       tile: tuple[float, float, float, float] | None = None) -> np.ndarray | None:
         """(B,) bool per block of :attr:`blocks`: some splat of it may reach the view (``camera``: the
-        GPU frame's) grown by ``margin_px`` pixels on each side (a filter's footprint beyond the disk);
+        GPU frame's; ``tile`` ``(x0, y0, w, h)``: the part of its image drawn, window pixels, y up;
+        None: all of it) grown by ``margin_px`` pixels on each side (a filter's footprint beyond the disk);
         None without blocks. Conservative: a block is dropped only when its centers' box grown by its
         largest radius lies wholly before the near plane or beyond the far one (where the vertex
         shaders cull each of its splats), or beyond a side of the grown frustum while its splats are
@@ -133,9 +135,13 @@ class GpuSplats:
         corners = _block_corners(self.blocks[:, :3] - radius, self.blocks[:, 3:6] + radius, camera.view_matrix)
         x, y, depth = corners[..., 0], corners[..., 1], -corners[..., 2]
         f = float(camera.focal_px)
-        half_w, half_h = 0.5 * camera.width + margin_px, 0.5 * camera.height + margin_px
-        beyond_side = ((f * x > half_w * depth).all(axis=1) | (-f * x > half_w * depth).all(axis=1)
-                       | (f * y > half_h * depth).all(axis=1) | (-f * y > half_h * depth).all(axis=1))
+        x0, y0, w, h = tile if tile is not None else (0.0, 0.0, camera.width, camera.height)
+        # the sides through the eye: window pixel px = c + f x / depth (c the image's center)
+        cx, cy = 0.5 * camera.width, 0.5 * camera.height
+        left, right = x0 - margin_px - cx, x0 + w + margin_px - cx
+        bottom, top = y0 - margin_px - cy, y0 + h + margin_px - cy
+        beyond_side = ((f * x > right * depth).all(axis=1) | (f * x < left * depth).all(axis=1)
+                       | (f * y > top * depth).all(axis=1) | (f * y < bottom * depth).all(axis=1))
         affine = radius[:, 0] * np.sqrt(f / margin_px) <= self.block_depths(camera)
         outside = ((depth < float(camera.near)).all(axis=1) | (depth > float(camera.far)).all(axis=1)
                    | (beyond_side & affine))

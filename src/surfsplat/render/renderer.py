@@ -346,17 +346,18 @@ class Renderer:
         return splats._vaos[key]
 
     def _drawn_ranges(self, splats: GpuSplats, camera: Camera, technique: Technique, options: RenderOptions,
-                      supersample: int) -> tuple[list, list]:
+                      supersample: int, tile: tuple | None = None) -> tuple[list, list]:
         """``(quads, points)``: the ``(first, count)`` ranges of splats a frame draws as instanced quads
-        and as GL_POINTS (``camera``: the GPU frame's). Per block of consecutive splats
-        (:attr:`GpuSplats.blocks`), where the splats have them: those that cannot reach the view are
-        not drawn (:meth:`GpuSplats.visible_blocks`: a close view of a large model no longer runs the
-        vertex shaders of the splats behind the eye), and a block of quads whose own nearest depth
-        lets all its splats be points (:func:`point_scale`) is drawn as points (the global choice
-        takes the nearest depth of the whole model)."""
+        and as GL_POINTS (``camera``: the GPU frame's; ``tile``: the part of its image drawn, None: all).
+        Per block of consecutive splats (:attr:`GpuSplats.blocks`), where the splats have them: those
+        that cannot reach the tile are not drawn (:meth:`GpuSplats.visible_blocks`: a close view of a
+        large model no longer runs the vertex shaders of the splats behind the eye, and each tile of a
+        large image draws about its own splats), and a block of quads whose own nearest depth lets all
+        its splats be points (:func:`point_scale`) is drawn as points (the global choice takes the
+        nearest depth of the whole model)."""
         quads, points = splats.draw_ranges(camera, point_radius(camera, splats, technique, options, supersample,
                                                                 self.point_px))
-        visible = splats.visible_blocks(camera, FRUSTUM_MARGIN_PX * supersample)
+        visible = splats.visible_blocks(camera, FRUSTUM_MARGIN_PX * supersample, tile)
         if visible is None:
             return quads, points
         quads, points = splats.split_small(quads, visible)[1], splats.split_small(points, visible)[1]
@@ -512,7 +513,7 @@ class Renderer:
             targets["fbo_visibility"].clear(NO_DEPTH, NO_DEPTH, 0.0, 0.0)
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)
-        quads, points = self._drawn_ranges(splats, camera, technique, options, supersample)
+        quads, points = self._drawn_ranges(splats, camera, technique, options, supersample, tile)
         uniforms |= splats.extra_uniforms(camera)
         raster, computed = (quads, points), []   # the first pass's ranges: drawn, and computed
         if (options.compute and self.has_compute
