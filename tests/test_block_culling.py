@@ -97,7 +97,7 @@ def test_culled_frames_equal_the_full_draw(gl_renderer, torus, monkeypatch, tech
     def culled_only(self, splats, cam, tech, opts, supersample, tile=None):
         quads, points = global_ranges(self, splats, cam, tech, opts, supersample)
         visible = splats.visible_blocks(cam, FRUSTUM_MARGIN_PX * supersample, tile)
-        quads, points = splats.split_small(quads, visible)[1], splats.split_small(points, visible)[1]
+        quads, points = splats.split_blocks(quads, visible)[1], splats.split_blocks(points, visible)[1]
         given.append(sum(n for _, n in quads + points))
         return quads, points
 

@@ -159,7 +159,7 @@ def test_compute_option_is_checked_and_reachable_from_the_cli(counted, tmp_path)
 
 
 def test_small_blocks_partition_the_ranges_and_bound_every_box(gl_renderer):
-    """GpuSplats.small_blocks and split_small: the ranges cut at block boundaries into two parts that cover
+    """GpuSplats.small_blocks and split_blocks: the ranges cut at block boundaries into two parts that cover
     them exactly, and every splat of the small part covers a window box of at most the limit (NumPy: the
     projected corners of its parallelogram, as disk_bounds bounds it); a view from far away makes every
     block small, a close-up leaves the near ones to the raster pass."""
@@ -175,7 +175,7 @@ def test_small_blocks_partition_the_ranges_and_bound_every_box(gl_renderer):
             eye = distance * np.array([0.3, -0.8, 0.5]) / np.linalg.norm([0.3, -0.8, 0.5])   # the torus is at 0
             camera = Camera(eye=tuple(eye), target=(0, 0, 0), up=(0, 0, 1), fov=40, width=200, height=160)
             camera = gpu.local_camera(camera.with_clip_from_bounds(*cloud.bounds(), margin=float(cloud.radii.max())))
-            others, small = gpu.split_small(ranges, gpu.small_blocks(camera, box))
+            others, small = gpu.split_blocks(ranges, gpu.small_blocks(camera, box))
             got = sorted(i for f, n in others + small for i in range(f, f + n))
             assert got == want
             assert bool(small) == expect_small and bool(others) == expect_others

@@ -147,15 +147,16 @@ class GpuSplats:
                    | (beyond_side & affine))
         return ~outside
 
-    def split_small(self, ranges: list, small: np.ndarray | None) -> tuple[list, list]:
-        """``(others, small)``: the ``(first, count)`` ranges cut at the blocks flagged ``small``
-        (per block of :attr:`blocks`, e.g. :meth:`small_blocks`; None: nothing is flagged)."""
-        if small is None or not ranges:
+    def split_blocks(self, ranges: list, flagged: np.ndarray | None) -> tuple[list, list]:
+        """``(others, flagged)``: the ``(first, count)`` ranges cut into the parts in blocks of
+        :attr:`blocks` not flagged and those in flagged ones (``flagged``: (B,) bool, e.g.
+        :meth:`small_blocks` or :meth:`visible_blocks`; None: nothing is flagged)."""
+        if flagged is None or not ranges:
             return ranges, []
         others, picked = [], []
         for first, count in ranges:
             blocks = np.arange(first // BLOCK, (first + count - 1) // BLOCK + 1)
-            flags = small[blocks]
+            flags = flagged[blocks]
             cuts = np.flatnonzero(np.diff(flags)) + 1   # runs of blocks of one kind
             bounds = np.concatenate([[first], blocks[cuts] * BLOCK, [first + count]])
             kinds = np.concatenate([flags[:1], flags[cuts]])

@@ -161,7 +161,7 @@ def point_radius(camera: Camera, splats: GpuSplats, technique: Technique, option
     """Largest splat radius (GPU units) drawn as a GL_POINTS point anywhere in this frame
     (:func:`point_scale` at the nearest depth of the splats' bounds, at least the near plane's;
     ``camera``: the GPU frame's; 0: every splat is a quad). Blocks farther away may be points with
-    larger splats (:meth:`Renderer.draw`)."""
+    larger splats (``Renderer._drawn_ranges``)."""
     scale = point_scale(camera, technique, options, supersample, point_px)
     if scale <= 0:
         return 0.0
@@ -360,11 +360,11 @@ class Renderer:
         visible = splats.visible_blocks(camera, FRUSTUM_MARGIN_PX * supersample, tile)
         if visible is None:
             return quads, points
-        quads, points = splats.split_small(quads, visible)[1], splats.split_small(points, visible)[1]
+        quads, points = splats.split_blocks(quads, visible)[1], splats.split_blocks(points, visible)[1]
         scale = point_scale(camera, technique, options, supersample, self.point_px)
         if quads and scale > 0:
             as_points = splats.blocks[:, 6] <= scale * splats.block_depths(camera)
-            quads, promoted = splats.split_small(quads, as_points)
+            quads, promoted = splats.split_blocks(quads, as_points)
             points = merge_ranges(points + promoted)
         return quads, points
 
@@ -519,8 +519,8 @@ class Renderer:
         if (options.compute and self.has_compute
                 and (technique.blended or technique.fragment in compute_visibility.OPAQUE_FRAGMENTS)):
             small = splats.small_blocks(camera, compute_visibility.COMPUTE_SPLAT_PX)
-            (vis_quads, computed_quads), (vis_points, computed_points) = (splats.split_small(quads, small),
-                                                                         splats.split_small(points, small))
+            (vis_quads, computed_quads), (vis_points, computed_points) = (splats.split_blocks(quads, small),
+                                                                         splats.split_blocks(points, small))
             raster, computed = (vis_quads, vis_points), computed_quads + computed_points
         for pass_id in passes:
             pass_quads, pass_points = (quads, points) if pass_id == PASS_ACCUMULATION else raster

@@ -173,7 +173,7 @@ class LevelOfDetail:
         self.lod_mode = lod_mode
         self._sequential = None   # the GPU layout (lod_mode "gpu"), uploaded on first use
         self._layout = None       # ... and the layout it was uploaded from
-        self._points = None       # the hierarchy's points alone, uploaded when a cut keeps (nearly) all
+        self._points = None       # the hierarchy's points alone, uploaded when a cut keeps most of them
         self.model = hierarchy if model is None else model
         self.streamer = CellStreamer() if isinstance(hierarchy, ChunkedHierarchy) else None
         self._key = None
