@@ -285,6 +285,22 @@ def _block_corners(lo: np.ndarray, hi: np.ndarray, view: np.ndarray) -> np.ndarr
     return corners @ view[:3, :3].T + view[:3, 3]
 
 
+def ordered_buffers(ctx: moderngl.Context, arrays: dict[str, np.ndarray], order: np.ndarray,
+                    radii: np.ndarray) -> tuple[dict[str, moderngl.Buffer], np.ndarray]:
+    """The attribute ``arrays`` (:func:`splat_arrays`, GPU units) copied to float32 buffers in ``order``,
+    one attribute's copy at a time, colours clipped to [0, 1]; and the :func:`block_bounds` of the splats
+    in that order (``radii``: GPU units, in the arrays' order)."""
+    blocks = block_bounds(arrays["position"][order], np.asarray(radii)[order])
+    buffers = {}
+    for name, values in arrays.items():
+        values = np.asarray(values, dtype="f4")[order]
+        if name == "color":
+            np.clip(values, 0.0, 1.0, out=values)
+        buffers[name] = ctx.buffer(values)
+        del values
+    return buffers, blocks
+
+
 def block_bounds(positions: np.ndarray, radii: np.ndarray) -> np.ndarray:
     """(B, 7) float64 per block of :data:`BLOCK` consecutive splats (the last one shorter): the lower
     and upper corner of their centers' bounding box and their largest radius (the units given)."""

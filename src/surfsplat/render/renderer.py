@@ -45,7 +45,7 @@ from . import compute_visibility
 from .edl import apply_edl
 from .frame import Frame
 from ..reference import prefilter_variance
-from .gpu_splats import GpuSplats, block_bounds, merge_ranges, radius_classes, splat_arrays
+from .gpu_splats import GpuSplats, merge_ranges, ordered_buffers, radius_classes, splat_arrays
 from .options import RenderOptions
 from .points import POINT_SIZE_RANGE
 from .shaders import (COMPUTE_GLSL_VERSION, GLSL_VERSION, NO_DEPTH, PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBILITY,
@@ -298,15 +298,9 @@ class Renderer:
         if len(cloud) == 0:
             raise InputError("the SplatCloud is empty")
         arrays, scale = splat_arrays(cloud)
-        order, class_start, class_radius = radius_classes(cloud.radii * np.float32(scale), cloud.positions)
-        buffers = {}
-        blocks = block_bounds(arrays["position"][order], (cloud.radii * np.float32(scale))[order])
-        for name, values in arrays.items():   # one attribute's copy at a time
-            values = np.asarray(values, dtype="f4")[order]
-            if name == "color":
-                np.clip(values, 0.0, 1.0, out=values)
-            buffers[name] = self.ctx.buffer(values)
-            del values
+        radii = cloud.radii * np.float32(scale)
+        order, class_start, class_radius = radius_classes(radii, cloud.positions)
+        buffers, blocks = ordered_buffers(self.ctx, arrays, order, radii)
         return GpuSplats(buffers, len(cloud), cloud.bounds(), float(class_radius[0]) / scale, blocks=blocks,
                          class_start=class_start, class_radius=class_radius,
                          origin=np.asarray(cloud.origin, dtype=np.float64), scale=scale)

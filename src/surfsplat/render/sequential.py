@@ -35,7 +35,7 @@ import numpy as np
 from ..camera import Camera
 from ..cloud import SplatCloud
 from ..errors import InputError
-from .gpu_splats import GpuSplats, block_bounds, radius_classes, splat_arrays
+from .gpu_splats import GpuSplats, ordered_buffers, radius_classes, splat_arrays
 from .renderer import Renderer, _with_clip_planes
 
 #: Entries between two tested ones when a frame's ranges are searched: a range may hold up to this
@@ -177,7 +177,8 @@ def upload_sequential(renderer: Renderer, splats: SplatCloud, lod: np.ndarray,
                          f"for {len(splats):,} entries")
     arrays, scale = splat_arrays(splats)
     arrays["lod"] = lod * np.float32(scale)   # lengths: scaled with the model
-    order, class_start, class_radius = radius_classes(splats.radii * np.float32(scale))
+    radii = splats.radii * np.float32(scale)
+    order, class_start, class_radius = radius_classes(radii)
     klass = np.repeat(np.arange(len(class_start)), np.diff(np.append(class_start, len(order))))
     r, d, a, b = (arrays["lod"][order, k].astype(np.float64) for k in range(4))
     big = 0.5 * float(np.float32(1e30) * np.float32(scale))   # hierarchy.sequential.BIG, scaled
@@ -193,14 +194,7 @@ def upload_sequential(renderer: Renderer, splats: SplatCloud, lod: np.ndarray,
     key[(kind == 0) & (r >= big)] = np.inf
     by = np.lexsort((key, kind, klass))   # class, then the kind, then the key
     order, klass, kind = order[by], klass[by], kind[by]
-    buffers = {}
-    blocks = block_bounds(arrays["position"][order], (splats.radii * np.float32(scale))[order])
-    for name, values in arrays.items():
-        values = np.asarray(values, dtype="f4")[order]
-        if name == "color":
-            np.clip(values, 0.0, 1.0, out=values)
-        buffers[name] = renderer.ctx.buffer(values)
-        del values
+    buffers, blocks = ordered_buffers(renderer.ctx, arrays, order, radii)
     r, d, a, b = (arrays["lod"][order, k].astype(np.float64) for k in range(4))
     segment_start = np.flatnonzero(np.diff(klass * 3 + kind, prepend=-1))
     ends = np.append(segment_start[1:], len(order))

@@ -231,11 +231,10 @@ class LevelOfDetail:
             self._sequential.lod_tolerance = float(lod_tolerance)
             start = time.perf_counter()
             self.count = self._sequential.prefix_count(camera)
-            points = self._layout.lod[self._layout.node_count:]
-            if self.count >= len(points) and points_drawn(self._layout, camera, lod_tolerance) >= ALL_POINTS_FRACTION:
+            if (self.count >= len(self.hierarchy.points)
+                    and points_drawn(self._layout, camera, lod_tolerance) >= ALL_POINTS_FRACTION):
                 if self._points is None:   # uploaded on first use, in its own (Morton) order
-                    self._points = self.renderer.upload(
-                        self._layout.splats.subset(np.arange(self._layout.node_count, len(self._layout.lod))))
+                    self._points = self.renderer.upload(self.hierarchy.points)
                 self.count = self._points.count
                 self.select_ms = 1000.0 * (time.perf_counter() - start)
                 return self._points, self.count
