@@ -193,3 +193,15 @@ def test_tiles_draw_their_own_blocks(gl_renderer, torus, monkeypatch, technique)
     for name in ("color", "depth", "alpha"):
         a, b = getattr(whole, name), getattr(tiled, name)
         assert np.allclose(np.nan_to_num(a, nan=-7.0), np.nan_to_num(b, nan=-7.0), atol=1e-5), name
+
+
+@pytest.mark.parametrize("margin", [0.0, -1.0, float("nan")])
+def test_a_margin_that_is_not_positive_is_a_clear_error(gl_renderer, torus, margin):
+    from surfsplat.errors import InputError
+
+    gpu = gl_renderer.upload(torus)
+    try:
+        with pytest.raises(InputError, match="margin must be a positive number of pixels"):
+            gpu.visible_blocks(gpu.local_camera(close_view(torus)), margin)
+    finally:
+        gpu.release()

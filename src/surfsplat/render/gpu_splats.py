@@ -129,6 +129,8 @@ class GpuSplats:
         center (Guennebaud 2003, eq. 8), which can reach pixels its disk does not, by about
         ``f (r / z)^2`` pixels; a block is tested against the sides only where that stays within
         the margin."""
+        if not margin_px > 0:
+            raise InputError(f"the view's margin must be a positive number of pixels, got {margin_px!r}")
         if self.blocks is None:
             return None
         radius = self.blocks[:, 6:7]
