@@ -36,11 +36,11 @@ from surfsplat import api  # noqa: E402
 from surfsplat.hierarchy.sequential import drawn_mask, sequential_layout  # noqa: E402
 from surfsplat.lighting import Lights  # noqa: E402
 from surfsplat.metrics import psnr  # noqa: E402
-from surfsplat.render.context import headless_context, renderer_name  # noqa: E402
-from surfsplat.render.options import RenderOptions  # noqa: E402
-from surfsplat.render.renderer import _with_clip_planes, default_renderer, point_radius  # noqa: E402
-from surfsplat.render.sequential import upload_sequential  # noqa: E402
-from surfsplat.render.techniques import get_technique  # noqa: E402
+from surfsplat.rendering.context import headless_context, renderer_name  # noqa: E402
+from surfsplat.rendering.options import RenderOptions  # noqa: E402
+from surfsplat.rendering.renderer import _with_clip_planes, default_renderer, point_radius  # noqa: E402
+from surfsplat.rendering.sequential import upload_sequential  # noqa: E402
+from surfsplat.rendering.techniques import get_technique  # noqa: E402
 
 
 def camera_path(cloud, width: int, height: int, frames: int) -> list:

@@ -27,8 +27,8 @@ from common import machine_description, write_table  # noqa: E402
 
 from surfsplat import api  # noqa: E402
 from surfsplat.metrics import psnr  # noqa: E402
-from surfsplat.render.context import headless_context, renderer_name  # noqa: E402
-from surfsplat.render.lod_auto import AUTO, AUTO_MIN_DENSITY, points_per_pixel  # noqa: E402
+from surfsplat.rendering.context import headless_context, renderer_name  # noqa: E402
+from surfsplat.rendering.lod_auto import AUTO, AUTO_MIN_DENSITY, points_per_pixel  # noqa: E402
 
 
 def timed(function, repeat: int):

@@ -52,8 +52,8 @@ def runner(argv: list[str]) -> None:
     from surfsplat.cloud import SplatCloud
     from surfsplat.geometry.preprocess import preprocess
     from surfsplat.lighting import Lights
-    from surfsplat.render.options import RenderOptions, VisibilityOptions
-    from surfsplat.render.renderer import Renderer
+    from surfsplat.rendering.options import RenderOptions, VisibilityOptions
+    from surfsplat.rendering.renderer import Renderer
 
     parser = base_parser("surfsplat")
     add_point_args(parser)   # accepted for the common CLI; surfsplat sizes its splats itself

@@ -93,8 +93,8 @@ def speed_rows(n: int, size: int, repeat: int, techniques: list[str]) -> list[di
 
     from surfsplat.api import auto_camera
     from surfsplat.lighting import Lights
-    from surfsplat.render.context import renderer_name
-    from surfsplat.render.renderer import Renderer
+    from surfsplat.rendering.context import renderer_name
+    from surfsplat.rendering.renderer import Renderer
 
     cloud = bunny(n)
     renderer = Renderer()
@@ -136,9 +136,9 @@ def speed_rows(n: int, size: int, repeat: int, techniques: list[str]) -> list[di
             renderer._vao, renderer._fullscreen, renderer._read_tile = vao, full, read
         quads = getattr(gpu, "quad_count", None)
         if quads is not None:
-            from surfsplat.render.options import RenderOptions
-            from surfsplat.render.renderer import point_radius
-            from surfsplat.render.techniques import get_technique
+            from surfsplat.rendering.options import RenderOptions
+            from surfsplat.rendering.renderer import point_radius
+            from surfsplat.rendering.techniques import get_technique
 
             big = camera.with_clip_from_bounds(*gpu.bounds, margin=gpu.max_radius)
             share = 1.0 - quads(point_radius(big, gpu, get_technique(technique), RenderOptions())) / gpu.count
@@ -170,7 +170,7 @@ def memory_child(n: int, size: int) -> dict:
 
     from surfsplat.api import auto_camera
     from surfsplat.lighting import Lights
-    from surfsplat.render.renderer import Renderer
+    from surfsplat.rendering.renderer import Renderer
 
     renderer = Renderer()
     cloud = sphere(n)
@@ -236,7 +236,7 @@ def main() -> None:
     if args.child_memory:
         print(json.dumps(memory_child(*args.child_memory)))
         return
-    from surfsplat.render.context import headless_context, renderer_name
+    from surfsplat.rendering.context import headless_context, renderer_name
 
     machine = machine_description(renderer_name(headless_context()))
     if args.memory:

@@ -56,8 +56,8 @@ def main() -> None:
     args = parser.parse_args()
 
     from surfsplat.lighting import Lights
-    from surfsplat.render.options import RenderOptions, VisibilityOptions
-    from surfsplat.render.renderer import Renderer, point_radius
+    from surfsplat.rendering.options import RenderOptions, VisibilityOptions
+    from surfsplat.rendering.renderer import Renderer, point_radius
 
     cloud = bunny(args.splats)
     renderer = Renderer()

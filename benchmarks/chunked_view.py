@@ -32,7 +32,7 @@ from test_chunked import torus_points, write_ply  # noqa: E402
 from surfsplat.api import CameraSpec, load_model  # noqa: E402
 from surfsplat.hierarchy.chunked import build_chunked  # noqa: E402
 from surfsplat.lighting import Lights  # noqa: E402
-from surfsplat.render.options import RenderOptions  # noqa: E402
+from surfsplat.rendering.options import RenderOptions  # noqa: E402
 from surfsplat.viewer import app  # noqa: E402
 from surfsplat.viewer import camera_control as cc  # noqa: E402
 

@@ -57,8 +57,8 @@ from surfsplat.geometry.closed import is_closed_surface, outward_splats  # noqa:
 from surfsplat.geometry.sampling import sample_mesh, surface_splats  # noqa: E402
 from surfsplat.io import load_mesh  # noqa: E402
 from surfsplat.io.mesh import Mesh  # noqa: E402
-from surfsplat.render.mesh import render_mesh  # noqa: E402
-from surfsplat.render.renderer import default_renderer  # noqa: E402
+from surfsplat.rendering.mesh import render_mesh  # noqa: E402
+from surfsplat.rendering.renderer import default_renderer  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 #: One light with highlights (benchmarks/phong_experiments.py's).

@@ -56,7 +56,7 @@ from surfsplat.io.camera_formats import opencv_from_camera  # noqa: E402
 from surfsplat.io.depth_image import load_depth_png  # noqa: E402
 from surfsplat.io.exr import load_depth_exr  # noqa: E402
 from surfsplat.io.gaussians import SH_C0  # noqa: E402
-from surfsplat.render.context import headless_context, renderer_name  # noqa: E402
+from surfsplat.rendering.context import headless_context, renderer_name  # noqa: E402
 
 try:
     import pye57

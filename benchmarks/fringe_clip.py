@@ -24,9 +24,9 @@ from common import machine_description, write_table  # noqa: E402
 from edge_quality import edge_mask, procedural, scores  # noqa: E402
 from surfsplat.geometry.sampling import surface_splats  # noqa: E402
 from surfsplat.io import load_mesh  # noqa: E402
-from surfsplat.render.context import renderer_name  # noqa: E402
-from surfsplat.render.options import RenderOptions, VisibilityOptions  # noqa: E402
-from surfsplat.render.renderer import default_renderer  # noqa: E402
+from surfsplat.rendering.context import renderer_name  # noqa: E402
+from surfsplat.rendering.options import RenderOptions, VisibilityOptions  # noqa: E402
+from surfsplat.rendering.renderer import default_renderer  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 SIZE = 512

@@ -47,8 +47,8 @@ from surfsplat.camera import Camera  # noqa: E402
 from surfsplat.geometry import knn, preprocess  # noqa: E402
 from surfsplat.geometry.splats import GAP_BASE, cover_cells, elliptical_splats  # noqa: E402
 from surfsplat.lighting import Lights  # noqa: E402
-from surfsplat.render.options import RenderOptions, VisibilityOptions  # noqa: E402
-from surfsplat.render.renderer import Renderer  # noqa: E402
+from surfsplat.rendering.options import RenderOptions, VisibilityOptions  # noqa: E402
+from surfsplat.rendering.renderer import Renderer  # noqa: E402
 
 PEERS = Path("/tmp/peers-data")
 PICTURES = Path("/tmp/gap_radii")

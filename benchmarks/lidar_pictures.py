@@ -23,7 +23,7 @@ from PIL import Image
 import surfsplat
 from surfsplat.api import CameraSpec, SourceOptions
 from surfsplat.colors import ColorOptions
-from surfsplat.render.options import EdlOptions, RenderOptions
+from surfsplat.rendering.options import EdlOptions, RenderOptions
 from surfsplat.scenes_faulty import aerial
 
 SIMPLE = Path(__file__).resolve().parents[2] / "shared" / "data" / "simple.las"

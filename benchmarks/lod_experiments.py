@@ -51,10 +51,10 @@ def main(argv=None) -> int:
     from surfsplat import auto_camera, metrics
     from surfsplat.hierarchy import build_hierarchy, select
     from surfsplat.lighting import Lights
-    from surfsplat.render.context import renderer_name
-    from surfsplat.render.mesh import render_mesh
-    from surfsplat.render.options import RenderOptions
-    from surfsplat.render.renderer import default_renderer
+    from surfsplat.rendering.context import renderer_name
+    from surfsplat.rendering.mesh import render_mesh
+    from surfsplat.rendering.options import RenderOptions
+    from surfsplat.rendering.renderer import default_renderer
 
     renderer = default_renderer()
     lights = Lights(directions=((0.5, 0.6, 1.0),), specular=0.3, shininess=32)

@@ -1,6 +1,6 @@
 """Meshes are surfaces: vertices as splats against the sampled surface, and the density rule.
 
-For each mesh the ground truth is ``surfsplat.render.mesh.render_mesh`` of the mesh (what
+For each mesh the ground truth is ``surfsplat.rendering.mesh.render_mesh`` of the mesh (what
 ``surfsplat.render_mesh`` draws) with the automatic camera of its vertices
 (``surfsplat.auto_camera(SplatCloud(mesh.vertices))``, as ``surfsplat.api.render_mesh`` frames
 it); the splat images use the same camera, technique "ewa", default lights. Metrics from
@@ -55,8 +55,8 @@ from surfsplat.io import load, load_input, load_mesh  # noqa: E402
 from surfsplat.io.mesh import Mesh, area_weighted_normals  # noqa: E402
 from surfsplat.io.surface import CREASE_BAND, auto_sharp_angle, dihedral_angles  # noqa: E402
 from surfsplat.lighting import Lights  # noqa: E402
-from surfsplat.render.mesh import render_mesh  # noqa: E402
-from surfsplat.render.renderer import default_renderer  # noqa: E402
+from surfsplat.rendering.mesh import render_mesh  # noqa: E402
+from surfsplat.rendering.renderer import default_renderer  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 SPACINGS = (4.0, 2.0, 1.5, 1.0, 0.75, 0.5)

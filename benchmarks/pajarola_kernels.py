@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw
 
-from surfsplat.render.options import KernelOptions, RenderOptions
+from surfsplat.rendering.options import KernelOptions, RenderOptions
 
 HERE = Path(__file__).resolve().parent
 DATA = HERE.parent.parent / "shared" / "data"

@@ -56,9 +56,9 @@ from test_render import exact_sphere  # noqa: E402
 from surfsplat.cloud import SplatCloud  # noqa: E402
 from surfsplat.geometry.phong import phong_splats  # noqa: E402
 from surfsplat.metrics import erode  # noqa: E402
-from surfsplat.render.context import renderer_name  # noqa: E402
-from surfsplat.render.renderer import Renderer  # noqa: E402
-from surfsplat.render.options import RenderOptions  # noqa: E402
+from surfsplat.rendering.context import renderer_name  # noqa: E402
+from surfsplat.rendering.renderer import Renderer  # noqa: E402
+from surfsplat.rendering.options import RenderOptions  # noqa: E402
 
 ROOT = HERE.parent
 SHARED = ROOT.parent / "shared" / "data"

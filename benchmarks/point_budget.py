@@ -35,7 +35,7 @@ from surfsplat.camera import Camera  # noqa: E402
 from surfsplat.geometry.sampling import surface_splats  # noqa: E402
 from surfsplat.hierarchy import build_hierarchy, select  # noqa: E402
 from surfsplat.io import load_mesh  # noqa: E402
-from surfsplat.render.renderer import default_renderer  # noqa: E402
+from surfsplat.rendering.renderer import default_renderer  # noqa: E402
 
 BUNNY = Path(__file__).resolve().parents[2] / "shared" / "data" / "bunny.ply"
 BUDGETS = (30_000, 100_000, 300_000, 600_000)

@@ -33,8 +33,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import surfsplat  # noqa: E402
 from common import RESULTS, machine_description, markdown_table  # noqa: E402
 from surfsplat.hierarchy import build_hierarchy  # noqa: E402
-from surfsplat.render.context import renderer_name  # noqa: E402
-from surfsplat.render.renderer import default_renderer  # noqa: E402
+from surfsplat.rendering.context import renderer_name  # noqa: E402
+from surfsplat.rendering.renderer import default_renderer  # noqa: E402
 from surfsplat.scenes import torus  # noqa: E402
 
 SIZE = 256

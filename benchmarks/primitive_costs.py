@@ -30,7 +30,7 @@ sys.path.insert(0, str(HERE))
 from common import machine_description, write_table  # noqa: E402
 
 from surfsplat.geometry.neighbors import spatial_order  # noqa: E402
-from surfsplat.render.context import headless_context  # noqa: E402
+from surfsplat.rendering.context import headless_context  # noqa: E402
 
 POINTS_VS = """#version 330 core
 in vec4 in_disk;   // center (px), depth, radius (px)

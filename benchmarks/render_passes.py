@@ -36,9 +36,9 @@ from surfsplat.camera import Camera  # noqa: E402
 from surfsplat.geometry.preprocess import preprocess  # noqa: E402
 from surfsplat.io import load  # noqa: E402
 from surfsplat.lighting import Lights  # noqa: E402
-from surfsplat.render import compute_visibility  # noqa: E402
-from surfsplat.render.options import RenderOptions, VisibilityOptions  # noqa: E402
-from surfsplat.render.renderer import Renderer  # noqa: E402
+from surfsplat.rendering import compute_visibility  # noqa: E402
+from surfsplat.rendering.options import RenderOptions, VisibilityOptions  # noqa: E402
+from surfsplat.rendering.renderer import Renderer  # noqa: E402
 
 #: The peers' cameras and lights (../shared/peers/bench.py SCENES).
 SCENES = {

@@ -42,9 +42,9 @@ from test_zwicker_experiments import (  # noqa: E402
 
 import surfsplat  # noqa: E402
 from surfsplat.camera import Camera  # noqa: E402
-from surfsplat.render.context import renderer_name  # noqa: E402
-from surfsplat.render.renderer import Renderer  # noqa: E402
-from surfsplat.render.options import FilterOptions, RenderOptions  # noqa: E402
+from surfsplat.rendering.context import renderer_name  # noqa: E402
+from surfsplat.rendering.renderer import Renderer  # noqa: E402
+from surfsplat.rendering.options import FilterOptions, RenderOptions  # noqa: E402
 
 ROOT = HERE.parent
 #: Color of the hole pixels in the grazing pictures.

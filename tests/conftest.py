@@ -10,7 +10,7 @@ import pytest
 @pytest.fixture(scope="session")
 def gl_renderer():
     """One Renderer on the headless EGL context for the whole session."""
-    from surfsplat.render.renderer import Renderer
+    from surfsplat.rendering.renderer import Renderer
 
     return Renderer()
 

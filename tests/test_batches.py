@@ -12,10 +12,10 @@ import pytest
 from surfsplat import scenes
 from surfsplat.camera import frame_bounds
 from surfsplat.lighting import Lights
-from surfsplat.render import context
-from surfsplat.render import renderer as renderer_module
-from surfsplat.render.options import RenderOptions
-from surfsplat.render.renderer import Renderer
+from surfsplat.rendering import context
+from surfsplat.rendering import renderer as renderer_module
+from surfsplat.rendering.options import RenderOptions
+from surfsplat.rendering.renderer import Renderer
 
 
 @pytest.fixture

@@ -17,10 +17,10 @@ import pytest
 from surfsplat import scenes
 from surfsplat.camera import Camera
 from surfsplat.lighting import Lights
-from surfsplat.render import renderer as renderer_module
-from surfsplat.render.gpu_splats import BLOCK, merge_ranges
-from surfsplat.render.options import RenderOptions, VisibilityOptions
-from surfsplat.render.renderer import FRUSTUM_MARGIN_PX, Renderer, point_radius
+from surfsplat.rendering import renderer as renderer_module
+from surfsplat.rendering.gpu_splats import BLOCK, merge_ranges
+from surfsplat.rendering.options import RenderOptions, VisibilityOptions
+from surfsplat.rendering.renderer import FRUSTUM_MARGIN_PX, Renderer, point_radius
 
 TECHNIQUES = ("ewa", "blend", "phong", "perspective", "flat", "points")
 

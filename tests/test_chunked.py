@@ -25,7 +25,7 @@ from surfsplat.hierarchy.chunked import cells as cell_tasks
 from surfsplat.hierarchy.chunked import stream as streaming
 from surfsplat.io import save_ply
 from surfsplat.metrics import psnr
-from surfsplat.render.options import RenderOptions, VisibilityOptions
+from surfsplat.rendering.options import RenderOptions, VisibilityOptions
 
 #: Every splat drawn, back faces too, whatever the automatic culling decides for either model.
 BOTH_SIDES = RenderOptions(visibility=VisibilityOptions(cull_backfaces=False))

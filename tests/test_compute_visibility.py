@@ -23,11 +23,11 @@ from surfsplat.geometry.neighbors import spatial_order
 from surfsplat.hierarchy import build_hierarchy
 from surfsplat.hierarchy.sequential import sequential_layout
 from surfsplat.lighting import Lights
-from surfsplat.render import compute_visibility
-from surfsplat.render.gpu_splats import radius_classes
-from surfsplat.render.options import RenderOptions, VisibilityOptions
-from surfsplat.render.renderer import Renderer
-from surfsplat.render.sequential import render_sequential
+from surfsplat.rendering import compute_visibility
+from surfsplat.rendering.gpu_splats import radius_classes
+from surfsplat.rendering.options import RenderOptions, VisibilityOptions
+from surfsplat.rendering.renderer import Renderer
+from surfsplat.rendering.sequential import render_sequential
 
 BLENDED = ("ewa", "blend", "phong", "perspective")
 TECHNIQUES = BLENDED + ("flat",)
@@ -163,7 +163,7 @@ def test_small_blocks_partition_the_ranges_and_bound_every_box(gl_renderer):
     them exactly, and every splat of the small part covers a window box of at most the limit (NumPy: the
     projected corners of its parallelogram, as disk_bounds bounds it); a view from far away makes every
     block small, a close-up leaves the near ones to the raster pass."""
-    from surfsplat.render.gpu_splats import BLOCK
+    from surfsplat.rendering.gpu_splats import BLOCK
 
     cloud = scenes.torus(400, 100)   # 40,000 splats: 10 blocks
     gpu = gl_renderer.upload(cloud)

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from surfsplat import Camera, Lights, RenderOptions, SplatCloud, VisibilityOptions, metrics, reference, scenes
-from surfsplat.render.renderer import Renderer
+from surfsplat.rendering.renderer import Renderer
 
 UNLIT = Lights(enabled=False)
 EDGE_ON = RenderOptions(visibility=VisibilityOptions(edge_coverage=True))

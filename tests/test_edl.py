@@ -10,8 +10,8 @@ from surfsplat.cli import build_parser
 from surfsplat.cli.options import render_options
 from surfsplat.cloud import SplatCloud
 from surfsplat.errors import InputError
-from surfsplat.render.edl import eye_dome_shade, neighbour_offsets, obscurance
-from surfsplat.render.options import EdlOptions, RenderOptions
+from surfsplat.rendering.edl import eye_dome_shade, neighbour_offsets, obscurance
+from surfsplat.rendering.options import EdlOptions, RenderOptions
 
 EDL = RenderOptions(edl=EdlOptions())
 CAMERA = Camera(eye=(0.0, 0.0, 4.0), target=(0, 0, 0), width=80, height=64, fov=30, near=1.0, far=10.0)

@@ -18,7 +18,6 @@ environment variable ``SURFSPLAT_FUZZ_CASES`` (e.g. 10000) and prints a table of
 from __future__ import annotations
 
 import contextlib
-import importlib
 import io
 import itertools
 import os
@@ -39,11 +38,10 @@ from surfsplat.cloud import SplatCloud
 from surfsplat.errors import InputError
 from surfsplat.hierarchy import load_hierarchy
 from surfsplat.io import load
-from surfsplat.render.options import FilterOptions, KernelOptions, RenderOptions, VisibilityOptions
-from surfsplat.render.techniques import TECHNIQUES
+import surfsplat.rendering.renderer as renderer_module
+from surfsplat.rendering.options import FilterOptions, KernelOptions, RenderOptions, VisibilityOptions
+from surfsplat.rendering.techniques import TECHNIQUES
 
-#: The renderer module (``surfsplat.render`` is also the API's function, so no attribute import).
-renderer_module = importlib.import_module("surfsplat.render.renderer")
 
 DEFAULT_CASES = 400
 CASES = int(os.environ.get("SURFSPLAT_FUZZ_CASES", DEFAULT_CASES))

@@ -15,10 +15,10 @@ from surfsplat.errors import InputError
 from surfsplat.hierarchy import build_hierarchy
 from surfsplat.hierarchy.sequential import BIG, drawn_mask, sequential_layout
 from surfsplat.metrics import psnr
-from surfsplat.render.options import RenderOptions, VisibilityOptions
-from surfsplat.render.renderer import _with_clip_planes
-from surfsplat.render.sequential import GpuSequential, upload_sequential
-from surfsplat.render.shaders import compose
+from surfsplat.rendering.options import RenderOptions, VisibilityOptions
+from surfsplat.rendering.renderer import _with_clip_planes
+from surfsplat.rendering.sequential import GpuSequential, upload_sequential
+from surfsplat.rendering.shaders import compose
 from surfsplat.scenes import checkerboard, demo_scene, sphere
 from surfsplat.viewer.detail import LevelOfDetail, recolor
 

@@ -10,7 +10,7 @@ from surfsplat.camera import Camera
 from surfsplat.errors import InputError
 from surfsplat.geometry.preprocess import NONPLANAR, preprocess
 from surfsplat.hierarchy import build_hierarchy
-from surfsplat.render.hybrid import facing_points
+from surfsplat.rendering.hybrid import facing_points
 from surfsplat.scenes_faulty import AERIAL_COLORS, BUILDING, GROUND, HIGH_VEGETATION, aerial, tree
 
 

@@ -18,8 +18,8 @@ from surfsplat.errors import InputError
 from surfsplat.io.mesh import Mesh, area_weighted_normals
 from surfsplat.io.surface import weld
 from surfsplat.lighting import Lights
-from surfsplat.render.frame import Frame
-from surfsplat.render.mesh import render_mesh
+from surfsplat.rendering.frame import Frame
+from surfsplat.rendering.mesh import render_mesh
 
 UNLIT = Lights(enabled=False)
 SPHERE_CAMERA = dict(width=512, height=512, radius=1.0)

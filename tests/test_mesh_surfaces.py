@@ -16,7 +16,7 @@ from surfsplat.io.mesh import area_weighted_normals
 from surfsplat.io.surface import (auto_sharp_angle, crease_normals, dihedral_angles, face_adjacency,
                                   shading_normals, weld, weld_map)
 from surfsplat.lighting import Lights
-from surfsplat.render.mesh import render_mesh
+from surfsplat.rendering.mesh import render_mesh
 
 
 def soup_of(mesh: Mesh) -> Mesh:

@@ -11,8 +11,8 @@ from surfsplat import reference, scenes
 from surfsplat.camera import Camera, frame_bounds
 from surfsplat.cloud import SplatCloud
 from surfsplat.lighting import Lights
-from surfsplat.render.options import FilterOptions, RenderOptions, VisibilityOptions
-from surfsplat.render.techniques import get_technique
+from surfsplat.rendering.options import FilterOptions, RenderOptions, VisibilityOptions
+from surfsplat.rendering.techniques import get_technique
 
 UNLIT = Lights(enabled=False)
 CONIC, RAYCAST = reference.PERSPECTIVE_CONIC, reference.PERSPECTIVE_RAYCAST

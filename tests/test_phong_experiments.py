@@ -6,7 +6,7 @@
    (opaque disks, per-splat lighting), ``ewa`` (blended, per-splat lighting), ``deferred``
    (``ewa`` blending the normals, lit per pixel) and ``phong`` (the linear normal fields,
    lit per pixel), each compared with the mesh rendered by
-   :func:`~surfsplat.render.mesh.render_mesh` (same camera and lights, 4x4 supersampled):
+   :func:`~surfsplat.rendering.mesh.render_mesh` (same camera and lights, 4x4 supersampled):
    PSNR inside the mesh's eroded silhouette (``psnr_inner``: the headline, splat
    silhouettes are not antialiased) and SSIM. Also standard splats (a random subsample of
    the dense samples, :func:`surfsplat.preprocess`) of the same count.
@@ -42,9 +42,9 @@ from surfsplat.io import load_mesh
 from surfsplat.io.mesh import Mesh, area_weighted_normals
 from surfsplat.lighting import Lights
 from surfsplat.metrics import compare, dilate, erode, psnr
-from surfsplat.render.frame import Frame
-from surfsplat.render.mesh import render_mesh
-from surfsplat.render.options import RenderOptions, VisibilityOptions
+from surfsplat.rendering.frame import Frame
+from surfsplat.rendering.mesh import render_mesh
+from surfsplat.rendering.options import RenderOptions, VisibilityOptions
 
 #: One light with a visible highlight, the same for splats, mesh and exact sphere.
 LIGHTS = Lights(directions=((0.5, 0.6, 1.0),), specular=0.5, shininess=40.0)

@@ -10,7 +10,7 @@ from surfsplat.camera import Camera
 from surfsplat.cloud import SplatCloud
 from surfsplat.errors import InputError
 from surfsplat.lighting import Lights
-from surfsplat.render.options import KernelOptions, RenderOptions, VisibilityOptions
+from surfsplat.rendering.options import KernelOptions, RenderOptions, VisibilityOptions
 
 LIGHTS = Lights(directions=((0.4, 0.6, 1.0), (-0.5, 0.2, 0.6)), shininess=16.0, specular=0.4)
 CAMERA = Camera(eye=(0.3, 0.25, 2.4), target=(0, 0, 0), width=96, height=88, fov=35, near=0.5, far=10.0)

@@ -9,9 +9,9 @@ from surfsplat import reference
 from surfsplat.camera import Camera
 from surfsplat.cloud import SplatCloud
 from surfsplat.lighting import Lights
-from surfsplat.render.options import RenderOptions
-from surfsplat.render.points import POINT_SIZE_RANGE
-from surfsplat.render.techniques import TECHNIQUES
+from surfsplat.rendering.options import RenderOptions
+from surfsplat.rendering.points import POINT_SIZE_RANGE
+from surfsplat.rendering.techniques import TECHNIQUES
 
 UNLIT = Lights(enabled=False)
 CAMERA = Camera(eye=(0.1, -0.05, 4.0), target=(0, 0, 0), width=96, height=80, fov=30, near=0.5, far=10.0)

@@ -18,7 +18,7 @@ import pytest
 import surfsplat
 from surfsplat import Camera, SplatCloud
 from surfsplat.api import local_camera
-from surfsplat.render.gpu_splats import gpu_scale
+from surfsplat.rendering.gpu_splats import gpu_scale
 from surfsplat.cli import main
 from surfsplat.geometry.preprocess import preprocess
 from surfsplat.hierarchy import build_hierarchy, load_hierarchy

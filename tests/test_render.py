@@ -11,7 +11,7 @@ from surfsplat.camera import Camera, frame_bounds
 from surfsplat.cloud import SplatCloud
 from surfsplat.errors import InputError
 from surfsplat.lighting import Lights
-from surfsplat.render.options import FilterOptions, RenderOptions, VisibilityOptions
+from surfsplat.rendering.options import FilterOptions, RenderOptions, VisibilityOptions
 
 UNLIT = Lights(enabled=False)
 CULL_BACKFACES = RenderOptions(visibility=VisibilityOptions(cull_backfaces=True))

@@ -18,7 +18,7 @@ from surfsplat.geometry.normals import estimate_normals
 from surfsplat.geometry.robust import (GLOBAL_CAP, LOCAL_CAP, PreprocessReport, bound_sizes, exact_duplicates,
                                        isolated_clusters, stray_points)
 from surfsplat.lighting import Lights
-from surfsplat.render.options import RenderOptions
+from surfsplat.rendering.options import RenderOptions
 
 
 def nn_spacing(points: np.ndarray) -> float:

@@ -17,18 +17,18 @@ from surfsplat import lighting, reference, scenes
 from surfsplat.camera import Camera
 from surfsplat.errors import InputError, RenderError
 from surfsplat.lighting import Lights
-from surfsplat.render import shaders
-from surfsplat.render.options import (KERNELS, FilterOptions, KernelName, KernelOptions, RenderOptions,
+from surfsplat.rendering import shaders
+from surfsplat.rendering.options import (KERNELS, FilterOptions, KernelName, KernelOptions, RenderOptions,
                                       TechniqueName, VisibilityOptions)
-from surfsplat.render.renderer import OPTIONAL_FRAME_UNIFORMS, Renderer
-from surfsplat.render.shaders import (LINE_STRIDE, PROLOGUE, SHARED_DEFINES, compose, declared_uniforms,
+from surfsplat.rendering.renderer import OPTIONAL_FRAME_UNIFORMS, Renderer
+from surfsplat.rendering.shaders import (LINE_STRIDE, PROLOGUE, SHARED_DEFINES, compose, declared_uniforms,
                                       read_glsl, source_location, translate_log)
-from surfsplat.render.technique import Technique, filter_uniforms
-from surfsplat.render.techniques import TECHNIQUES, get_technique
+from surfsplat.rendering.technique import Technique, filter_uniforms
+from surfsplat.rendering.techniques import TECHNIQUES, get_technique
 
 #: Deliberately broken (and some valid) shaders for the error-mapping tests.
 TEST_GLSL = Path(__file__).resolve().parent / "glsl"
-PACKAGE_GLSL = resources.files("surfsplat.render").joinpath("glsl")
+PACKAGE_GLSL = resources.files("surfsplat.rendering").joinpath("glsl")
 SHADER_FILES = sorted(p.name for p in PACKAGE_GLSL.iterdir() if p.name.endswith((".vert", ".frag")))
 CAMERA = Camera(eye=(0.3, 0.25, 2.4), target=(0, 0, 0), width=48, height=40, fov=35, near=0.5, far=10.0)
 
@@ -300,7 +300,7 @@ def test_default_renderer_and_reset_in_a_fresh_process():
     script = """
 from surfsplat import scenes
 from surfsplat.camera import Camera
-from surfsplat.render import context, renderer
+from surfsplat.rendering import context, renderer
 a = renderer.default_renderer()
 assert renderer.default_renderer() is a and a.ctx is context.headless_context()
 cam = Camera(eye=(0, 0, 3), width=32, height=32)

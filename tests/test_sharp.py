@@ -26,7 +26,7 @@ from surfsplat.geometry.sampling import sample_mesh
 from surfsplat.geometry.sharp import mesh_features
 from surfsplat.io import Mesh, load, load_mesh
 from surfsplat.lighting import Lights
-from surfsplat.render.options import RenderOptions, VisibilityOptions
+from surfsplat.rendering.options import RenderOptions, VisibilityOptions
 
 #: A generic orientation for the cube, so that nothing is exact by axis alignment.
 ROTATION = Rotation.from_euler("xyz", [23.0, -41.0, 67.0], degrees=True).as_matrix()

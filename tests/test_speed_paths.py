@@ -15,12 +15,12 @@ from surfsplat.camera import Camera, frame_bounds
 from surfsplat.cloud import SplatCloud
 from surfsplat.lighting import Lights
 from surfsplat.metrics import psnr
-from surfsplat.render.lod_auto import (AUTO, AUTO_LOD_PX, AUTO_MIN_DENSITY, auto_lod_tolerance, auto_merged,
+from surfsplat.rendering.lod_auto import (AUTO, AUTO_LOD_PX, AUTO_MIN_DENSITY, auto_lod_tolerance, auto_merged,
                                       merge_in_pixels, points_per_pixel)
-from surfsplat.render.options import RenderOptions
-from surfsplat.render.gpu_splats import CLASSES_PER_OCTAVE, radius_classes
-from surfsplat.render.renderer import Renderer, point_radius
-from surfsplat.render.techniques import get_technique
+from surfsplat.rendering.options import RenderOptions
+from surfsplat.rendering.gpu_splats import CLASSES_PER_OCTAVE, radius_classes
+from surfsplat.rendering.renderer import Renderer, point_radius
+from surfsplat.rendering.techniques import get_technique
 
 
 @pytest.fixture(scope="module")

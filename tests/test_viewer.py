@@ -241,7 +241,7 @@ def test_scripted_screenshot_matches_render(xvfb_display, tmp_path):
 def test_every_technique_runs_in_the_window(xvfb_display, tmp_path):
     result = run_python(f"""
         import json
-        from surfsplat.render.techniques import TECHNIQUES
+        from surfsplat.rendering.techniques import TECHNIQUES
         from surfsplat.viewer import MotionOptions, view
         stats = {{}}
         for name in sorted(TECHNIQUES):
@@ -268,7 +268,7 @@ def test_window_shows_the_image_and_the_hud(xvfb_display):
         import numpy as np
         from surfsplat.lighting import Lights
         from surfsplat.api import load_model
-        from surfsplat.render.options import RenderOptions
+        from surfsplat.rendering.options import RenderOptions
         from surfsplat.viewer import app
         glfw, window, ctx = app.open_window(320, 240, "test")
         viewer = app.Viewer(glfw, window, ctx, load_model("demo:torus"), None, technique="flat",
@@ -299,7 +299,7 @@ def test_input_drives_the_view(xvfb_display, tmp_path):
         import time
         from surfsplat.lighting import Lights
         from surfsplat.api import load_model
-        from surfsplat.render.options import RenderOptions
+        from surfsplat.rendering.options import RenderOptions
         from surfsplat.viewer import app
         glfw, window, ctx = app.open_window(320, 240, "test")
         v = app.Viewer(glfw, window, ctx, load_model("demo:torus"), None, technique="ewa",
@@ -448,7 +448,7 @@ def test_budget_refines_progressively_with_edl_and_colors(xvfb_display, tmp_path
         import numpy as np
         from surfsplat import api
         from surfsplat.lighting import Lights
-        from surfsplat.render.options import RenderOptions
+        from surfsplat.rendering.options import RenderOptions
         from surfsplat.scenes_faulty import aerial
         from surfsplat.viewer import app, detail
         detail.REFINE_MIN = 500
@@ -587,7 +587,7 @@ def test_window_keeps_drawing_while_cells_stream(xvfb_display, chunked_model):
         import numpy as np
         from surfsplat.api import CameraSpec, load_model
         from surfsplat.lighting import Lights
-        from surfsplat.render.options import RenderOptions
+        from surfsplat.rendering.options import RenderOptions
         from surfsplat.viewer import app
         from surfsplat.hierarchy.chunked import ChunkedHierarchy
         model = load_model(r"{chunked_model}")
@@ -690,7 +690,7 @@ def test_viewer_culls_closed_surfaces_automatically(xvfb_display):
         from surfsplat import scenes
         from surfsplat.lighting import Lights
         from surfsplat.api import load_model
-        from surfsplat.render.options import RenderOptions
+        from surfsplat.rendering.options import RenderOptions
         from surfsplat.viewer import app
         from surfsplat.viewer import camera_control as cc
         glfw, window, ctx = app.open_window(160, 120, "test")

@@ -33,7 +33,7 @@ from surfsplat import reference, scenes
 from surfsplat.camera import Camera
 from surfsplat.cloud import SplatCloud
 from surfsplat.lighting import Lights
-from surfsplat.render.options import FilterOptions, RenderOptions
+from surfsplat.rendering.options import FilterOptions, RenderOptions
 
 UNLIT = Lights(enabled=False)
 

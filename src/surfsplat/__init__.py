@@ -20,9 +20,9 @@ from .geometry.preprocess import PreprocessReport, preprocess
 from .hierarchy import build_hierarchy, load_hierarchy
 from .io import load
 from .lighting import Lights
-from .render.frame import Frame
-from .render.options import FilterOptions, KernelOptions, RenderOptions, VisibilityOptions
-from .render.renderer import default_renderer, reset_default_renderer
+from .rendering.frame import Frame
+from .rendering.options import FilterOptions, KernelOptions, RenderOptions, VisibilityOptions
+from .rendering.renderer import default_renderer, reset_default_renderer
 from .scenes import demo_scene
 from .version import __version__
 from .viewer import MotionOptions, view

@@ -37,13 +37,13 @@ from .io.image_maps import normals_from_depth
 from .io.objects import from_object
 from .io.surface import AUTO
 from .lighting import Lights
-from .render.frame import Frame
-from .render.hybrid import facing_points
-from .render.lod_auto import AUTO, auto_lod_tolerance, auto_merged
-from .render.mesh import render_mesh as rasterize_mesh
-from .render.options import RenderOptions, TechniqueName
-from .render.renderer import default_renderer
-from .render.sequential import LOD_MODES, LodMode, render_sequential
+from .rendering.frame import Frame
+from .rendering.hybrid import facing_points
+from .rendering.lod_auto import AUTO, auto_lod_tolerance, auto_merged
+from .rendering.mesh import render_mesh as rasterize_mesh
+from .rendering.options import RenderOptions, TechniqueName
+from .rendering.renderer import default_renderer
+from .rendering.sequential import LOD_MODES, LodMode, render_sequential
 from .scenes import SCENES, demo_scene
 
 #: What can be rendered: splats as they are, a point-octree cut per view, or a surface (a mesh,
@@ -459,7 +459,7 @@ def hybrid_splats(model: Model, drawn: Model, cloud: SplatCloud, selection: Sele
                   camera: Camera) -> SplatCloud:
     """The splats ``cloud`` drawn for ``model`` with the non-planar ones (the ``nonplanar``
     attribute of preprocessing) made round points facing the eye of ``camera`` (in the splats'
-    frame) and the planar ones left surface splats (:func:`surfsplat.render.hybrid.facing_points`).
+    frame) and the planar ones left surface splats (:func:`surfsplat.rendering.hybrid.facing_points`).
     ``drawn`` is what was cut: ``model`` itself, or the Hierarchy built over it, whose
     ``selection`` gives a node splat the majority flag of its points. Unchanged when the points
     carry no such attribute (splat files, given normals, hierarchy files)."""
@@ -493,7 +493,7 @@ class RenderResult:
         selection: the LOD selection (a hierarchy's cut), or None for a plain cloud.
         seconds: wall-clock time of merging or selection, upload, drawing and read-back.
         merged_from: the cloud's splats when ``lod_tolerance="auto"`` merged them per half pixel
-            (:func:`~surfsplat.render.lod_auto.merge_in_pixels`), else None.
+            (:func:`~surfsplat.rendering.lod_auto.merge_in_pixels`), else None.
         gpu_lod_tolerance: the tolerance (pixels) of a cut made on the GPU (``lod_mode="gpu"``;
             ``splats``: the entries handed to it, each kept or dropped by its vertex shader), else None.
     """
@@ -658,7 +658,7 @@ def render_model(model: Model, camera: Camera, *, technique: TechniqueName = "ew
 def _render_gpu_lod(model: Model, hierarchy, camera: Camera, technique, lights, background, options: RenderOptions,
                     lod_tolerance, lod_shading: LodShading, supersample: int, point_budget, hybrid) -> RenderResult:
     """:func:`render_model` with ``lod_mode="gpu"``: the hierarchy's sequential layout (uploaded once per
-    hierarchy, :mod:`surfsplat.render.sequential`), the cut chosen per entry by the vertex shader."""
+    hierarchy, :mod:`surfsplat.rendering.sequential`), the cut chosen per entry by the vertex shader."""
     if isinstance(hierarchy, ChunkedHierarchy) or point_budget is not None or hybrid:
         raise InputError("lod_mode 'gpu' draws the tolerance cut of a hierarchy in memory; a point budget, hybrid "
                          "points and chunked hierarchies need lod_mode 'cpu'")
@@ -695,14 +695,14 @@ def render(source, camera: Camera | CameraSpec | None = None, *, technique: Tech
             (opaque disks, one pass).
         lights: lighting and material; None is a headlight with the default material.
         background: RGB in [0, 1].
-        options: :class:`~surfsplat.render.options.RenderOptions`: EWA filter, visibility,
+        options: :class:`~surfsplat.rendering.options.RenderOptions`: EWA filter, visibility,
             blend kernel, deferred shading (None: the defaults).
         lod_tolerance: LOD screen tolerance in pixels (see :func:`lod_splats`); a cloud
             given a tolerance > 0 is turned into a hierarchy first (``surfsplat build`` saves one).
             None (default): every splat of a cloud, a hierarchy cut at :data:`DEFAULT_LOD_TOLERANCE`.
             ``"auto"``: a hierarchy cut at one pixel of the drawn grid; a cloud's points merged per
             half pixel for the view where it holds at least 8 points per pixel, without a hierarchy
-            (:mod:`surfsplat.render.lod_auto`; else every splat).
+            (:mod:`surfsplat.rendering.lod_auto`; else every splat).
         lod_shading: normal field of coarse LOD splats: "fit", "cone" or "flat".
         supersample: K in 1..8: draw K x K sub-pixels per pixel and average them (antialiased
             edges and an antialiased ``Frame.alpha``; any size is drawn in tiles). The LOD cut
@@ -720,7 +720,7 @@ def render(source, camera: Camera | CameraSpec | None = None, *, technique: Tech
         lod_mode: where a hierarchy's LOD cut is chosen: "cpu" (:func:`lod_splats`: the cut is
             gathered and uploaded per view) or "gpu" (sequential point trees, Dachsbacher 2003: every
             node and point uploaded once per hierarchy, each kept or dropped by the vertex shader;
-            :mod:`surfsplat.render.sequential`). "gpu" draws the tolerance cut of an in-memory
+            :mod:`surfsplat.rendering.sequential`). "gpu" draws the tolerance cut of an in-memory
             hierarchy only: no point budget, no hybrid points, no chunked hierarchy.
     """
     background = check_background(background)

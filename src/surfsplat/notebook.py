@@ -7,7 +7,7 @@ change renders one frame with the same renderer as :func:`surfsplat.render` (EGL
 needed) and streams its PNG into the image. The widget logic runs without a browser: set
 ``orbit.azimuth.value = 90`` and ``orbit.image.value`` holds the new view.
 
-A single frame needs no widget: :class:`~surfsplat.render.frame.Frame` displays inline by itself
+A single frame needs no widget: :class:`~surfsplat.rendering.frame.Frame` displays inline by itself
 (``_repr_png_``).
 """
 
@@ -25,9 +25,9 @@ from .api import (DEFAULT_BACKGROUND, RenderResult, SourceOptions, load_model, n
 from .camera import Camera, rotate
 from .errors import InputError, SurfsplatError
 from .lighting import Lights
-from .render.options import RenderOptions, TechniqueName
+from .rendering.options import RenderOptions, TechniqueName
 
-#: Techniques the dropdown offers, in the order of :data:`surfsplat.render.options.TechniqueName`.
+#: Techniques the dropdown offers, in the order of :data:`surfsplat.rendering.options.TechniqueName`.
 TECHNIQUE_CHOICES: tuple[str, ...] = get_args(TechniqueName)
 #: Zoom range of the slider (a factor on the eye's distance to the target: 2 halves it).
 ZOOM_RANGE = (0.25, 8.0)

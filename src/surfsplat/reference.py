@@ -1,7 +1,7 @@
 """NumPy reference of every per-splat formula the shaders evaluate.
 
 Vectorized over splats (leading axis N) and pixels. Tests hold the GPU's
-output against these functions; the GLSL in ``render/glsl`` mirrors them
+output against these functions; the GLSL in ``rendering/glsl`` mirrors them
 line by line. Units: camera space in model units (camera looks down -z),
 window coordinates in pixels with y up and pixel centers at half-integers.
 """

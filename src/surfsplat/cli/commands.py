@@ -19,7 +19,7 @@ from ..io.camera_file import save_camera
 from ..io.camera_formats import load_cameras
 from ..io.image_maps import check_map_path, normals_from_depth, save_coverage, save_depth, save_normals
 from ..io.video import check_video_path, write_video
-from ..render.frame import check_image_path
+from ..rendering.frame import check_image_path
 from ..geometry.phong import phong_splats
 from ..geometry.preprocess import neighbour_spacing, preprocess
 from ..geometry.sampling import sample_mesh

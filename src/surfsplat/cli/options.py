@@ -14,7 +14,7 @@ import dataclasses
 import math
 
 from ..api import DEFAULT_BACKGROUND, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec, SourceOptions, is_lidar
-from ..render.lod_auto import AUTO as LOD_AUTO, AUTO_MIN_DENSITY
+from ..rendering.lod_auto import AUTO as LOD_AUTO, AUTO_MIN_DENSITY
 from ..camera import MAX_IMAGE_SIDE, MIN_FOV, Camera
 from ..colors import ColorOptions
 from ..errors import InputError
@@ -23,11 +23,11 @@ from ..io.camera_file import load_camera
 from ..geometry.robust import OUTLIER_ACTIONS
 from ..io.surface import AUTO
 from ..lighting import MAX_LIGHTS, Lights
-from ..render.frame import BIT_DEPTHS
-from ..render.sequential import LOD_MODES
-from ..render.tiles import MAX_SUPERSAMPLE
-from ..render.options import KERNELS, EdlOptions, FilterOptions, KernelOptions, RenderOptions, VisibilityOptions
-from ..render.techniques import TECHNIQUES
+from ..rendering.frame import BIT_DEPTHS
+from ..rendering.sequential import LOD_MODES
+from ..rendering.tiles import MAX_SUPERSAMPLE
+from ..rendering.options import KERNELS, EdlOptions, FilterOptions, KernelOptions, RenderOptions, VisibilityOptions
+from ..rendering.techniques import TECHNIQUES
 
 #: Output image size of ``render`` and ``demo`` (pixels).
 IMAGE_SIZE = 1024

@@ -6,7 +6,7 @@ import argparse
 
 from ..api import DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE
 from ..hierarchy import SHADINGS
-from ..render.sequential import LOD_MODES
+from ..rendering.sequential import LOD_MODES
 from ..viewer import MOTION_MODES, MotionOptions, view
 from ..viewer.detail import DEFAULT_VIEWER_LOD_MODE
 from . import options as opt

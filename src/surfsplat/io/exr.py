@@ -3,7 +3,7 @@ extra (``pip install "surfsplat[exr]"``).
 
 Depth EXR (``--depth OUT.exr``): one float32 channel ``Z``, row 0 at the top: camera-space depth, the
 distance from the eye along the view axis in scene (model) units, exactly :attr:`Frame.depth
-<surfsplat.render.frame.Frame.depth>`; **+inf where empty** (no surface). The header attribute
+<surfsplat.rendering.frame.Frame.depth>`; **+inf where empty** (no surface). The header attribute
 ``surfsplat:depth`` states the convention. Normal EXR (``--normals OUT.exr``): three float32 channels
 ``R``, ``G``, ``B`` = the unit normal's x, y, z (see :mod:`.image_maps`), NaN where empty.
 """

@@ -11,7 +11,7 @@ renderer blends per-pixel normals but does not read them back, so the map is the
 surface the depth image describes, not the splats' shading normals. ``.png``: 8-bit RGB
 ``0.5 + 0.5 n``, (0, 0, 0) where empty; ``.exr`` / ``.npy``: float32 (H, W, 3), NaN where empty.
 
-Coverage (``--coverage``): :attr:`Frame.alpha <surfsplat.render.frame.Frame.alpha>`, the fraction of
+Coverage (``--coverage``): :attr:`Frame.alpha <surfsplat.rendering.frame.Frame.alpha>`, the fraction of
 each pixel the surface covers (antialiased with ``--supersample``): ``.png`` grey, 8 or 16 bits
 (0 = empty, 255 or 65535 = covered), ``.npy`` float32 in [0, 1], ``.exr`` a float32 channel ``A``.
 """

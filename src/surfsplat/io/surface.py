@@ -20,7 +20,7 @@ that: PSNR 44 dB between the two at 512 x 512, 19% of its pixels by more than
 1/255, 2.5% by more than 4/255; ``benchmarks/results/mesh_sampling.md``.)
 :func:`shading_normals` picks a mesh's normals per corner: the stored ones
 where the file has normals, crease-aware ones otherwise. The ground-truth
-rasterizer (``surfsplat.render.mesh``) and surface sampling
+rasterizer (``surfsplat.rendering.mesh``) and surface sampling
 (``surfsplat.geometry.sampling``) both shade with them.
 
 The default sharp angle is chosen per mesh (:func:`auto_sharp_angle`, the

@@ -67,10 +67,10 @@ from ..hierarchy.lod import check_point_budget
 from ..io import Mesh
 from ..io.video import check_video_path
 from ..lighting import Lights
-from ..render.frame import check_image_path
-from ..render.options import RenderOptions, TechniqueName
-from ..render.renderer import Renderer
-from ..render.sequential import LodMode
+from ..rendering.frame import check_image_path
+from ..rendering.options import RenderOptions, TechniqueName
+from ..rendering.renderer import Renderer
+from ..rendering.sequential import LodMode
 from . import camera_control as cc
 from .detail import (DEFAULT_VIEWER_LOD_MODE, LevelOfDetail, next_preview_level, preview_cloud, preview_levels,
                      recolor, refinement_budgets)

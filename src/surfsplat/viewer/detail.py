@@ -13,7 +13,7 @@ from ..cloud import SplatCloud
 from ..hierarchy import LodShading, uniform_cut
 from ..hierarchy.chunked import ChunkedHierarchy
 from ..hierarchy.sequential import drawn_mask, sequential_layout
-from ..render.sequential import LodMode, upload_sequential
+from ..rendering.sequential import LodMode, upload_sequential
 from .streaming import CellStreamer
 
 
@@ -163,7 +163,7 @@ class LevelOfDetail:
     without waiting, calling the object waits for it.
 
     With ``lod_mode="gpu"`` an in-memory hierarchy's views without a point budget or hybrid points
-    draw its sequential layout (:mod:`surfsplat.render.sequential`), uploaded on first use: a
+    draw its sequential layout (:mod:`surfsplat.rendering.sequential`), uploaded on first use: a
     new view costs no selection, gather or upload, the vertex shader keeps the cut.
     """
 

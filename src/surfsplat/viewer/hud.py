@@ -16,7 +16,7 @@ import moderngl
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
-from ..render.shaders import build_program
+from ..rendering.shaders import build_program
 
 #: Panel colors: white text on a translucent dark panel, readable on any background.
 TEXT_RGB = (1.0, 1.0, 1.0)

@@ -13,7 +13,7 @@ from dataclasses import replace
 import numpy as np
 
 from .. import progress
-from ..render.options import EdlOptions
+from ..rendering.options import EdlOptions
 from .screenshots import save_image, unique_screenshot_path
 from .settings import TOLERANCE_RANGE, TOLERANCE_STEP
 

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Literal, get_args
 
 from ..errors import InputError
-from ..render.techniques import TECHNIQUES
+from ..rendering.techniques import TECHNIQUES
 
 #: Seconds the camera must be still before the full-quality frame replaces the preview.
 SETTLE_S = 0.25

@@ -173,7 +173,7 @@ class KernelOptions:
 
 @dataclass(frozen=True)
 class EdlOptions:
-    """Eye-dome lighting (Boucheny 2009), a post pass from the depth alone (:mod:`surfsplat.render.edl`).
+    """Eye-dome lighting (Boucheny 2009), a post pass from the depth alone (:mod:`surfsplat.rendering.edl`).
 
     Attributes:
         strength: s in ``shade = exp(-s * sum_n max(0, log2 z_p - log2 z_n))``, unitless (> 0);
@@ -212,7 +212,7 @@ class RenderOptions:
         edl: eye-dome lighting (:class:`EdlOptions`) of the rendered image; None: off.
         compute: draw the small splats' first pass (the blended techniques' visibility, ``flat``'s
             nearest disk) with compute shaders where the context has OpenGL 4.3
-            (:mod:`~surfsplat.render.compute_visibility`: faster on llvmpipe); False: every splat through
+            (:mod:`~surfsplat.rendering.compute_visibility`: faster on llvmpipe); False: every splat through
             the raster pipeline. The pictures are the same (``flat``: but where two disks tie in depth).
     """
 

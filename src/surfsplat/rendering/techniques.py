@@ -1,6 +1,6 @@
 """The table of rendering techniques, by name: the one place that lists them.
 
-Each technique module defines its :class:`~surfsplat.render.technique.Technique`
+Each technique module defines its :class:`~surfsplat.rendering.technique.Technique`
 constant and nothing registers itself; a new technique is added here (and to
 ``options.TechniqueName``).
 """

@@ -90,9 +90,9 @@ def render_mesh(mesh: Mesh, camera: Camera, lights: Lights = Lights(), *, backgr
             :func:`surfsplat.io.surface.auto_sharp_angle`, 30 degrees for a mesh
             with creases (CAD parts), None for one without (scans); None:
             smooth everywhere (one angle-weighted normal per vertex).
-        renderer: the :class:`~surfsplat.render.renderer.Renderer` whose
+        renderer: the :class:`~surfsplat.rendering.renderer.Renderer` whose
             OpenGL context draws (default:
-            :func:`~surfsplat.render.renderer.default_renderer`).
+            :func:`~surfsplat.rendering.renderer.default_renderer`).
         max_tile: largest tile side in subsample pixels (GPU memory, ~24 bytes a subsample).
 
     Returns:

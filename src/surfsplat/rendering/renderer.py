@@ -192,7 +192,7 @@ class Renderer:
     process-wide headless one unless a context is given, e.g. a window's).
 
     Args:
-        ctx: the OpenGL context; default :func:`~surfsplat.render.context.headless_context`.
+        ctx: the OpenGL context; default :func:`~surfsplat.rendering.context.headless_context`.
         search_path: folders searched for shader files before the package's
             ``glsl/`` (custom or experimental shaders; tests).
         point_px: splats whose window box is at most this many sub-pixels wide are drawn as
@@ -201,7 +201,7 @@ class Renderer:
 
     Attributes:
         has_compute: the context runs the compute passes (OpenGL 4.3): frames use them where
-            ``RenderOptions.compute`` asks (:mod:`~surfsplat.render.compute_visibility`).
+            ``RenderOptions.compute`` asks (:mod:`~surfsplat.rendering.compute_visibility`).
     """
 
     def __init__(self, ctx: moderngl.Context | None = None, *, search_path: Sequence[Path] = (),
@@ -231,8 +231,8 @@ class Renderer:
         """The linked program of two shader files with ``defines`` (built once, then cached).
 
         Files come from ``search_path``, then the package's ``glsl/``; see
-        :func:`~surfsplat.render.shaders.compose` for includes and the shared defines. ``version``:
-        the ``#version`` line (:data:`~surfsplat.render.shaders.COMPUTE_GLSL_VERSION` for the passes
+        :func:`~surfsplat.rendering.shaders.compose` for includes and the shared defines. ``version``:
+        the ``#version`` line (:data:`~surfsplat.rendering.shaders.COMPUTE_GLSL_VERSION` for the passes
         that read the attribute buffers, OpenGL 4.3).
 
         Raises:
@@ -668,7 +668,7 @@ class Renderer:
         """Render into a :class:`Frame` (color, depth, weight, alpha as NumPy arrays).
 
         ``supersample`` K (1..8): the image is drawn at K times the size and box-filtered per
-        pixel (:mod:`surfsplat.render.tiles`); any size is drawn in tiles of at most
+        pixel (:mod:`surfsplat.rendering.tiles`); any size is drawn in tiles of at most
         ``max_tile`` sub-pixels. The EWA prefilter and the kernels act on the sub-pixels.
         """
         k = int(supersample)

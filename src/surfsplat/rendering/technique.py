@@ -4,7 +4,7 @@ A technique is a small module (``ewa.py``, ``flat.py``, ...) that defines a
 :class:`Technique` constant: its shader files, whether it blends (three passes:
 visibility, accumulation, normalization) or draws opaque (one pass), the splat
 attributes it reads and its uniforms from the render options. The table of
-techniques by name is :data:`surfsplat.render.techniques.TECHNIQUES`; this
+techniques by name is :data:`surfsplat.rendering.techniques.TECHNIQUES`; this
 module imports none of them.
 """
 
