@@ -6,29 +6,49 @@ Quick start::
     frame = surfsplat.render("bunny.ply", technique="ewa", width=800, height=800)
     frame.save("bunny.png")
 
+    view = surfsplat.prepare("scan.ply")            # load once ...
+    for camera in cameras:                          # ... render many cameras
+        frame = view.render(camera).frame
+
 The package is layered (``docs/architecture.md``): ``io``, ``geometry``, ``hierarchy`` and
-``render`` below :mod:`surfsplat.api`, the one orchestrator; the command line
-(``surfsplat.cli``) and the viewer (``surfsplat.viewer``) above it.
+``rendering`` below the view plan (:mod:`surfsplat.pipeline`), which :mod:`surfsplat.api`, the
+command line (``surfsplat.cli``), the viewer (``surfsplat.viewer``) and the notebook widget drive.
 """
 
-from .api import CameraSpec, RenderResult, SourceOptions, as_splats, auto_camera, load_model, render, render_mesh
+from .api import load_model, orbit_cameras, prepare, render, render_mesh
 from .camera import Camera
 from .cloud import SplatCloud
-from .errors import InputError, RenderError, SurfsplatError
+from .colors import ColorOptions
+from .errors import EmptyFrameWarning, InputError, RenderError, SurfsplatError
 from .geometry.phong import phong_splats
 from .geometry.preprocess import PreprocessReport, preprocess
-from .hierarchy import build_hierarchy, load_hierarchy
-from .io import load
+from .geometry.robust import OutlierAction
+from .hierarchy import Hierarchy, LodShading, build_hierarchy, load_hierarchy, save_hierarchy
+from .io import Mesh, load, save_ply
 from .lighting import Lights
+from .pipeline import CameraSpec, LodMode, LodOptions, RenderResult, SourceOptions, View, auto_camera
 from .rendering.frame import Frame
-from .rendering.options import FilterOptions, KernelOptions, RenderOptions, VisibilityOptions
+from .rendering.options import (EdlOptions, FilterOptions, KernelOptions, RenderOptions, TechniqueName,
+                                VisibilityOptions)
 from .rendering.renderer import default_renderer, reset_default_renderer
 from .scenes import demo_scene
 from .version import __version__
 from .viewer import MotionOptions, view
 
-__all__ = ["Camera", "CameraSpec", "FilterOptions", "Frame", "InputError", "KernelOptions", "Lights",
-           "MotionOptions", "PreprocessReport", "RenderError", "RenderOptions", "RenderResult", "SourceOptions", "SplatCloud", "SurfsplatError",
-           "VisibilityOptions", "as_splats", "auto_camera", "build_hierarchy", "default_renderer", "demo_scene",
-           "load", "load_hierarchy", "load_model", "phong_splats", "preprocess", "render", "render_mesh",
-           "reset_default_renderer", "view", "__version__"]
+__all__ = [
+    # rendering
+    "render", "prepare", "View", "RenderResult", "render_mesh", "view", "orbit_cameras", "Frame",
+    # options users build
+    "Camera", "CameraSpec", "Lights", "RenderOptions", "FilterOptions", "VisibilityOptions", "KernelOptions",
+    "EdlOptions", "SourceOptions", "LodOptions", "ColorOptions", "MotionOptions",
+    # the literal types of those options
+    "TechniqueName", "LodShading", "LodMode", "OutlierAction",
+    # data
+    "SplatCloud", "Mesh", "Hierarchy", "load", "load_model", "save_ply", "preprocess", "PreprocessReport",
+    "phong_splats", "build_hierarchy", "load_hierarchy", "save_hierarchy", "demo_scene", "auto_camera",
+    # errors and warnings
+    "SurfsplatError", "InputError", "RenderError", "EmptyFrameWarning",
+    # the shared OpenGL renderer
+    "default_renderer", "reset_default_renderer",
+    "__version__",
+]

@@ -1,7 +1,7 @@
 """Jupyter: an interactive orbit view rendered headless (ipywidgets, optional: the ``notebook`` extra).
 
-``Orbit(source)`` loads a model once (a file, ``demo:NAME``, a SplatCloud, a hierarchy, any object
-:func:`surfsplat.api.load_model` takes), frames it like ``surfsplat render`` does, and shows an
+``Orbit(source)`` prepares a view once (:class:`surfsplat.pipeline.View`: a file, ``demo:NAME``, a
+SplatCloud, a hierarchy, any object :func:`surfsplat.render` takes), frames it like ``surfsplat render`` does, and shows an
 ``ipywidgets.Image`` with sliders for azimuth, elevation and zoom and a technique dropdown. Every
 change renders one frame with the same renderer as :func:`surfsplat.render` (EGL, no display
 needed) and streams its PNG into the image. The widget logic runs without a browser: set
@@ -20,8 +20,8 @@ from typing import get_args
 import numpy as np
 from PIL import Image
 
-from .api import (DEFAULT_BACKGROUND, RenderResult, SourceOptions, load_model, natural_up, render_model,
-                  resolve_camera, surface_model)
+from . import defaults
+from .pipeline import LodOptions, RenderResult, SourceOptions, View
 from .camera import Camera, rotate
 from .errors import InputError, SurfsplatError
 from .lighting import Lights
@@ -72,7 +72,8 @@ class Orbit:
             zoom 1 are this view; the elevation slider starts at its elevation.
         technique: the starting technique (the dropdown offers :data:`TECHNIQUE_CHOICES`).
         width, height: image size in pixels (small sizes keep it interactive on a CPU renderer).
-        lights, background, options, lod_tolerance, source_options: as for :func:`surfsplat.render`.
+        lights, background, options, lod, source_options: as for :func:`surfsplat.render` (the widget
+            draws what :func:`surfsplat.render` draws for each camera: a single picture's LOD rule).
         continuous_update: render while a slider is dragged (True) or when it is released (False).
 
     Attributes:
@@ -85,10 +86,11 @@ class Orbit:
         InputError: ipywidgets is missing (the ``notebook`` extra), or a bad source or argument.
     """
 
-    def __init__(self, source, camera=None, *, technique: TechniqueName = "ewa", width: int = 384,
-                 height: int = 288, lights: Lights | None = None, background=DEFAULT_BACKGROUND,
-                 options: RenderOptions | None = None, lod_tolerance: float | str | None = None,
-                 source_options: SourceOptions | None = None, continuous_update: bool = False) -> None:
+    def __init__(self, source, camera=None, *, technique: TechniqueName = "ewa",
+                 width: int = defaults.NOTEBOOK_SIZE[0], height: int = defaults.NOTEBOOK_SIZE[1],
+                 lights: Lights | None = None, background=defaults.BACKGROUND, options: RenderOptions | None = None,
+                 lod: LodOptions | None = None, source_options: SourceOptions | None = None,
+                 continuous_update: bool = False) -> None:
         try:
             import ipywidgets as widgets
         except ImportError as exc:
@@ -96,11 +98,10 @@ class Orbit:
                              "`pip install \".[notebook]\"` in the surfsplat checkout)") from exc
         if technique not in TECHNIQUE_CHOICES:
             raise InputError(f"unknown technique {technique!r}; choose one of {', '.join(TECHNIQUE_CHOICES)}")
-        model = load_model(source, source_options)
-        self.base = resolve_camera(model, camera, width, height, default_up=natural_up(source))
-        self.model = surface_model(model, self.base, source_options)
-        self._render_args = dict(lights=lights, background=background, options=options,
-                                 lod_tolerance=lod_tolerance)
+        self.view = View(source, source_options=source_options, lod=lod)
+        self.base = self.view.camera(camera, width, height)
+        self.view.sample(self.base)   # a mesh's surface sampled once, for the starting view
+        self._render_args = dict(lights=lights, background=background, options=options)
         self.result: RenderResult | None = None
         sliders = dict(continuous_update=continuous_update, style={"description_width": "initial"})
         self.azimuth = widgets.FloatSlider(value=0.0, min=-180.0, max=180.0, step=5.0, description="azimuth",
@@ -127,8 +128,7 @@ class Orbit:
         """Render the current view into ``image`` and ``result``; a SurfsplatError is shown in
         ``status`` (a callback's exception would be lost in the kernel's log) and returns None."""
         try:
-            self.result = render_model(self.model, self.camera(), technique=self.technique.value,
-                                       **self._render_args)
+            self.result = self.view.render(self.camera(), technique=self.technique.value, **self._render_args)
         except SurfsplatError as exc:
             self.status.value = f"error: {exc}"
             return None

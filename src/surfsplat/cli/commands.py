@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import api, progress
+from ..pipeline import DEMO_PREFIX, View, check_source, is_hierarchy_file, load_cloud
 from ..camera import camera_flags
 from ..camera_path import interpolate_cameras
 from ..errors import InputError
@@ -24,7 +25,7 @@ from ..geometry.phong import phong_splats
 from ..geometry.preprocess import neighbour_spacing, preprocess
 from ..geometry.sampling import sample_mesh
 from ..cloud import SplatCloud
-from ..hierarchy import Hierarchy, build_hierarchy, load_hierarchy, save_hierarchy
+from ..hierarchy import build_hierarchy, load_hierarchy, save_hierarchy
 from ..hierarchy.nodes import is_majority_voted
 from ..colors import describe_attributes
 from ..io import load, load_mesh, save_ply
@@ -94,15 +95,23 @@ def depth_range(frame) -> tuple[float, float]:
     return near, max(float(finite.max()) if finite.size else 0.0, 2.0 * near)
 
 
-def draw_and_save(model, camera, args, outputs, source_options) -> None:
-    """Draw a loaded model with a resolved camera as the render flags in ``args`` ask; save the image,
+def prepared(source, args) -> View:
+    """The view plan of ``source`` with the source and LOD flags of ``args``, loaded once."""
+    return View(source, source_options=opt.source_options(args), lod=opt.lod_options(args))
+
+
+def render_args(args) -> dict:
+    """The technique, lighting, background, render options and supersampling the flags ask for
+    (:meth:`surfsplat.pipeline.View.render`'s arguments)."""
+    return dict(technique=args.technique, lights=opt.lights(args), background=args.background,
+                options=opt.render_options(args), supersample=args.supersample)
+
+
+def draw_and_save(plan: View, camera, args, outputs) -> None:
+    """Draw a prepared view with a resolved camera as the render flags in ``args`` ask; save the image,
     and the depth and camera files of ``outputs`` (:func:`check_image_outputs`)."""
     out, depth, camera_file = outputs
-    result = api.render_model(model, camera, technique=args.technique, lights=opt.lights(args),
-                              background=args.background, options=opt.render_options(args),
-                              lod_tolerance=args.lod_tolerance, lod_shading=args.lod_shading,
-                              supersample=args.supersample, source_options=source_options,
-                              point_budget=args.point_budget, hybrid=opt.hybrid_for(args), lod_mode=args.lod_mode)
+    result = plan.render(camera, **render_args(args))
     result.frame.save(out, overwrite=args.force, transparent=args.transparent, bit_depth=args.bit_depth)
     progress.message(f"rendered {result.describe()} with {args.technique} at {camera.width}x{camera.height} "
                      f"in {result.seconds:.2f} s -> {out}")
@@ -113,14 +122,14 @@ def draw_and_save(model, camera, args, outputs, source_options) -> None:
 def render_and_save(source, args, inputs: tuple[Path, ...] = ()) -> None:
     """Load ``source``, render it as the render flags in ``args`` ask, save the image (and depth, camera)."""
     outputs = check_image_outputs(args, inputs)
-    api.check_source(source)
+    check_source(source)
     camera = opt.camera_spec(args)
     width, height = opt.image_size(args, camera)
-    source_options = opt.source_options(args) if hasattr(args, "vertices") else None
-    model = api.load_model(source, source_options)
-    camera = api.resolve_camera(model, camera, width, height, default_up=api.natural_up(source))
+    opt.render_options(args)   # every option checked before the source is read
+    plan = prepared(source, args)
+    camera = plan.camera(camera, width, height)
     progress.message(f"camera: {camera_flags(camera)}")
-    draw_and_save(model, camera, args, outputs, source_options)
+    draw_and_save(plan, camera, args, outputs)
 
 
 #: The flags naming output files, filled per job from a pattern.
@@ -188,39 +197,35 @@ def render_views(args) -> None:
         raise InputError("give either --cameras FILE or --camera/--eye/--target/--up, not both")
     source = args.input[0]
     inputs = (Path(source), Path(args.cameras))
-    api.check_source(source)
+    check_source(source)
     views = load_cameras(args.cameras, width=args.width, height=args.height)
     jobs = [job_for(args, len(views) > 1, ("name",), name=name, stem=Path(source).stem) for name, _ in views]
     outputs = check_jobs(jobs, inputs)
-    source_options = opt.source_options(args)
-    model = api.load_model(source, source_options)
+    plan = prepared(source, args)
     with progress.stage(f"rendering {len(jobs)} views", unit="images", total=len(jobs), show=len(jobs) > 1) as done:
         for job, (_, camera), job_outputs in zip(jobs, views, outputs):
-            draw_and_save(model, camera, job, job_outputs, source_options)
+            draw_and_save(plan, camera, job, job_outputs)
             done.update()
 
 
 def cmd_turntable(args) -> None:
     """``surfsplat turntable``: frames orbiting the model about its up axis, as GIF, MP4 or WebM."""
     out = check_video_path(args.output)
-    check_new_output(out, (Path(args.input),) if not args.input.startswith(api.DEMO_PREFIX) else (), args.force)
-    api.check_source(args.input)
-    options, lights, camera = opt.render_options(args), opt.lights(args), opt.camera_spec(args)
+    check_new_output(out, (Path(args.input),) if not args.input.startswith(DEMO_PREFIX) else (), args.force)
+    check_source(args.input)
+    camera = opt.camera_spec(args)
     width, height = opt.image_size(args, camera)
+    draw = render_args(args)
     seconds = args.seconds or args.frames / 24.0
     cameras = path_cameras(args)
-    model = api.load_model(args.input, opt.source_options(args))
+    plan = prepared(args.input, args)
     if cameras is None:
-        start = api.resolve_camera(model, camera, width, height, default_up=api.natural_up(args.input))
+        start = plan.camera(camera, width, height)
         cameras = api.orbit_cameras(start, args.frames, args.degrees, args.elevation)
         progress.message(f"{args.frames} frames over {args.degrees:g} degrees, {seconds:g} s; first camera: "
                          f"{camera_flags(cameras[0])}")
     width, height = cameras[0].width, cameras[0].height
-    frames = api.turntable_frames(model, cameras, technique=args.technique, lights=lights,
-                                  background=args.background, options=options, lod_tolerance=args.lod_tolerance,
-                                  lod_shading=args.lod_shading, supersample=args.supersample,
-                                  source_options=opt.source_options(args), point_budget=args.point_budget,
-                                  hybrid=opt.hybrid_for(args), lod_mode=args.lod_mode)
+    frames = plan.frames(cameras, **draw)
     write_video(frames, out, fps=args.frames / seconds, overwrite=args.force)
     progress.message(f"wrote {args.frames} frames at {width}x{height} -> {out}")
 
@@ -266,12 +271,12 @@ def render_mesh_and_save(args, inputs: tuple[Path, ...]) -> None:
 
 def cmd_demo(args) -> None:
     """``surfsplat demo``: a built-in procedural scene to an image."""
-    render_and_save(api.DEMO_PREFIX + args.scene, args)
+    render_and_save(DEMO_PREFIX + args.scene, args)
 
 
 def cmd_info(args) -> None:
     """``surfsplat info``: counts, bounds, properties and spacing of a point file or a hierarchy."""
-    if api.is_hierarchy_file(args.input):
+    if is_hierarchy_file(args.input):
         hierarchy_info(args.input)
         return
     cloud = load(args.input)
@@ -326,19 +331,19 @@ def surface_splats_of(args) -> SplatCloud:
     options = opt.source_options(args)
     shape = getattr(args, "shape", "ellipse")
     if shape != "ellipse":
-        cloud = api.load_cloud(args.input)
+        cloud = load_cloud(args.input)
         return preprocess(cloud, k=options.k, shape=shape, sharp_angle=options.raw_sharp_angle,
                           outliers=options.outliers)
-    model = api.load_model(args.input, options)
-    if isinstance(model, Hierarchy):
+    model = View(args.input, source_options=options).model
+    if model.is_tree:
         raise InputError(f"{args.input}: is a hierarchy already (surfsplat build writes them)")
-    return api.surface_model(model, None, options, image_size=opt.IMAGE_SIZE)
+    return model.surface(None, options, image_size=opt.IMAGE_SIZE).data
 
 
 def cmd_build(args) -> None:
     """``surfsplat build``: the point-octree LOD hierarchy of a model, saved as one .npz file."""
     out = Path(args.output)
-    if not api.is_hierarchy_file(out):
+    if not is_hierarchy_file(out):
         raise InputError(f"{out}: a hierarchy is saved as .npz; name the output MODEL.npz")
     check_new_output(out, (Path(args.input),), args.force)
     cloud = surface_splats_of(args)
@@ -357,7 +362,7 @@ def cmd_phong(args) -> None:
     if (args.error is None) == (args.count is None):
         raise InputError("give exactly one of --error EPS (model units) and --count N")
     check_new_output(out, (Path(args.input),), args.force)
-    cloud = api.load_cloud(args.input, "samples")
+    cloud = load_cloud(args.input, "samples")
     start = time.perf_counter()
     splats = phong_splats(cloud, args.error, count=args.count, sharp_angle=args.sharp_angle, relax=args.relax,
                           margin=args.margin, source=args.input)

@@ -13,9 +13,10 @@ import argparse
 import dataclasses
 import math
 
-from ..api import DEFAULT_BACKGROUND, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec, SourceOptions, is_lidar
-from ..rendering.lod_auto import AUTO as LOD_AUTO, AUTO_MIN_DENSITY
-from ..camera import MAX_IMAGE_SIDE, MIN_FOV, Camera
+from .. import defaults
+from ..pipeline import LOD_AUTO, LOD_MODES, CameraSpec, LodOptions, SourceOptions
+from ..rendering.lod_auto import AUTO_MIN_DENSITY
+from ..camera import MIN_FOV, Camera
 from ..colors import ColorOptions
 from ..errors import InputError
 from ..hierarchy import SHADINGS
@@ -24,13 +25,12 @@ from ..geometry.robust import OUTLIER_ACTIONS
 from ..io.surface import AUTO
 from ..lighting import MAX_LIGHTS, Lights
 from ..rendering.frame import BIT_DEPTHS
-from ..rendering.sequential import LOD_MODES
-from ..rendering.tiles import MAX_SUPERSAMPLE
 from ..rendering.options import KERNELS, EdlOptions, FilterOptions, KernelOptions, RenderOptions, VisibilityOptions
 from ..rendering.techniques import TECHNIQUES
 
-#: Output image size of ``render`` and ``demo`` (pixels).
-IMAGE_SIZE = 1024
+#: Output image size of ``render`` and ``demo`` (pixels; :mod:`surfsplat.defaults` says why it differs
+#: from the Python API's).
+IMAGE_SIZE = defaults.CLI_IMAGE_SIZE
 
 
 def default(cls, name: str):
@@ -75,9 +75,9 @@ SHARP_ANGLE = number(float, low=0.0, high=180.0, low_open=True, high_open=True,
 
 def add_supersample_option(p: argparse.ArgumentParser) -> None:
     """``--supersample K``."""
-    p.add_argument("--supersample", type=number(int, low=1, high=MAX_SUPERSAMPLE), default=1, metavar="K",
-                   help="antialiasing: K x K samples per pixel, box-filtered (1..8; default 1); any image size "
-                        "is drawn in tiles")
+    p.add_argument("--supersample", type=number(int, low=1, high=defaults.MAX_SUPERSAMPLE), default=1, metavar="K",
+                   help=f"antialiasing: K x K samples per pixel, box-filtered (1..{defaults.MAX_SUPERSAMPLE}; "
+                        f"default 1); any image size is drawn in tiles")
 
 
 def add_output_options(p: argparse.ArgumentParser) -> None:
@@ -147,7 +147,7 @@ def source_options(args) -> SourceOptions:
     """The SourceOptions of :func:`add_source_options`."""
     angle = {"auto": AUTO, "none": None}.get(args.sharp_angle, args.sharp_angle)
     return SourceOptions(k=args.k, outliers=args.outliers, vertices=args.vertices, samples=args.samples,
-                         sharp_angle=angle, color=color_options(args))
+                         sharp_angle=angle, color=color_options(args), hybrid=getattr(args, "hybrid", None))
 
 
 def add_k_option(p: argparse.ArgumentParser) -> None:
@@ -161,38 +161,36 @@ def add_force_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true", help="overwrite an existing output file")
 
 
-def add_lod_options(p: argparse.ArgumentParser) -> None:
-    """``--lod-tolerance``, ``--lod-shading`` and ``--lod-mode``."""
-    pixels = number(float, low=0.0, what="pixels or auto")
-    p.add_argument("--lod-tolerance", type=lambda text: LOD_AUTO if text == LOD_AUTO else pixels(text), metavar="PX",
-                   help=f"level of detail: draw hierarchy nodes whose projected size is at most PX pixels as "
-                        f"one splat (default {DEFAULT_LOD_TOLERANCE:g} for a hierarchy MODEL.npz, every splat of a "
-                        f"point file; a point file given PX > 0 gets its hierarchy built first); auto: a hierarchy "
-                        f"cut at one pixel of the drawn image, a point file's points merged per half pixel where "
-                        f"the view holds {AUTO_MIN_DENSITY:g} or more per pixel (no hierarchy built)")
-    p.add_argument("--lod-shading", choices=SHADINGS, default=DEFAULT_LOD_SHADING,
+def add_lod_options(p: argparse.ArgumentParser, *, window: bool = False) -> None:
+    """``--lod-tolerance``, ``--lod-shading``, ``--lod-mode`` and ``--point-budget`` (:class:`LodOptions`);
+    ``window``: the viewer's (its tolerance is a positive number of pixels, changed with +/-)."""
+    pixels = number(float, low=0.0, low_open=window, what="pixels" if window else "pixels or auto")
+    tolerance = pixels if window else (lambda text: LOD_AUTO if text == LOD_AUTO else pixels(text))
+    p.add_argument("--lod-tolerance", type=tolerance, metavar="PX",
+                   help=(f"LOD screen tolerance in pixels (default {defaults.LOD_TOLERANCE:g}; +/- in the window): the "
+                         f"model's point-octree is cut where nodes project to at most PX pixels" if window else
+                         f"level of detail: draw hierarchy nodes whose projected size is at most PX pixels as "
+                         f"one splat (default {defaults.LOD_TOLERANCE:g} for a hierarchy MODEL.npz, every splat of a "
+                         f"point file; a point file given PX > 0 gets its hierarchy built first); auto: a hierarchy "
+                         f"cut at one pixel of the drawn image, a point file's points merged per half pixel where "
+                         f"the view holds {AUTO_MIN_DENSITY:g} or more per pixel (no hierarchy built)"))
+    p.add_argument("--lod-shading", choices=SHADINGS, default=defaults.LOD_SHADING,
                    help="normal field of coarse LOD splats: fit (least squares, default), cone (the normal "
                         "cone, Pajarola 2003 fig. 14) or flat")
-    p.add_argument("--lod-mode", choices=LOD_MODES, default="cpu",
-                   help="where a hierarchy's LOD cut is chosen: cpu (selected, gathered and uploaded per view; "
-                        "default) or gpu (sequential point trees: every node and point uploaded once, the vertex "
-                        "shader keeps the cut; tolerance cut only, no --point-budget or hybrid points)")
-    add_point_budget_option(p)
-
-
-def add_point_budget_option(p: argparse.ArgumentParser) -> None:
-    """``--point-budget``."""
+    p.add_argument("--lod-mode", choices=LOD_MODES, default=defaults.LOD_MODE,
+                   help="where a hierarchy's LOD cut is chosen: cpu (selected, gathered and uploaded per view), "
+                        "gpu (sequential point trees: every node and point uploaded once, the vertex shader keeps "
+                        "the cut; tolerance cut only, no --point-budget or hybrid points) or auto (default: gpu in "
+                        "the window where it can, cpu for pictures)")
     p.add_argument("--point-budget", type=number(int, low=1, what="splats"), metavar="N",
                    help="draw at most N splats: the LOD cut refined largest node on screen first (Potree's "
                         "priority; a point file gets its hierarchy built first)")
 
 
-def hybrid_for(args) -> bool:
-    """``--hybrid``/``--no-hybrid``, or by default whether the input is a LAS/LAZ file."""
-    if args.hybrid is not None:
-        return args.hybrid
-    source = getattr(args, "input", None)
-    return is_lidar(source[0] if isinstance(source, list) else source)
+def lod_options(args) -> LodOptions:
+    """The LodOptions of :func:`add_lod_options`."""
+    return LodOptions(tolerance=args.lod_tolerance, shading=args.lod_shading, point_budget=args.point_budget,
+                      mode=args.lod_mode)
 
 
 def add_camera_options(p: argparse.ArgumentParser) -> None:
@@ -201,7 +199,7 @@ def add_camera_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--target", type=number(float), nargs=3, metavar=("X", "Y", "Z"),
                    help="point looked at (default: the model's center)")
     p.add_argument("--up", type=number(float), nargs=3, metavar=("X", "Y", "Z"),
-                   help="camera up vector (default: 0 0 1 for LAS/LAZ files, which are z-up, else 0 1 0)")
+                   help="camera up vector (default: the data's up axis: 0 0 1 for LAS/LAZ and E57 files, else 0 1 0)")
     p.add_argument("--fov", type=number(float, low=MIN_FOV, high=180.0, high_open=True, what="degrees"),
                    default=default(CameraSpec, "fov"), help="vertical field of view in degrees (default %(default)s)")
     p.add_argument("--camera", metavar="FILE.json",
@@ -213,7 +211,7 @@ def add_render_options(p: argparse.ArgumentParser, *, window: bool = False) -> N
     """Technique, image size, camera, lighting, background and the render options (filter,
     visibility, deferred shading, blend kernel). ``window``: the sizes are a window's."""
     p.add_argument("--technique", default="ewa", choices=list(TECHNIQUES), help="rendering technique (default ewa)")
-    side = number(int, low=1, high=MAX_IMAGE_SIDE, what="pixels")
+    side = number(int, low=1, high=defaults.MAX_IMAGE_SIDE, what="pixels")
     what = "window" if window else "image"
     size_help = " (overrides --size)" if window else f" (default {IMAGE_SIZE}, or the --camera file's)"
     p.add_argument("--width", type=side, help=f"{what} width in pixels{size_help}")
@@ -223,7 +221,7 @@ def add_render_options(p: argparse.ArgumentParser, *, window: bool = False) -> N
                    help=f"world direction toward a directional light; repeat for up to {MAX_LIGHTS} "
                         f"(default: headlight)")
     p.add_argument("--no-lighting", action="store_true", help="render unlit colors")
-    p.add_argument("--background", type=UNIT, nargs=3, metavar=("R", "G", "B"), default=DEFAULT_BACKGROUND,
+    p.add_argument("--background", type=UNIT, nargs=3, metavar=("R", "G", "B"), default=defaults.BACKGROUND,
                    help="background color, components in [0, 1] (default white)")
     p.add_argument("--no-prefilter", action="store_true", help="disable the EWA prefilter (H = I)")
     p.add_argument("--cutoff", type=number(float, low=0.0, low_open=True), default=default(FilterOptions, "cutoff"),

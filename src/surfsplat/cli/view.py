@@ -4,11 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from ..api import DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE
-from ..hierarchy import SHADINGS
-from ..rendering.sequential import LOD_MODES
+from .. import defaults
 from ..viewer import MOTION_MODES, MotionOptions, view
-from ..viewer.detail import DEFAULT_VIEWER_LOD_MODE
 from . import options as opt
 
 VIEW_EPILOG = """\
@@ -19,8 +16,7 @@ S screenshot; H help; Esc or Q quit.
 scripted: surfsplat view demo:torus --frames 36 --orbit 10 --screenshot turn.png
 without a display: xvfb-run -s '-screen 0 1280x1024x24' surfsplat view ... --screenshot out.png"""
 
-#: Window size (screen coordinates) when neither --size nor --width/--height is given.
-WINDOW_SIZE = (1280, 720)
+WINDOW_SIZE = defaults.WINDOW_SIZE
 
 
 def add_view_command(subparsers) -> argparse.ArgumentParser:
@@ -33,21 +29,12 @@ def add_view_command(subparsers) -> argparse.ArgumentParser:
                                  "for a built-in scene (e.g. demo:torus)")
     opt.add_source_options(p)
     opt.add_render_options(p, window=True)
-    p.add_argument("--size", type=opt.number(int, low=1, high=opt.MAX_IMAGE_SIDE, what="pixels"), nargs=2,
+    p.add_argument("--size", type=opt.number(int, low=1, high=defaults.MAX_WINDOW_SIDE, what="pixels"), nargs=2,
                    metavar=("W", "H"), default=WINDOW_SIZE,
                    help=f"window size in pixels (default {WINDOW_SIZE[0]} {WINDOW_SIZE[1]}; larger framebuffer on "
                         f"HiDPI screens); --width/--height override one side")
-    p.add_argument("--lod-tolerance", type=opt.number(float, low=0.0, low_open=True, what="pixels"),
-                   default=DEFAULT_LOD_TOLERANCE, metavar="PX",
-                   help="LOD screen tolerance in pixels (default %(default)s; +/- in the window): the model's "
-                        "point-octree is cut where nodes project to at most PX pixels")
-    p.add_argument("--lod-shading", choices=SHADINGS, default=DEFAULT_LOD_SHADING,
-                   help="normal field of coarse LOD splats (default %(default)s)")
-    p.add_argument("--lod-mode", choices=LOD_MODES, default=DEFAULT_VIEWER_LOD_MODE,
-                   help="where an in-memory hierarchy's cut is chosen: gpu (sequential point trees, uploaded once; "
-                        "default) or cpu (selected, gathered and uploaded per view; point budgets and hybrid "
-                        "points are always cut on the CPU)")
-    opt.add_point_budget_option(p)
+    opt.add_lod_options(p, window=True)
+
     p.add_argument("--record", metavar="OUT.mp4|OUT.gif",
                    help="record the frames the window shows (24 frames/s; .gif, or .mp4/.webm with the video extra)")
     motion = MotionOptions()
@@ -78,10 +65,8 @@ def cmd_view(args) -> None:
     width, height = args.size
     view(args.input, opt.camera_spec(args), technique=args.technique,
          size=(args.width or width, args.height or height), lights=opt.lights(args),
-         background=tuple(args.background), options=opt.render_options(args), lod_tolerance=args.lod_tolerance,
-         lod_shading=args.lod_shading,
+         background=tuple(args.background), options=opt.render_options(args), lod=opt.lod_options(args),
          motion=MotionOptions(mode=args.motion, budget=args.motion_budget, scale=args.motion_scale,
                               fps=args.motion_fps),
          hud=not args.no_hud, frames=args.frames, orbit=args.orbit, screenshot=args.screenshot,
-         source_options=opt.source_options(args), point_budget=args.point_budget, hybrid=opt.hybrid_for(args),
-         record=args.record, lod_mode=args.lod_mode)
+         source_options=opt.source_options(args), record=args.record)

@@ -21,6 +21,18 @@ IMAGE_SUFFIXES = frozenset({".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".
 ALPHA_SUFFIXES = frozenset({".png", ".tif", ".tiff", ".webp"})
 
 
+def check_background(background) -> tuple[float, float, float]:
+    """``background`` as 3 floats in [0, 1] (an RGB colour); InputError otherwise. The one rule of
+    every renderer (splats and the mesh ground truth alike)."""
+    try:
+        values = tuple(float(x) for x in np.asarray(background, dtype=float).reshape(-1))
+    except (TypeError, ValueError):
+        values = ()
+    if len(values) != 3 or not all(0.0 <= x <= 1.0 for x in values):
+        raise InputError(f"background must be 3 numbers in [0, 1], got {background!r}")
+    return values
+
+
 def check_image_path(path) -> Path:
     """``path`` as a Path; InputError for an image suffix :meth:`Frame.save` does not write or a
     missing folder."""

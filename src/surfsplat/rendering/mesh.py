@@ -30,19 +30,10 @@ from ..errors import InputError, RenderError
 from ..io.mesh import Mesh
 from ..io.surface import AUTO, resolve_sharp_angle, shading_normals
 from ..lighting import Lights
-from .frame import Frame
+from .frame import Frame, check_background
 from .renderer import OPTIONAL_FRAME_UNIFORMS, Renderer, default_renderer
-from .tiles import MAX_TILE, tile_rects, tile_side
+from .tiles import MAX_TILE, check_supersample, tile_rects, tile_side
 
-#: Largest supersampling factor accepted.
-MAX_SUPERSAMPLE = 16
-
-
-def _check_background(background) -> tuple[float, float, float]:
-    bg = np.asarray(background, dtype=np.float64).reshape(-1)
-    if bg.shape != (3,) or not np.isfinite(bg).all():
-        raise InputError(f"render_mesh: background must be 3 finite numbers, got {background!r}")
-    return tuple(map(float, bg))
 
 
 def _vertex_data(mesh: Mesh, smooth: bool, sharp_angle) -> tuple[np.ndarray, np.ndarray | None, bool]:
@@ -111,10 +102,8 @@ def render_mesh(mesh: Mesh, camera: Camera, lights: Lights = Lights(), *, backgr
     if not isinstance(mesh, Mesh):
         raise InputError(f"render_mesh: expected a Mesh, got {type(mesh).__name__}")
     mesh = mesh.validated("render_mesh: mesh")
-    if isinstance(supersample, bool) or not isinstance(supersample, (int, np.integer)) \
-            or not 1 <= supersample <= MAX_SUPERSAMPLE:
-        raise InputError(f"render_mesh: supersample must be an integer in 1..{MAX_SUPERSAMPLE}, got {supersample!r}")
-    bg = _check_background(background)
+    supersample = check_supersample(supersample)
+    bg = check_background(background)
     if smooth and not mesh.has_normals:
         sharp_angle = resolve_sharp_angle(mesh, sharp_angle, "render_mesh: sharp_angle")
     if renderer is None:

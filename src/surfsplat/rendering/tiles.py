@@ -17,10 +17,20 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
+from ..defaults import MAX_SUPERSAMPLE
+from ..errors import InputError
+
 #: Largest tile side in sub-pixels: bounds GPU memory (64 bytes per sub-pixel of targets, 20 of read-back).
 MAX_TILE = 2048
-#: Largest supersampling factor K accepted.
-MAX_SUPERSAMPLE = 8
+
+
+def check_supersample(supersample) -> int:
+    """``supersample`` as an integer K in 1..:data:`~surfsplat.defaults.MAX_SUPERSAMPLE` (K x K
+    sub-pixels a pixel); InputError otherwise. The one rule of splats and of the mesh ground truth."""
+    if isinstance(supersample, bool) or not isinstance(supersample, (int, np.integer)) \
+            or not 1 <= supersample <= MAX_SUPERSAMPLE:
+        raise InputError(f"supersample must be an integer in 1..{MAX_SUPERSAMPLE}, got {supersample!r}")
+    return int(supersample)
 
 
 def tile_side(ctx: moderngl.Context, supersample: int, limit: int = MAX_TILE, margin: int = 0) -> int:

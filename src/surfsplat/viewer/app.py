@@ -53,27 +53,19 @@ from pathlib import Path
 import moderngl
 import numpy as np
 
-from .. import progress
-from ..api import (DEFAULT_BACKGROUND, DEFAULT_LOD_SHADING, DEFAULT_LOD_TOLERANCE, CameraSpec, SourceOptions,
-                   as_hierarchy, check_background, check_source, is_lidar, load_model, natural_up, oriented_outward,
-                   resolve_camera)
+from .. import defaults, progress
 from ..camera import Camera
-from ..geometry.closed import eye_outside, is_closed_surface
 from ..geometry.preprocess import NONPLANAR
 from ..errors import InputError
-from ..hierarchy import LodShading
-from ..hierarchy.chunked import ChunkedHierarchy
-from ..hierarchy.lod import check_point_budget
-from ..io import Mesh
 from ..io.video import check_video_path
 from ..lighting import Lights
-from ..rendering.frame import check_image_path
+from ..pipeline import CameraSpec, LodOptions, SourceOptions, View, check_image_size, check_render_args, check_source
+from ..rendering.frame import check_background, check_image_path
 from ..rendering.options import RenderOptions, TechniqueName
 from ..rendering.renderer import Renderer
-from ..rendering.sequential import LodMode
 from . import camera_control as cc
-from .detail import (DEFAULT_VIEWER_LOD_MODE, LevelOfDetail, next_preview_level, preview_cloud, preview_levels,
-                     recolor, refinement_budgets)
+from .detail import (LevelOfDetail, next_preview_level, preview_cloud, preview_levels, recolor,
+                     refinement_budgets)
 from .hud import Hud, viewer_program
 from .keys import HELP, ViewerInput
 from .recorder import Recorder
@@ -96,31 +88,30 @@ class Viewer(ViewerInput):
     Built by :func:`view`; usable directly for tests that drive it frame by frame.
     """
 
-    def __init__(self, glfw, window, ctx, model, camera: Camera | CameraSpec | None, *, technique: TechniqueName,
-                 lights: Lights, options: RenderOptions, background, lod_tolerance: float,
-                 lod_shading: LodShading = DEFAULT_LOD_SHADING, motion: MotionOptions = MotionOptions(),
-                 hud: bool = True, source_options: SourceOptions | None = None, point_budget: int | None = None,
-                 hybrid: bool = False, record: Path | None = None, lod_mode: LodMode = DEFAULT_VIEWER_LOD_MODE):
+    def __init__(self, glfw, window, ctx, plan: View, camera: Camera | CameraSpec | None, *,
+                 technique: TechniqueName, lights: Lights, options: RenderOptions, background,
+                 motion: MotionOptions = MotionOptions(), hud: bool = True, record: Path | None = None):
         self.glfw, self.window, self.ctx = glfw, window, ctx
         self.renderer = Renderer(ctx)
         self.techniques = technique_names()
         self.technique = technique
         self.lights, self.options, self.background = lights, options, tuple(background)
-        self.lod_tolerance = float(lod_tolerance)
+        self.plan = plan
+        tolerance = plan.lod.tolerance
+        self.lod_tolerance = defaults.LOD_TOLERANCE if tolerance is None or isinstance(tolerance, str) else float(tolerance)
         self.motion, self.motion_scale = motion.mode, float(motion.scale)
         # progressive refinement of a still view under a point budget: budgets[refine] is drawn
-        self.point_budget, self.hybrid = point_budget, bool(hybrid)
-        self.budgets, self.refine = refinement_budgets(point_budget), 0
+        self.point_budget, self.hybrid = plan.lod.point_budget, plan.hybrid
+        self.budgets, self.refine = refinement_budgets(self.point_budget), 0
 
-        # built on loading when the model is a cloud (a mesh's surface sampled for the window's width)
-        hierarchy = as_hierarchy(model, source_options, image_size=max(glfw.get_framebuffer_size(window)))
+        # a mesh's surface sampled for the window's width; the hierarchy built once when the model is a cloud
+        plan.sample(None, image_size=max(glfw.get_framebuffer_size(window)))
+        tree = plan.tree()
+        hierarchy = tree.data
         cloud = hierarchy.points   # of a chunked hierarchy: its preview splats (framing, motion)
-        self.chunked = isinstance(hierarchy, ChunkedHierarchy)
-        self.lod = LevelOfDetail(self.renderer, hierarchy, lod_shading, model=model, lod_mode=lod_mode)
+        self.chunked = not tree.in_memory
+        self.lod = LevelOfDetail(self.renderer, tree, plan.lod.shading, on_gpu=plan.strategy() == "gpu")
         self.model_splats = hierarchy.point_count if self.chunked else len(cloud)
-        # automatic back-face culling (VisibilityOptions.cull_backfaces None): a closed surface seen from
-        # outside its bounds (as api.cull_automatically decides for render)
-        self.closed_surface = oriented_outward(hierarchy, isinstance(model, Mesh) and is_closed_surface(model))[1]
         self.model_bounds = cloud.bounds()
         self.motion_budget, self.motion_fps = int(motion.budget), float(motion.fps)
         # colour by (C): the attributes the hierarchy's points keep (a chunked hierarchy: those its
@@ -136,15 +127,15 @@ class Viewer(ViewerInput):
         fb_w, fb_h = glfw.get_framebuffer_size(window)
         fb_w, fb_h = max(fb_w, 1), max(fb_h, 1)
         spec = camera if isinstance(camera, CameraSpec) else CameraSpec()
-        up = tuple(float(x) for x in (camera.up if isinstance(camera, Camera) else spec.up or (0.0, 1.0, 0.0)))
+        up = tuple(float(x) for x in (camera.up if isinstance(camera, Camera) else spec.up or plan.up))
         lo, hi = cloud.bounds()
         scene_radius = 0.5 * float(np.linalg.norm(hi - lo)) or 1.0
         home_spec = CameraSpec(up=up, fov=camera.fov if isinstance(camera, Camera) else spec.fov)
 
         def home(width: int, height: int) -> Camera:
-            return home_spec.camera_for(cloud, width, height)
+            return plan.camera(home_spec, width, height)
 
-        start = resolve_camera(model, camera, fb_w, fb_h).resized(fb_w, fb_h)
+        start = plan.camera(camera, fb_w, fb_h).resized(fb_w, fb_h)
         self.controller = cc.CameraController(start, home, scale=scene_radius, up=np.asarray(up))
 
         self.present_program = viewer_program(ctx, "fullscreen.vert", "present.frag")
@@ -305,10 +296,7 @@ class Viewer(ViewerInput):
     def culling(self) -> bool:
         """Whether back faces are culled now: as the options say, or where automatic (None) when the
         model is a closed surface and the eye is outside its bounds."""
-        cull = self.options.visibility.cull_backfaces
-        if cull is None:
-            return self.closed_surface and eye_outside(self.model_bounds, self.controller.camera.eye)
-        return bool(cull)
+        return self.plan.culls(self.controller.camera, self.options)
 
     def drawn_options(self) -> RenderOptions:
         """The render options of the current frame, automatic culling resolved (:attr:`culling`)."""
@@ -527,31 +515,33 @@ class Viewer(ViewerInput):
 
 
 def view(source, camera: Camera | CameraSpec | None = None, *, technique: TechniqueName = "ewa",
-         size: tuple[int, int] = (1280, 720), lights: Lights | None = None, background=DEFAULT_BACKGROUND,
-         options: RenderOptions | None = None, lod_tolerance: float = DEFAULT_LOD_TOLERANCE,
-         lod_shading: LodShading = DEFAULT_LOD_SHADING, motion: MotionOptions | None = None, hud: bool = True,
-         frames: int | None = None, orbit: float = 0.0, screenshot=None, title: str | None = None,
-         source_options: SourceOptions | None = None, point_budget: int | None = None, hybrid: bool | None = None,
-         record=None, lod_mode: LodMode = DEFAULT_VIEWER_LOD_MODE) -> ViewStats:
+         size: tuple[int, int] = defaults.WINDOW_SIZE, lights: Lights | None = None,
+         background=defaults.BACKGROUND, options: RenderOptions | None = None, lod: LodOptions | None = None,
+         motion: MotionOptions | None = None, hud: bool = True, frames: int | None = None, orbit: float = 0.0,
+         screenshot=None, title: str | None = None, source_options: SourceOptions | None = None,
+         record=None) -> ViewStats:
     """Open an interactive window on a splat model (press H in it for the keys).
 
     Args:
-        source: anything :func:`surfsplat.api.load_model` takes: a SplatCloud, a hierarchy, a
+        source: anything :func:`surfsplat.render` takes: a SplatCloud, a hierarchy, a
             point/splat/mesh file (made into splats as ``source_options`` say), a hierarchy file,
             a chunked hierarchy directory (cells read in the background per still view) or
             ``"demo:NAME"`` for a built-in scene (``demo:torus``, ...).
         camera: the first view: a Camera (its size is replaced by the window's) or a
-            :class:`~surfsplat.api.CameraSpec` (eye, target, up, fov); None or a spec without an
+            :class:`~surfsplat.pipeline.CameraSpec` (eye, target, up, fov); None or a spec without an
             eye frames the model automatically (also what R returns to). Orbits turn about
-            the camera's up axis.
+            the camera's up axis (the data's own without one).
         technique: the starting technique (T and 1..9 switch).
         size: window size (width, height) in screen coordinates; the image has the
             framebuffer's size (larger on HiDPI screens).
         lights, background, options: as for :func:`surfsplat.render`.
-        lod_tolerance: LOD screen tolerance in pixels (+/- change it): the model's
-            point-octree (built on loading, or a ``.npz`` from ``surfsplat build``) is cut
-            per view where nodes project to at most that many pixels, see :class:`LevelOfDetail`.
-        lod_shading: normal field of coarse LOD splats ("fit", "cone", "flat").
+        lod: the level of detail (:class:`~surfsplat.pipeline.LodOptions`): the model's point-octree
+            (built on loading, or a ``.npz`` from ``surfsplat build``) is cut per view where nodes
+            project to at most ``tolerance`` pixels (default 1; +/- change it in the window); with a
+            ``point_budget`` at most that many splats per frame (Potree's priority), a still view
+            refined progressively from a sixteenth of the budget up, each step cross-faded in
+            (:data:`~.detail.REFINE_STEPS`); ``mode`` "auto" cuts an in-memory hierarchy on the GPU
+            where it can (:func:`surfsplat.pipeline.lod.lod_strategy`).
         motion: what is drawn while the camera moves (:class:`MotionOptions`).
         hud: show the heads-up display (status; help on H).
         frames, orbit, screenshot: scripted mode: render ``frames`` frames, turning the eye
@@ -559,19 +549,11 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
             without the HUD to ``screenshot`` (if given), close. ``screenshot`` alone means
             one frame.
         title: window title (default: the input's name).
-        source_options: how the source becomes splats (:class:`~surfsplat.api.SourceOptions`:
-            raw points preprocessed, a mesh's surface sampled once on loading for the window's size).
-        point_budget: at most this many splats per frame (Potree's priority, see
-            :func:`surfsplat.hierarchy.select`); a still view is refined progressively, from a
-            sixteenth of the budget up, each step cross-faded in (:data:`~.detail.REFINE_STEPS`).
-        hybrid: non-planar points (vegetation, wires) as round points facing the eye, planar ones
-            as surface splats (:func:`surfsplat.api.hybrid_splats`); None: on for LAS/LAZ files.
+        source_options: how the source becomes splats (:class:`~surfsplat.pipeline.SourceOptions`:
+            raw points preprocessed, a mesh's surface sampled once on loading for the window's size,
+            hybrid drawing of non-planar points: on for LiDAR files by default).
         record: write the frames the window shows to this .gif, .mp4 or .webm
             (:mod:`~surfsplat.viewer.recorder`; scripted mode: one video frame per frame).
-        lod_mode: "gpu": an in-memory hierarchy's full-quality frames draw its sequential layout, the
-            cut kept by the vertex shader (no selection or upload per view; benchmarks/results/gpu_lod.md);
-            "cpu": cut, gathered and uploaded per view. Point budgets, hybrid points and chunked
-            hierarchies are always cut on the CPU.
 
     Returns:
         :class:`ViewStats` (frames, seconds, frame rate, ...).
@@ -586,18 +568,15 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
         raise InputError(f"unknown technique {technique!r}; choose one of {', '.join(names)}")
     motion = motion or MotionOptions()
     options = options or RenderOptions()
-    if not (lod_tolerance > 0 and math.isfinite(lod_tolerance)):
-        raise InputError(f"LOD tolerance must be a positive number of pixels, got {lod_tolerance}")
-    width, height = (int(x) for x in size)
-    if not (1 <= width <= 16384 and 1 <= height <= 16384):
-        raise InputError(f"window size must be within 1..16384 pixels, got {width}x{height}")
-    if point_budget is not None:
-        point_budget = check_point_budget(point_budget)
+    lod = lod or LodOptions()
+    if lod.tolerance is not None and not (isinstance(lod.tolerance, (int, float)) and lod.tolerance > 0):
+        raise InputError(f"the viewer's LOD tolerance must be a positive number of pixels, got {lod.tolerance!r}")
+    width, height = check_image_size(*size, limit=defaults.MAX_WINDOW_SIDE, what="window")
+    check_render_args(technique=technique, background=background, options=options, lights=lights)
     if record is not None:
         record = check_video_path(record)
         if record.exists():
             raise InputError(f"{record}: exists; choose another name for the recording")
-    hybrid = is_lidar(source) if hybrid is None else bool(hybrid)
     if screenshot is not None:
         screenshot = check_image_path(screenshot)
         frames = 1 if frames is None else frames
@@ -611,11 +590,7 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
     if title is None:
         title = source if isinstance(source, str) else (Path(source).name if isinstance(source, Path)
                                                           else type(source).__name__)
-
     check_source(source)
-    if not isinstance(camera, Camera):
-        spec = camera or CameraSpec()
-        camera = spec if spec.up is not None else replace(spec, up=natural_up(source))
     # The window before loading: without a display, fail before a possibly long load.
     glfw, window, ctx = open_window(width, height, f"surfsplat - {title}")
     viewer = None
@@ -623,11 +598,9 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
         ctx.clear(*background)
         glfw.swap_buffers(window)
         glfw.poll_events()
-        model = load_model(source, source_options)
-        viewer = Viewer(glfw, window, ctx, model, camera, technique=technique, lights=lights or Lights(),
-                        options=options, background=background, lod_tolerance=lod_tolerance,
-                        lod_shading=lod_shading, motion=motion, hud=hud, source_options=source_options,
-                        point_budget=point_budget, hybrid=hybrid, record=record, lod_mode=lod_mode)
+        plan = View(source, source_options=source_options, lod=lod, interactive=True)
+        viewer = Viewer(glfw, window, ctx, plan, camera, technique=technique, lights=lights or Lights(),
+                        options=options, background=background, motion=motion, hud=hud, record=record)
         if frames is None:
             stats = viewer.run_interactive()
         else:

@@ -3,17 +3,17 @@
 from __future__ import annotations
 
 import time
-from functools import partial
+from dataclasses import replace
 
 import numpy as np
 
-from ..api import DEFAULT_LOD_SHADING, hybrid_splats, local_camera, lod_splats
+from ..pipeline import Model, hybrid_splats, local_camera
 from ..camera import Camera
 from ..cloud import SplatCloud
 from ..hierarchy import LodShading, uniform_cut
 from ..hierarchy.chunked import ChunkedHierarchy
 from ..hierarchy.sequential import drawn_mask, sequential_layout
-from ..rendering.sequential import LodMode, upload_sequential
+from ..rendering.sequential import upload_sequential
 from .streaming import CellStreamer
 
 
@@ -89,11 +89,6 @@ def next_preview_level(level: int, counts: list[int], render_s: float, fps: floa
     return level
 
 
-#: Where the viewer cuts an in-memory hierarchy's full-quality frames (``view(lod_mode=...)``): on the
-#: GPU, which spares each new view the selection, gather and upload of its cut (1M bunny at 1280x720:
-#: benchmarks/results/gpu_lod.md).
-DEFAULT_VIEWER_LOD_MODE: LodMode = "gpu"
-
 #: Progressive refinement under a point budget: the still view is drawn with the budget divided by
 #: these factors in turn (each frame cross-faded into the next), the largest first.
 REFINE_STEPS = (16, 4, 1)
@@ -162,20 +157,19 @@ class LevelOfDetail:
     (:class:`~surfsplat.viewer.streaming.CellStreamer`): :meth:`ready` asks for a view's cut
     without waiting, calling the object waits for it.
 
-    With ``lod_mode="gpu"`` an in-memory hierarchy's views without a point budget or hybrid points
-    draw its sequential layout (:mod:`surfsplat.rendering.sequential`), uploaded on first use: a
-    new view costs no selection, gather or upload, the vertex shader keeps the cut.
+    With ``on_gpu`` (the view plan's strategy, :func:`surfsplat.pipeline.lod.lod_strategy`) an
+    in-memory hierarchy's views draw its sequential layout (:mod:`surfsplat.rendering.sequential`,
+    a GPU cut: 1M bunny at 1280x720 in benchmarks/results/gpu_lod.md), uploaded on first use: a new
+    view costs no selection, gather or upload, the vertex shader keeps the cut.
     """
 
-    def __init__(self, renderer, hierarchy, lod_shading: LodShading = DEFAULT_LOD_SHADING, model=None,
-                 lod_mode: LodMode = "cpu"):
-        self.renderer, self.hierarchy, self.lod_shading = renderer, hierarchy, lod_shading
-        self.lod_mode = lod_mode
+    def __init__(self, renderer, tree: Model, lod_shading: LodShading = "fit", on_gpu: bool = False):
+        self.renderer, self.tree, self.hierarchy, self.lod_shading = renderer, tree, tree.data, lod_shading
+        self.gpu = bool(on_gpu)
         self._sequential = None   # the GPU layout (lod_mode "gpu"), uploaded on first use
         self._layout = None       # ... and the layout it was uploaded from
         self._points = None       # the hierarchy's points alone, uploaded when a cut keeps most of them
-        self.model = hierarchy if model is None else model
-        self.streamer = CellStreamer() if isinstance(hierarchy, ChunkedHierarchy) else None
+        self.streamer = CellStreamer() if not tree.in_memory else None
         self._key = None
         self._generation = 0   # changes with the hierarchy (set_hierarchy): part of a view's key
         self._splats = None
@@ -187,6 +181,7 @@ class LevelOfDetail:
         """Cut ``hierarchy`` from now on (a recoloured chunked model: ``ChunkedHierarchy.colorized``);
         the uploaded cut is dropped and views already read are not reused."""
         self.hierarchy = hierarchy
+        self.tree = replace(self.tree, data=hierarchy)
         self._generation += 1
         self.release()
 
@@ -194,15 +189,9 @@ class LevelOfDetail:
         """(SplatCloud with the model's origin, selection, milliseconds taken) of a view; ``camera`` in
         world coordinates. A chunked hierarchy's runs in the streamer's thread, the only one touching its cells."""
         start = time.perf_counter()
-        cut = self.hierarchy.view_splats if self.streamer is not None else partial(lod_splats, self.hierarchy)
-        cloud, selection = cut(camera, lod_tolerance, cull_backfaces=cull_backfaces, lod_shading=self.lod_shading,
-                               point_budget=point_budget)
+        cloud, selection = self.tree.cut(camera, lod_tolerance, cull_backfaces=cull_backfaces, shading=self.lod_shading,
+                                         point_budget=point_budget)
         return cloud, selection, 1000.0 * (time.perf_counter() - start)
-
-    def on_gpu(self, point_budget: int | None, hybrid: bool) -> bool:
-        """Whether views are cut by the GPU (``lod_mode="gpu"``, an in-memory hierarchy, no point budget,
-        no hybrid points)."""
-        return self.lod_mode == "gpu" and self.streamer is None and point_budget is None and not hybrid
 
     def ready(self, camera: Camera, lod_tolerance: float, cull_backfaces: bool, point_budget: int | None = None,
               hybrid: bool = False) -> bool:
@@ -222,7 +211,7 @@ class LevelOfDetail:
                  hybrid: bool = False):
         """(GpuSplats or None when nothing is visible, number of splats drawn); a chunked
         hierarchy's cut is waited for (see :meth:`ready`)."""
-        if self.on_gpu(point_budget, hybrid):
+        if self.gpu:
             if self._sequential is None:
                 self.release()
                 layout = sequential_layout(self.hierarchy, self.lod_shading)
@@ -248,7 +237,7 @@ class LevelOfDetail:
             else:
                 cloud, selection, self.select_ms = self._cut(*key[:4])
             if hybrid and len(cloud):
-                cloud = hybrid_splats(self.model, self.hierarchy, cloud, selection, local_camera(cloud, camera))
+                cloud = hybrid_splats(self.tree, cloud, selection, local_camera(cloud, camera))
             self.release()
             self._splats = self.renderer.upload(cloud) if len(cloud) else None
             self.count, self._key = len(cloud), key
