@@ -11,7 +11,7 @@ from PIL import Image
 
 import surfsplat
 from surfsplat import reference
-from surfsplat.api import auto_camera, natural_up
+from surfsplat.pipeline import auto_camera, natural_up
 from surfsplat.camera import Camera, camera_flags, fit_points
 from surfsplat.cli import main
 from surfsplat.errors import EmptyFrameWarning, InputError

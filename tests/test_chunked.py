@@ -6,6 +6,7 @@ chunked build's origin): ``preprocess`` then ``build_hierarchy``.
 
 from __future__ import annotations
 
+import surfsplat
 import json
 import shutil
 import tracemalloc
@@ -14,7 +15,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from surfsplat import api
+from surfsplat import api, pipeline
 from surfsplat.cli import main
 from surfsplat.cloud import SplatCloud
 from surfsplat.errors import InputError
@@ -52,7 +53,7 @@ def write_ply(path, points):
 
 def reference(model, source) -> tuple[SplatCloud, np.ndarray]:
     """The in-memory preprocessing of the file's points relative to the model's origin, and its kept rows."""
-    points = api.load_cloud(source)
+    points = pipeline.load_cloud(source)
     rel = (points.positions.astype(np.float64) + points.origin - model.origin).astype(np.float32)
     cloud, report = preprocess(SplatCloud(positions=rel), k=8, return_report=True)
     return cloud, report.kept
@@ -115,16 +116,16 @@ def test_splats_equal_the_in_memory_build_at_cell_borders(torus):
 def test_rendered_picture_matches_the_in_memory_build(torus):
     _, _, _, model, ref, _ = torus
     memory = build_hierarchy(ref.replace(origin=model.origin))
-    camera = api.resolve_camera(model, None, 128, 128)
+    camera = pipeline.resolve_camera(model, None, 128, 128)
     # all points: the same splats, the same picture (measured: max difference 3.6e-7)
-    a = api.render_model(model, camera, lod_tolerance=0.0, options=BOTH_SIDES)
-    b = api.render_model(memory, camera, lod_tolerance=0.0, options=BOTH_SIDES)
+    a = surfsplat.prepare(model, lod=surfsplat.LodOptions(tolerance=0.0)).render(camera, options=BOTH_SIDES)
+    b = surfsplat.prepare(memory, lod=surfsplat.LodOptions(tolerance=0.0)).render(camera, options=BOTH_SIDES)
     assert a.splats == b.splats == len(ref)
     assert np.abs(a.frame.color - b.frame.color).max() < 1e-4
     # a LOD cut: two different octrees (per cell / whole), the same surface without seams
     # (measured 31.7 dB at 128 px, 44.1 dB at 512 px; the difference is noise over the surface)
-    a = api.render_model(model, camera, lod_tolerance=1.0, options=BOTH_SIDES)
-    b = api.render_model(memory, camera, lod_tolerance=1.0, options=BOTH_SIDES)
+    a = surfsplat.prepare(model, lod=surfsplat.LodOptions(tolerance=1.0)).render(camera, options=BOTH_SIDES)
+    b = surfsplat.prepare(memory, lod=surfsplat.LodOptions(tolerance=1.0)).render(camera, options=BOTH_SIDES)
     assert abs(a.frame.mask.mean() - b.frame.mask.mean()) < 0.002
     assert psnr(a.frame.color, b.frame.color) > 28.0
 
@@ -132,11 +133,11 @@ def test_rendered_picture_matches_the_in_memory_build(torus):
 def test_views_read_only_the_cells_they_need(torus):
     folder = torus[0]
     model = open_chunked(folder / "torus.ssh", cache_cells=2)
-    far = api.resolve_camera(model, api.CameraSpec(eye=tuple(OFFSET + [0, 0, 400.0]), target=tuple(OFFSET),
+    far = pipeline.resolve_camera(model, pipeline.CameraSpec(eye=tuple(OFFSET + [0, 0, 400.0]), target=tuple(OFFSET),
                                                    fov=30), 64, 64)
     cloud, selection = model.view_splats(far, 1.0)
     assert model.loads == 0 and selection.cells_loaded == 0 and len(cloud) >= 1
-    near = api.resolve_camera(model, api.CameraSpec(eye=tuple(OFFSET + [1.0, 0, 0.8]), target=tuple(OFFSET + [1.0, 0, 0]),
+    near = pipeline.resolve_camera(model, pipeline.CameraSpec(eye=tuple(OFFSET + [1.0, 0, 0.8]), target=tuple(OFFSET + [1.0, 0, 0]),
                                                     fov=30), 64, 64)
     cloud, selection = model.view_splats(near, 1.0)
     assert 0 < selection.cells_loaded < len(model.cells)
@@ -152,7 +153,7 @@ def test_views_read_only_the_cells_they_need(torus):
 
 def test_point_budget_caps_the_splats(torus):
     model = torus[3]
-    camera = api.resolve_camera(model, None, 128, 128)
+    camera = pipeline.resolve_camera(model, None, 128, 128)
     full, _ = model.view_splats(camera, 0.5)
     budget = len(full) // 4
     capped, selection = model.view_splats(camera, 0.5, point_budget=budget)
@@ -312,7 +313,7 @@ def test_coarse_views_read_only_the_coarse_levels(tmp_path, monkeypatch):
     lazy = open_chunked(tmp_path / "t.ssh")
     split = [("coarse.npz" in c["files"]) == (c["coarse_levels"] < c["levels"]) for c in lazy.cells]
     assert all(split) and sum("coarse.npz" in c["files"] for c in lazy.cells) >= len(lazy.cells) // 2
-    camera = api.resolve_camera(lazy, None, 96, 96)
+    camera = pipeline.resolve_camera(lazy, None, 96, 96)
     eager = open_chunked(tmp_path / "t.ssh")
     for i in range(len(eager.cells)):
         eager.cell(i)  # every level of every cell
@@ -346,6 +347,6 @@ def test_memory_stays_bounded_as_the_cloud_grows(tmp_path):
         source = write_ply(tmp_path / f"t{n}.ply", torus_points(n, seed=17))
         chunked[n] = peak(lambda: build_chunked(source, tmp_path / f"t{n}.ssh", cell_points=3_000,
                                                 chunk_points=3_000, scheduler="synchronous"))
-        memory[n] = peak(lambda: preprocess(api.load_cloud(source)))
+        memory[n] = peak(lambda: preprocess(pipeline.load_cloud(source)))
     assert chunked[45_000] < 1.2 * chunked[15_000]
     assert memory[45_000] > 1.8 * memory[15_000]

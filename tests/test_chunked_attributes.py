@@ -15,7 +15,7 @@ import pytest
 from PIL import Image
 from test_chunked import OFFSET, torus_points
 
-from surfsplat import api
+from surfsplat import api, pipeline
 from surfsplat.cli import main
 from surfsplat.colors import class_colors
 from surfsplat.errors import InputError
@@ -70,7 +70,7 @@ def test_cells_keep_the_points_attributes_and_node_majorities(lidar):
 def test_views_carry_attributes_and_colour_by_classification(lidar):
     path, _, intensity = lidar
     model = open_chunked(path)
-    camera = api.resolve_camera(model, None, 96, 96)
+    camera = pipeline.resolve_camera(model, None, 96, 96)
     cloud, selection = model.view_splats(camera, 2.0, point_budget=1_500)
     assert len(cloud) <= 1_500 and selection.node_count > 0
     assert set(np.unique(cloud.attributes["classification"])) <= {2, 6}
@@ -111,7 +111,7 @@ def test_version_1_directories_without_attributes_still_open(lidar, tmp_path):
     del manifest["attributes"]
     (old / "manifest.json").write_text(json.dumps(manifest))
     model = open_chunked(old)
-    cloud, _ = model.view_splats(api.resolve_camera(model, None, 64, 64), 2.0)
+    cloud, _ = model.view_splats(pipeline.resolve_camera(model, None, 64, 64), 2.0)
     assert model.attributes == {} and cloud.attributes is None and len(cloud) > 0
     with pytest.raises(InputError, match="classification"):
         model.colorized("classification")

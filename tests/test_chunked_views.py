@@ -7,6 +7,7 @@ The budget's reference is a brute force: every refinement of the top hierarchy a
 
 from __future__ import annotations
 
+import surfsplat
 import tracemalloc
 import weakref
 
@@ -14,7 +15,7 @@ import numpy as np
 import pytest
 from test_chunked import BOTH_SIDES, OFFSET, torus_points, write_ply
 
-from surfsplat import api
+from surfsplat import api, pipeline
 from surfsplat.cli import main
 from surfsplat.geometry.preprocess import preprocess
 from surfsplat.hierarchy import build_hierarchy
@@ -33,7 +34,7 @@ def model(tmp_path_factory):
 
 
 def overview(m, size=96):
-    return api.resolve_camera(m, None, size, size)
+    return pipeline.resolve_camera(m, None, size, size)
 
 
 def local_camera(m, camera):
@@ -83,10 +84,10 @@ def test_the_budget_is_one_priority_order_over_all_cells(model):
 def test_budget_cuts_are_nested_and_approach_the_full_picture(model):
     m = open_chunked(model)
     camera = overview(m, 128)
-    full = api.render_model(m, camera, lod_tolerance=0.5, options=BOTH_SIDES)
+    full = surfsplat.prepare(m, lod=surfsplat.LodOptions(tolerance=0.5)).render(camera, options=BOTH_SIDES)
     previous, scores = None, []
     for budget in (full.splats // 32, full.splats // 8, full.splats // 2, 2 * full.splats):
-        result = api.render_model(m, camera, lod_tolerance=0.5, point_budget=budget, options=BOTH_SIDES)
+        result = surfsplat.prepare(m, lod=surfsplat.LodOptions(tolerance=0.5, point_budget=budget)).render(camera, options=BOTH_SIDES)
         s = result.selection
         assert budget - 7 <= result.splats <= budget or (budget > full.splats and result.splats == full.splats)
         if previous is not None:   # nested: the larger budget only refines further
@@ -117,12 +118,12 @@ def test_many_cells_agree_with_the_in_memory_hierarchy_under_a_budget(model):
     (measured 19.5 dB chunked against 20.5 dB in memory, 22.0 against 23.6 dB with the renderer of a
     day later; with a quarter of the splats equal to 0.1 dB) and close to each other (22.7-25.7 dB)."""
     m = open_chunked(model)
-    memory = build_hierarchy(preprocess(api.load_cloud(model.parent / "torus.ply"), k=8))
+    memory = build_hierarchy(preprocess(pipeline.load_cloud(model.parent / "torus.ply"), k=8))
     camera = overview(m, 128)
-    full = api.render_model(m, camera, lod_tolerance=0.5, options=BOTH_SIDES)
+    full = surfsplat.prepare(m, lod=surfsplat.LodOptions(tolerance=0.5)).render(camera, options=BOTH_SIDES)
     budget = full.splats // 10
-    a = api.render_model(m, camera, lod_tolerance=0.5, point_budget=budget, options=BOTH_SIDES)
-    b = api.render_model(memory, camera, lod_tolerance=0.5, point_budget=budget, options=BOTH_SIDES)
+    a = surfsplat.prepare(m, lod=surfsplat.LodOptions(tolerance=0.5, point_budget=budget)).render(camera, options=BOTH_SIDES)
+    b = surfsplat.prepare(memory, lod=surfsplat.LodOptions(tolerance=0.5, point_budget=budget)).render(camera, options=BOTH_SIDES)
     assert budget - 7 <= a.splats <= budget and budget - 7 <= b.splats <= budget
     assert abs(a.frame.mask.mean() - b.frame.mask.mean()) < 0.01
     assert abs(psnr(a.frame.color, full.frame.color) - psnr(b.frame.color, full.frame.color)) < 2.5

@@ -115,14 +115,12 @@ def test_closed_point_cloud_is_culled_automatically_only_from_outside():
     kept, as two-sided drawing shows it) and drawn two-sided from inside; an open one never."""
     inward = flipped_normals(sphere_cloud())
     outside = CameraSpec(eye=(0.0, 0.5, 3.0), target=(0.0, 0.0, 0.0))
-    drawn, cull = surfsplat.api.cull_automatically(inward, surfsplat.api.resolve_camera(inward, outside, 96, 96),
-                                                   closed=False)
-    assert cull and closed_orientation(drawn) == 1
-    inside = surfsplat.api.resolve_camera(inward, CameraSpec(eye=(0.0, 0.0, 0.1), target=(0.0, 0.0, -1.0)), 96, 96)
-    assert not surfsplat.api.cull_automatically(inward, inside, closed=False)[1]
-    opened = sphere_cloud(hole_above=0.6)
-    assert not surfsplat.api.cull_automatically(opened, surfsplat.api.resolve_camera(opened, outside, 96, 96),
-                                                closed=False)[1]
+    view = surfsplat.prepare(inward)
+    assert view.culls(view.camera(outside, 96, 96)) and closed_orientation(view.sample().points()) == 1
+    inside = view.camera(CameraSpec(eye=(0.0, 0.0, 0.1), target=(0.0, 0.0, -1.0)), 96, 96)
+    assert not view.culls(inside)
+    opened = surfsplat.prepare(sphere_cloud(hole_above=0.6))
+    assert not opened.culls(opened.camera(outside, 96, 96))
     kw = dict(width=96, height=96)
     auto = surfsplat.render(inward, outside, **kw)
     two_sided = surfsplat.render(inward, outside, options=RenderOptions(

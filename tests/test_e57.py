@@ -11,7 +11,7 @@ import pytest
 from PIL import Image
 from scipy.spatial.transform import Rotation
 
-from surfsplat.api import natural_up
+from surfsplat.pipeline import natural_up
 from surfsplat.cli import main
 from surfsplat.errors import InputError
 from surfsplat.io import load

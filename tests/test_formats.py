@@ -8,7 +8,7 @@ from plyfile import PlyData, PlyElement
 
 import surfsplat
 from surfsplat import InputError
-from surfsplat.api import CameraSpec
+from surfsplat.pipeline import CameraSpec
 from surfsplat.io import CLOUD_EXTENSIONS, load, load_input
 from surfsplat.io.gaussians import SH_C0, SIGMA_SCALE, DroppedGaussiansWarning, quaternion_matrices
 from surfsplat.lighting import Lights

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import surfsplat
 import moderngl
 import numpy as np
 import pytest
 
-from surfsplat import api
+from surfsplat import api, pipeline
+from surfsplat.pipeline import as_model
 from surfsplat.camera import Camera
 from surfsplat.cli import main
 from surfsplat.errors import InputError
@@ -29,7 +31,7 @@ SIZE = 160
 def view(cloud, factor: float, size: int = SIZE, turn: float = 0.0) -> Camera:
     """The automatic camera of ``cloud`` with the eye ``factor`` times as far from the target, turned
     ``turn`` degrees about the up axis."""
-    cam = api.auto_camera(cloud, size, size)
+    cam = pipeline.auto_camera(cloud, size, size)
     if turn:
         cam = api.orbit_cameras(cam, 360, 360.0)[int(turn)]
     target = np.asarray(cam.target)
@@ -189,7 +191,7 @@ def test_no_holes_at_any_distance(renderer, scene):
                 gpu.lod_tolerance = tolerance
                 cut = renderer.render(gpu, camera, "ewa").mask.sum()
                 if tolerance > 1:
-                    full = renderer.render(api.lod_splats(h, camera, tolerance)[0], camera, "ewa").mask.sum()
+                    full = renderer.render(pipeline.lod_splats(h, camera, tolerance)[0], camera, "ewa").mask.sum()
                 assert abs(int(cut) - int(full)) <= 0.01 * full, (factor, tolerance, cut, full)
     finally:
         gpu.release()
@@ -204,8 +206,8 @@ def test_gpu_cut_matches_the_cpu_cut(technique, torus):
     camera = view(h.points, 0.9)
     both = RenderOptions(visibility=VisibilityOptions(cull_backfaces=False))
     for options in [both] + ([None] if technique == "ewa" else []):
-        gpu = api.render(h, camera, technique=technique, lod_tolerance=1.0, lod_mode="gpu", options=options)
-        cpu = api.render(h, camera, technique=technique, lod_tolerance=1.0, options=options)
+        gpu = api.render(h, camera, technique=technique, options=options, lod=surfsplat.LodOptions(tolerance=1.0, mode="gpu"))
+        cpu = api.render(h, camera, technique=technique, options=options, lod=surfsplat.LodOptions(tolerance=1.0))
         assert gpu.mask.sum() > 0.1 * SIZE * SIZE
         assert psnr(gpu.color, cpu.color) >= 35.0
 
@@ -214,8 +216,8 @@ def test_gpu_cut_matches_the_cpu_cut_far_and_supersampled(torus):
     h = torus[0]
     for factor, supersample, tolerance in ((3.0, 1, 2.0), (1.2, 2, 1.0)):
         camera = view(h.points, factor)
-        gpu = api.render_model(h, camera, lod_tolerance=tolerance, supersample=supersample, lod_mode="gpu")
-        cpu = api.render_model(h, camera, lod_tolerance=tolerance, supersample=supersample)
+        gpu = surfsplat.prepare(h, lod=surfsplat.LodOptions(tolerance=tolerance, mode="gpu")).render(camera, supersample=supersample)
+        cpu = surfsplat.prepare(h, lod=surfsplat.LodOptions(tolerance=tolerance)).render(camera, supersample=supersample)
         assert psnr(gpu.frame.color, cpu.frame.color) >= 35.0
         assert gpu.splats >= cpu.splats > 0   # the prefix holds at least the cut
 
@@ -249,11 +251,11 @@ def test_bad_requests_are_clear_errors(torus):
     h = torus[0]
     camera = view(h.points, 1.0)
     with pytest.raises(InputError, match="point budget"):
-        api.render(h, camera, lod_mode="gpu", point_budget=1000)
-    with pytest.raises(InputError, match="lod_mode"):
-        api.render(h, camera, lod_mode="fpga")
+        api.render(h, camera, lod=surfsplat.LodOptions(mode="gpu", point_budget=1000))
+    with pytest.raises(InputError, match="LOD mode"):
+        api.render(h, camera, lod=surfsplat.LodOptions(mode="fpga"))
     with pytest.raises(InputError, match="tolerance > 0"):
-        api.render(h, camera, lod_mode="gpu", lod_tolerance=0.0)
+        api.render(h, camera, lod=surfsplat.LodOptions(mode="gpu", tolerance=0.0))
 
 
 def test_cli_lod_mode(tmp_path):
@@ -268,14 +270,15 @@ def test_the_viewer_cuts_in_memory_hierarchies_on_the_gpu(renderer):
     """LevelOfDetail with lod_mode "gpu": one upload for every view, the CPU cut under a point budget,
     and a new upload with the new colours after recolouring."""
     h = build_hierarchy(sphere(20_000))
-    lod = LevelOfDetail(renderer, h, lod_mode="gpu")
+    lod = LevelOfDetail(renderer, as_model(h), on_gpu=True)
+    on_cpu = LevelOfDetail(renderer, as_model(h), on_gpu=False)   # the viewer's plan under a point budget
     try:
         near, far = view(h.points, 3.0), view(h.points, 6.0)   # cuts keeping under half the points
         splats, count = lod(near, 1.0, False)
         assert isinstance(splats, GpuSequential) and count == splats.prefix_count(near)
         again, fewer = lod(far, 1.0, False)
         assert again is splats and fewer == splats.prefix_count(far) != count   # no upload, other ranges
-        budget, n = lod(near, 1.0, False, point_budget=2000)
+        budget, n = on_cpu(near, 1.0, False, point_budget=2000)
         assert not isinstance(budget, GpuSequential) and n <= 2000
         gray = renderer.render(lod(near, 1.0, False)[0], near, "flat").color
         recolor(h, np.tile(np.float32([[1.0, 0.0, 0.0]]), (len(h.points), 1)))
@@ -286,6 +289,7 @@ def test_the_viewer_cuts_in_memory_hierarchies_on_the_gpu(renderer):
         assert np.median(red.color[inside][:, 1]) < 0.05 < 0.3 < np.median(red.color[inside][:, 0])   # specular aside
     finally:
         lod.close()
+        on_cpu.close()
 
 
 def test_the_viewer_draws_the_points_alone_where_the_gpu_cut_keeps_them(renderer):
@@ -296,7 +300,7 @@ def test_the_viewer_draws_the_points_alone_where_the_gpu_cut_keeps_them(renderer
 
     h = build_hierarchy(sphere(20_000))
     layout = sequential_layout(h)
-    lod = LevelOfDetail(renderer, h, lod_mode="gpu")
+    lod = LevelOfDetail(renderer, as_model(h), on_gpu=True)
     plain = renderer.upload(h.points)
     try:
         close, mid = view(h.points, 1.0), view(h.points, 3.0)

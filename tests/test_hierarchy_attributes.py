@@ -9,7 +9,9 @@ import pytest
 from PIL import Image
 
 from surfsplat import SplatCloud
-from surfsplat.api import ColorOptions, SourceOptions, load_model
+from surfsplat.api import load_model
+from surfsplat.colors import ColorOptions
+from surfsplat.pipeline import SourceOptions
 from surfsplat.cli import main
 from surfsplat.colors import ASPRS_CLASSES, asprs_palette
 from surfsplat.errors import InputError

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import surfsplat
 import numpy as np
 import pytest
 
-from surfsplat import api
+from surfsplat import api, pipeline
 from surfsplat.camera import Camera
 from surfsplat.errors import InputError
 from surfsplat.geometry.preprocess import NONPLANAR, preprocess
@@ -17,7 +18,7 @@ from surfsplat.scenes_faulty import AERIAL_COLORS, BUILDING, GROUND, HIGH_VEGETA
 @pytest.fixture(scope="module")
 def block():
     scene = aerial(n=12_000, houses=3, trees=4, seed=3)
-    return scene, api.as_splats(scene.cloud)
+    return scene, pipeline.as_splats(scene.cloud)
 
 
 def _top_camera(cloud, size=200) -> Camera:
@@ -78,7 +79,7 @@ def test_facing_points_face_the_eye_and_keep_the_rest(block):
 def test_hybrid_frame_no_holes_in_the_ground_trees_on_top(block, gl_renderer):
     scene, cloud = block
     camera = _top_camera(cloud)
-    frame = api.render_model(cloud, camera, hybrid=True, lights=None).frame
+    frame = surfsplat.prepare(cloud, source_options=surfsplat.SourceOptions(hybrid=True)).render(camera, lights=None).frame
     image = frame.image().astype(np.float64) / 255
     # project every point; the ground away from houses and trees must be covered without holes
     view = camera.view_matrix
@@ -106,8 +107,9 @@ def test_hybrid_on_a_hierarchy_votes_per_node(block, gl_renderer):
     scene, cloud = block
     h = build_hierarchy(cloud)
     camera = _top_camera(cloud)
-    drawn, selection = api.view_splats(h, camera, 4.0)
-    out = api.hybrid_splats(cloud, h, drawn, selection, camera)
+    tree = pipeline.as_model(h)
+    drawn, selection = tree.cut(camera, 4.0)
+    out = pipeline.hybrid_splats(tree, drawn, selection, camera)
     changed = np.any(out.u != drawn.u, axis=1)
     nodes = selection.node_indices()
     flags = cloud.attributes[NONPLANAR].astype(bool)[h.order]
@@ -119,8 +121,8 @@ def test_hybrid_on_a_hierarchy_votes_per_node(block, gl_renderer):
 
 def test_hybrid_is_the_default_for_las_only(tmp_path):
     laspy = pytest.importorskip("laspy")
-    assert api.is_lidar("scan.LAZ") and api.is_lidar(tmp_path / "a.las") and not api.is_lidar("a.ply")
-    assert not api.is_lidar(np.zeros((3, 3)))
+    assert pipeline.is_lidar("scan.LAZ") and pipeline.is_lidar(tmp_path / "a.las") and not pipeline.is_lidar("a.ply")
+    assert not pipeline.is_lidar(np.zeros((3, 3)))
     scene = aerial(n=3000, houses=1, trees=2, seed=5)
     header = laspy.LasHeader(point_format=1, version="1.2")
     header.scales = [0.001] * 3
@@ -130,10 +132,10 @@ def test_hybrid_is_the_default_for_las_only(tmp_path):
     las.classification = scene.cloud.attributes["classification"]
     path = tmp_path / "block.las"
     las.write(str(path))
-    camera = api.CameraSpec(fov=30.0)
+    camera = pipeline.CameraSpec(fov=30.0)
     auto = api.render(str(path), camera, width=96, height=96)
-    on = api.render(str(path), camera, width=96, height=96, hybrid=True)
-    off = api.render(str(path), camera, width=96, height=96, hybrid=False)
+    on = api.render(str(path), camera, width=96, height=96, source_options=surfsplat.SourceOptions(hybrid=True))
+    off = api.render(str(path), camera, width=96, height=96, source_options=surfsplat.SourceOptions(hybrid=False))
     np.testing.assert_array_equal(auto.color, on.color)
     assert np.abs(on.color - off.color).max() > 0.05
     # the command line: hybrid by default for LAS, --no-hybrid turns it off

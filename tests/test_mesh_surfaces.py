@@ -8,7 +8,7 @@ import pytest
 import trimesh
 
 from surfsplat import InputError, SplatCloud, metrics
-from surfsplat.api import as_splats, auto_camera
+from surfsplat.pipeline import as_splats, auto_camera
 from surfsplat.geometry.sampling import (MAX_SAMPLES, samples_for_pixels, samples_for_spacing, surface_splats,
                                          view_spacing)
 from surfsplat.io import Mesh, load, load_input, load_mesh

@@ -3,6 +3,7 @@ coverage maps; from the API and the command line."""
 
 from __future__ import annotations
 
+import surfsplat
 import importlib.util
 
 import numpy as np
@@ -131,7 +132,7 @@ def sphere_file(tmp_path_factory):
 
 def test_rendered_sphere_maps_match_the_frame_and_the_analytic_sphere(tmp_path, sphere_file):
     model = api.load_model(sphere_file)
-    result = api.render_model(model, CAMERA, supersample=2)
+    result = surfsplat.prepare(model).render(CAMERA, supersample=2)
     frame = result.frame
     save_depth(frame.depth, tmp_path / "d.exr", 1.0, 2.0)
     assert np.array_equal(load_depth_exr(tmp_path / "d.exr"), frame.depth)   # exactly Frame.depth

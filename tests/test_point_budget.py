@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import surfsplat
 import numpy as np
 import pytest
 
-from surfsplat import api
+from surfsplat import api, pipeline
 from surfsplat.errors import InputError
 from surfsplat.hierarchy import build_hierarchy, select
 from surfsplat.hierarchy.lod import projected_size
@@ -17,7 +18,7 @@ from surfsplat.scenes import demo_scene
 def torus():
     h = build_hierarchy(demo_scene("torus"))
     # close and oblique: the near side's nodes project much larger than the far side's
-    camera = api.auto_camera(h.points, 160, 120)
+    camera = pipeline.auto_camera(h.points, 160, 120)
     eye, target = np.asarray(camera.eye), np.asarray(camera.target)
     return h, camera.__class__(eye=tuple(target + 0.6 * (eye - target)), target=camera.target, up=camera.up,
                                fov=camera.fov, width=160, height=120)
@@ -94,10 +95,10 @@ def test_largest_nodes_are_refined_first(torus):
 
 def test_quality_grows_with_the_budget_and_the_api(torus, gl_renderer):
     h, camera = torus
-    reference = api.render_model(h, camera, lod_tolerance=0.0).frame.image().astype(np.float32) / 255
+    reference = surfsplat.prepare(h, lod=surfsplat.LodOptions(tolerance=0.0)).render(camera).frame.image().astype(np.float32) / 255
     scores, counts = [], []
     for n in (300, 3000, 30000):
-        result = api.render_model(h, camera, lod_tolerance=0.0, point_budget=n)
+        result = surfsplat.prepare(h, lod=surfsplat.LodOptions(tolerance=0.0, point_budget=n)).render(camera)
         assert result.splats <= n
         counts.append(result.splats)
         scores.append(psnr(result.frame.image().astype(np.float32) / 255, reference))

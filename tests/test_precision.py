@@ -17,7 +17,7 @@ import pytest
 
 import surfsplat
 from surfsplat import Camera, SplatCloud
-from surfsplat.api import local_camera
+from surfsplat.pipeline import local_camera
 from surfsplat.rendering.gpu_splats import gpu_scale
 from surfsplat.cli import main
 from surfsplat.geometry.preprocess import preprocess
@@ -230,13 +230,13 @@ def test_mesh_far_from_zero_samples_and_rasterizes_the_same(base):
 
 
 def test_elevation_colours_use_world_heights(base):
-    from surfsplat.api import SourceOptions, colored
     from surfsplat.colors import ColorOptions
+    from surfsplat.pipeline import as_model
 
     shift = np.array([0.0, 0.0, 1e7])
-    options = SourceOptions(color=ColorOptions("elevation", "viridis", (1e7 - 0.2, 1e7 + 0.2)))
-    far = colored(moved(base, shift), options, up=(0.0, 0.0, 1.0))
-    near = colored(base, SourceOptions(color=ColorOptions("elevation", "viridis", (-0.2, 0.2))), up=(0.0, 0.0, 1.0))
+    far = as_model(moved(base, shift)).colored(ColorOptions("elevation", "viridis", (1e7 - 0.2, 1e7 + 0.2)),
+                                              (0.0, 0.0, 1.0)).data
+    near = as_model(base).colored(ColorOptions("elevation", "viridis", (-0.2, 0.2)), (0.0, 0.0, 1.0)).data
     assert np.abs(far.colors - near.colors).max() < 0.01
     assert np.ptp(near.colors[:, 0]) > 0.3   # the range spans the colormap
 

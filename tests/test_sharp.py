@@ -16,7 +16,7 @@ from scipy.spatial.transform import Rotation
 from test_render import UNLIT, exact_cube
 
 from surfsplat import reference, scenes
-from surfsplat.api import auto_camera
+from surfsplat.pipeline import auto_camera
 from surfsplat.camera import Camera
 from surfsplat.cli import main
 from surfsplat.cloud import NO_CLIP, SplatCloud

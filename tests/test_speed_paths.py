@@ -6,6 +6,7 @@ before, so a points frame must equal the all-quads frame (renderer.py: ``point_p
 
 from __future__ import annotations
 
+import surfsplat
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -196,14 +197,14 @@ def test_auto_lod_merges_dense_views_only():
     hierarchy; a sparse one draws every splat."""
     cloud = scenes.sphere(30_000)
     small = frame_bounds(*cloud.bounds(), width=48, height=48)
-    dense = api.render_model(cloud, small, lod_tolerance=AUTO)
-    every = api.render_model(cloud, small)
+    dense = surfsplat.prepare(cloud, lod=surfsplat.LodOptions(tolerance=AUTO)).render(small)
+    every = surfsplat.prepare(cloud).render(small)
     assert dense.selection is None and dense.splats < 0.5 * len(cloud)
     inside = ndimage.binary_erosion(every.frame.mask)   # the silhouette may move by a pixel here and there
     assert psnr(dense.frame.color, every.frame.color, inside) > 40.0
     assert (dense.frame.mask != every.frame.mask).sum() <= 3
     large = frame_bounds(*cloud.bounds(), width=256, height=256)
-    sparse = api.render_model(cloud, large, lod_tolerance=AUTO)
+    sparse = surfsplat.prepare(cloud, lod=surfsplat.LodOptions(tolerance=AUTO)).render(large)
     assert sparse.selection is None and sparse.splats == len(cloud)
 
 

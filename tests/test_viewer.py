@@ -231,7 +231,7 @@ def test_scripted_screenshot_matches_render(xvfb_display, tmp_path):
     assert shot.shape == (300, 400, 3)
     # the same view rendered headless (automatic framing at the same size, the same LOD cut)
     torus = surfsplat.demo_scene("torus")
-    expected = surfsplat.render(torus, width=400, height=300, lod_tolerance=4).image().astype(int)
+    expected = surfsplat.render(torus, width=400, height=300, lod=surfsplat.LodOptions(tolerance=4)).image().astype(int)
     assert (expected != surfsplat.render(torus, width=400, height=300).image()).any(), "LOD changed nothing"
     diff = np.abs(shot - expected).max(axis=2)
     # same renderer, same camera: only the float -> 8-bit conversion may differ by one level
@@ -267,12 +267,12 @@ def test_window_shows_the_image_and_the_hud(xvfb_display):
     result = run_python("""
         import numpy as np
         from surfsplat.lighting import Lights
-        from surfsplat.api import load_model
+        from surfsplat.pipeline import LodOptions, SourceOptions, View
         from surfsplat.rendering.options import RenderOptions
         from surfsplat.viewer import app
         glfw, window, ctx = app.open_window(320, 240, "test")
-        viewer = app.Viewer(glfw, window, ctx, load_model("demo:torus"), None, technique="flat",
-                            lights=Lights(), options=RenderOptions(), background=(1, 1, 1), lod_tolerance=1.0,
+        viewer = app.Viewer(glfw, window, ctx, View("demo:torus", interactive=True), None, technique="flat",
+                            lights=Lights(), options=RenderOptions(), background=(1, 1, 1),
                             motion=app.MotionOptions("flat", budget=0, scale=1.0), hud=True)
         image = viewer.full_image()
         viewer.present(1.0)
@@ -298,12 +298,12 @@ def test_input_drives_the_view(xvfb_display, tmp_path):
     result = run_python("""
         import time
         from surfsplat.lighting import Lights
-        from surfsplat.api import load_model
+        from surfsplat.pipeline import LodOptions, SourceOptions, View
         from surfsplat.rendering.options import RenderOptions
         from surfsplat.viewer import app
         glfw, window, ctx = app.open_window(320, 240, "test")
-        v = app.Viewer(glfw, window, ctx, load_model("demo:torus"), None, technique="ewa",
-                       lights=Lights(), options=RenderOptions(), background=(1, 1, 1), lod_tolerance=1.0,
+        v = app.Viewer(glfw, window, ctx, View("demo:torus", interactive=True), None, technique="ewa",
+                       lights=Lights(), options=RenderOptions(), background=(1, 1, 1),
                        motion=app.MotionOptions("flat", budget=20000, scale=0.5), hud=True)
         G = glfw
         v.step(wait=False)
@@ -447,17 +447,19 @@ def test_budget_refines_progressively_with_edl_and_colors(xvfb_display, tmp_path
         import time
         import numpy as np
         from surfsplat import api
+        from surfsplat import pipeline
+        from surfsplat.pipeline import LodOptions, SourceOptions, View
         from surfsplat.lighting import Lights
         from surfsplat.rendering.options import RenderOptions
         from surfsplat.scenes_faulty import aerial
         from surfsplat.viewer import app, detail
         detail.REFINE_MIN = 500
-        model = api.as_splats(aerial(n=8000, houses=3, trees=3).cloud)
+        model = pipeline.as_splats(aerial(n=8000, houses=3, trees=3).cloud)
         glfw, window, ctx = app.open_window(240, 180, "test")
-        v = app.Viewer(glfw, window, ctx, model, api.CameraSpec(up=(0, 0, 1)), technique="ewa", lights=Lights(),
-                       options=RenderOptions(), background=(1, 1, 1), lod_tolerance=1.0,
-                       motion=app.MotionOptions("off"), hud=False, point_budget=4000, hybrid=True,
-                       record=r"{tmp_path}/rec.gif")
+        plan = View(model, lod=LodOptions(point_budget=4000), source_options=SourceOptions(hybrid=True), interactive=True)
+        v = app.Viewer(glfw, window, ctx, plan, pipeline.CameraSpec(up=(0, 0, 1)), technique="ewa", lights=Lights(),
+                       options=RenderOptions(), background=(1, 1, 1),
+                       motion=app.MotionOptions("off"), hud=False, record=r"{tmp_path}/rec.gif")
         assert v.budgets == [500, 1000, 4000]
         drawn, images = [], []
         v.step(wait=False)
@@ -529,7 +531,7 @@ def test_streamer_reads_cells_in_the_background_once(chunked_model):
     from surfsplat.viewer.streaming import CellStreamer
 
     model = open_chunked(chunked_model)
-    camera = surfsplat.api.resolve_camera(model, None, 240, 180)
+    camera = surfsplat.pipeline.resolve_camera(model, None, 240, 180)
     reference = open_chunked(chunked_model).view_splats(camera, 1.0)[0]
     gate, threads, runs = threading.Event(), [], []
 
@@ -573,7 +575,7 @@ def test_view_of_a_chunked_model_matches_render(xvfb_display, chunked_model, tmp
                        "--screenshot", out], xvfb_display)
     assert result.returncode == 0, result.stderr
     shot = np.asarray(Image.open(out)).astype(float)
-    expected = surfsplat.render(chunked_model, width=240, height=180, point_budget=4000).image().astype(float)
+    expected = surfsplat.render(chunked_model, width=240, height=180, lod=surfsplat.LodOptions(point_budget=4000)).image().astype(float)
     covered = (expected < 250).any(axis=2).mean()
     assert 0.1 < covered < 0.9   # the model is framed, not empty
     mse = ((shot - expected) ** 2).mean()
@@ -585,7 +587,8 @@ def test_window_keeps_drawing_while_cells_stream(xvfb_display, chunked_model):
     result = run_python(f"""
         import time
         import numpy as np
-        from surfsplat.api import CameraSpec, load_model
+        from surfsplat.pipeline import LodOptions, SourceOptions, View
+        from surfsplat.pipeline import CameraSpec
         from surfsplat.lighting import Lights
         from surfsplat.rendering.options import RenderOptions
         from surfsplat.viewer import app
@@ -597,8 +600,8 @@ def test_window_keeps_drawing_while_cells_stream(xvfb_display, chunked_model):
             return cut(self, *args, **kw)
         ChunkedHierarchy.view_splats = slow
         glfw, window, ctx = app.open_window(240, 180, "test")
-        v = app.Viewer(glfw, window, ctx, model, CameraSpec(), technique="ewa", lights=Lights(),
-                       options=RenderOptions(), background=(1, 1, 1), lod_tolerance=1.0,
+        v = app.Viewer(glfw, window, ctx, View(model, interactive=True), CameraSpec(), technique="ewa", lights=Lights(),
+                       options=RenderOptions(), background=(1, 1, 1),
                        motion=app.MotionOptions("flat", budget=1000), hud=True)
         start = time.perf_counter()
         v.step(wait=False)
@@ -689,21 +692,21 @@ def test_viewer_culls_closed_surfaces_automatically(xvfb_display):
     result = run_python("""
         from surfsplat import scenes
         from surfsplat.lighting import Lights
-        from surfsplat.api import load_model
+        from surfsplat.pipeline import LodOptions, SourceOptions, View
         from surfsplat.rendering.options import RenderOptions
         from surfsplat.viewer import app
         from surfsplat.viewer import camera_control as cc
         glfw, window, ctx = app.open_window(160, 120, "test")
         kw = dict(technique="ewa", lights=Lights(), options=RenderOptions(), background=(1, 1, 1),
-                  lod_tolerance=1.0, motion=app.MotionOptions("off"), hud=False)
-        torus = app.Viewer(glfw, window, ctx, load_model("demo:torus"), None, **kw)
+                  motion=app.MotionOptions("off"), hud=False)
+        torus = app.Viewer(glfw, window, ctx, View("demo:torus", interactive=True), None, **kw)
         assert torus.options.visibility.cull_backfaces is None and torus.culling
         assert torus.drawn_options().visibility.cull_backfaces is True
         torus._actions.append(("cull",))
         torus._process_input(0.0)
         assert torus.options.visibility.cull_backfaces is False and not torus.culling
         torus.release()
-        sheet = app.Viewer(glfw, window, ctx, scenes.checkerboard(n_side=100), None, **kw)
+        sheet = app.Viewer(glfw, window, ctx, View(scenes.checkerboard(n_side=100), interactive=True), None, **kw)
         assert not sheet.culling
         print("ok")
         """, xvfb_display)

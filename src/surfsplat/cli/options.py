@@ -144,7 +144,10 @@ def color_options(args) -> ColorOptions | None:
 
 
 def source_options(args) -> SourceOptions:
-    """The SourceOptions of :func:`add_source_options`."""
+    """The SourceOptions of :func:`add_source_options` (and ``--hybrid`` of the render options); the
+    defaults for a command without them (``demo``)."""
+    if not hasattr(args, "sharp_angle"):
+        return SourceOptions(hybrid=getattr(args, "hybrid", None))
     angle = {"auto": AUTO, "none": None}.get(args.sharp_angle, args.sharp_angle)
     return SourceOptions(k=args.k, outliers=args.outliers, vertices=args.vertices, samples=args.samples,
                          sharp_angle=angle, color=color_options(args), hybrid=getattr(args, "hybrid", None))

@@ -50,8 +50,8 @@ class Model(Protocol):
     def tree(self) -> "Model":
         """The model as a hierarchy (a cloud's point-octree built; a hierarchy as it is)."""
 
-    def cut(self, camera: Camera, tolerance: float, *, cull_backfaces: bool, shading: str,
-            point_budget: int | None) -> tuple[SplatCloud, Selection | None]:
+    def cut(self, camera: Camera, tolerance: float, *, cull_backfaces: bool = False, shading: str = "fit",
+            point_budget: int | None = None) -> tuple[SplatCloud, Selection | None]:
         """The splats to draw for ``camera`` (world) and the LOD selection (None for a cloud)."""
 
     def colored(self, color: ColorOptions | None, up) -> "Model":
@@ -84,7 +84,7 @@ class CloudModel:
         with progress.stage(f"building the point-octree of {len(self.data):,} splats"):
             return HierarchyModel(build_hierarchy(self.data), closed=self.closed, built_from=self.data)
 
-    def cut(self, camera, tolerance, *, cull_backfaces, shading, point_budget):
+    def cut(self, camera, tolerance, *, cull_backfaces=False, shading="fit", point_budget=None):
         return self.data, None
 
     def colored(self, color, up):
@@ -123,7 +123,7 @@ class HierarchyModel:
     def tree(self):
         return self
 
-    def cut(self, camera, tolerance, *, cull_backfaces, shading, point_budget):
+    def cut(self, camera, tolerance, *, cull_backfaces=False, shading="fit", point_budget=None):
         return lod_splats(self.data, camera, tolerance, cull_backfaces=cull_backfaces, lod_shading=shading,
                           point_budget=point_budget)
 
@@ -157,7 +157,7 @@ class ChunkedModel:
     def tree(self):
         return self
 
-    def cut(self, camera, tolerance, *, cull_backfaces, shading, point_budget):
+    def cut(self, camera, tolerance, *, cull_backfaces=False, shading="fit", point_budget=None):
         return self.data.view_splats(camera, tolerance, cull_backfaces=cull_backfaces, lod_shading=shading,
                                      point_budget=point_budget)
 
@@ -218,7 +218,7 @@ class MeshModel:
     def tree(self):
         raise InputError("a mesh is sampled for a view before its hierarchy is built")
 
-    def cut(self, camera, tolerance, *, cull_backfaces, shading, point_budget):
+    def cut(self, camera, tolerance, *, cull_backfaces=False, shading="fit", point_budget=None):
         raise InputError("a mesh is sampled for a view before it is drawn")
 
     def colored(self, color, up):
