@@ -242,7 +242,7 @@ def image_errors(color: np.ndarray, truth: np.ndarray, mask: np.ndarray) -> dict
 def grazing_splats(tmp_path_factory) -> SplatCloud:
     """The grazing plane, written as a PLY with a ``radius`` property and read back."""
     path = write_grazing_ply(tmp_path_factory.mktemp("zwicker") / "grazing_plane.ply")
-    return surfsplat.load(path)
+    return surfsplat.load_points(path)
 
 
 @pytest.fixture(scope="module")

@@ -6,6 +6,9 @@ Quick start::
     frame = surfsplat.render("bunny.ply", technique="ewa", width=800, height=800)
     frame.save("bunny.png")
 
+    cloud = surfsplat.load_points("scan.ply")       # the points of any file (a mesh's vertices)
+    model = surfsplat.load_model("part.stl")        # what render draws (a mesh: its surface, sampled)
+
     view = surfsplat.prepare("scan.ply")            # load once ...
     for camera in cameras:                          # ... render many cameras
         frame = view.render(camera).frame
@@ -24,7 +27,8 @@ from .geometry.phong import phong_splats
 from .geometry.preprocess import PreprocessReport, preprocess
 from .geometry.robust import OutlierAction
 from .hierarchy import Hierarchy, LodShading, build_hierarchy, load_hierarchy, save_hierarchy
-from .io import Mesh, load, save_ply
+from .io import Mesh, save_ply
+from .io import load as load_points
 from .lighting import Lights
 from .pipeline import CameraSpec, LodMode, LodOptions, RenderResult, SourceOptions, View, auto_camera
 from .rendering.frame import Frame
@@ -44,7 +48,7 @@ __all__ = [
     # the literal types of those options
     "TechniqueName", "LodShading", "LodMode", "OutlierAction",
     # data
-    "SplatCloud", "Mesh", "Hierarchy", "load", "load_model", "save_ply", "preprocess", "PreprocessReport",
+    "SplatCloud", "Mesh", "Hierarchy", "load_points", "load_model", "save_ply", "preprocess", "PreprocessReport",
     "phong_splats", "build_hierarchy", "load_hierarchy", "save_hierarchy", "demo_scene", "auto_camera",
     # errors and warnings
     "SurfsplatError", "InputError", "RenderError", "EmptyFrameWarning",
