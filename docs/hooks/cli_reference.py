@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import argparse
 import html
+import sys
+from pathlib import Path
 
 MARKER = "<!-- cli-reference -->"
 
@@ -93,8 +95,14 @@ def _command_section(name: str, parser: argparse.ArgumentParser, summary: str, l
     return lines
 
 
-def cli_reference_markdown() -> str:
-    """The reference of the ``surfsplat`` command and every subcommand, as Markdown."""
+def cli_reference_markdown(src: Path | None = None) -> str:
+    """The reference of the ``surfsplat`` command and every subcommand, as Markdown.
+
+    ``src``: the repository's source folder, put first on ``sys.path`` so that the parser documented is
+    this checkout's, whatever copy of the package is installed.
+    """
+    if src is not None and str(src) not in sys.path:
+        sys.path.insert(0, str(src))
     from surfsplat.cli import build_parser
 
     parser = build_parser()
@@ -110,4 +118,5 @@ def on_page_markdown(markdown: str, page, config, files) -> str:
     """Replace the marker with the generated reference."""
     if MARKER not in markdown:
         return markdown
-    return markdown.replace(MARKER, cli_reference_markdown())
+    src = Path(config.config_file_path).resolve().parent / "src"
+    return markdown.replace(MARKER, cli_reference_markdown(src))
