@@ -1,4 +1,4 @@
-"""Cost of carrying per-point attributes through the LOD hierarchy (issue 14).
+"""Cost of carrying per-point attributes through the LOD hierarchy.
 
 A LiDAR-like cloud of ``--points`` random points over a flat 100 x 100 x 1 box (z up, circular
 splats) with the columns of a LAS point (6 one-bit flags, classification 0..6, return_number

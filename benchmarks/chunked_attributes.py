@@ -1,4 +1,4 @@
-"""Point attributes through a chunked build (issue 16): a generated aerial LiDAR block coloured by
+"""Point attributes through a chunked build: a generated aerial LiDAR block coloured by
 classification and intensity, chunked against in memory.
 
 Writes the block (``surfsplat.scenes_faulty.aerial``: ground, houses, trees; ASPRS classes and
@@ -39,12 +39,12 @@ from surfsplat.scenes_faulty import aerial  # noqa: E402
 
 RESULTS = HERE / "results" / "chunked_attributes.md"
 
-#: What keeping the attributes costs a build (measured once, by hand, in session 5).
+#: What keeping the attributes costs a build (measured once, by hand).
 BUILD_COST = """
 Build cost of the attributes, one 4 M-point tile of the 64 M-point benchmark cloud (LAS point format
 3, 13 attribute columns), `/usr/bin/time -v surfsplat build tile_0_0.las -o T.ssh --chunked`, the
-session-4 code against this one, one after the other: 53.5 s -> 65.6 s, peak RSS 1,446 -> 1,544 MiB,
-on disk 586 -> 711 MB (146 -> 178 bytes a splat).
+code before attributes were kept against the code that keeps them, one after the other: 53.5 s ->
+65.6 s, peak RSS 1,446 -> 1,544 MiB, on disk 586 -> 711 MB (146 -> 178 bytes a splat).
 """
 WIDTH, HEIGHT = 640, 420
 CAMERA = CameraSpec(eye=(-40.0, -60.0, 95.0), target=(80.0, 80.0, 0.0), up=(0.0, 0.0, 1.0), fov=45.0)

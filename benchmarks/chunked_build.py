@@ -228,7 +228,7 @@ def main() -> None:
     args.tmp.mkdir(parents=True, exist_ok=True)
     machine = f"llvmpipe (Mesa, no GPU), {platform.machine()} 2-core EPYC, Python {platform.python_version()}"
     what = (f"{args.tiles} x {args.tiles} LAS tiles in a folder, each" if args.tiles > 1 else "one LAS file:")
-    lines = ["# Chunked build (issue 16)\n", f"Machine: {machine}. Generated LiDAR-like cloud, {what} terrain and "
+    lines = ["# Chunked build\n", f"Machine: {machine}. Generated LiDAR-like cloud, {what} terrain and "
              f"{BUILDINGS} box buildings over {SIDE:.0f} m x {SIDE:.0f} m, georeferenced at {OFFSET[:2].tolist()}; "
              f"`python benchmarks/chunked_build.py --points {args.points} --compare-points {args.compare_points} "
              f"--tiles {args.tiles}`.\n"]

@@ -1,4 +1,4 @@
-"""Peak memory and time of rendering a chunked hierarchy from the command line (issue 16).
+"""Peak memory and time of rendering a chunked hierarchy from the command line.
 
 Runs ``surfsplat render MODEL -o OUT.png --width 1024 --height 1024 --technique ewa`` in a child
 process under ``/usr/bin/time -v`` for three views: the overview without a budget, the overview
@@ -58,9 +58,9 @@ def run(model: Path, name: str, extra: list[str], out: Path) -> dict:
             "drawn": drawn.group(1) if drawn else "", "picture": str(out)}
 
 
-#: What the labels of the stored table mean (the series measured in session 5).
+#: What the labels of the stored table mean (the stored series).
 NOTES = """
-`before`: the views of session 4 (every cell's node arrays kept for the whole view, a cache of a
+`before`: the earlier chunked views (every cell's node arrays kept for the whole view, a cache of a
 quarter of the available memory, the budget as one tolerance found by bisection). `after`: cells
 cut and gathered one at a time into output arrays (with a budget allocated once at the cut's size,
 else grown by half when full), a cache of at most 512 MiB of node arrays, covariances not read,

@@ -270,7 +270,7 @@ def supersampling(model: dict, renderer, ks, images: Path, docs: Path | None = N
         rows.append(base | {"technique": "ewa two-sided (not culled)", "splats": len(model["splats"]),
                             "K": max(ks), "frame_s": seconds} | scores(kept["two-sided"], truth, edges))
         print(rows[-1], flush=True)
-    if docs is not None and (1, False) in kept:   # the README's crops: the window where plain ewa at K = 1 errs most
+    if docs is not None and (1, False) in kept:   # the documentation's crops: the window where plain ewa at K = 1 errs most
         window = worst_window(np.abs(kept[(1, False)].color - truth.color).max(axis=2), edges)
         panels = [(crop(truth.color, window, 3), "mesh 4x4 (truth)"), (crop(mesh1.color, window, 3), "mesh 1 spp"),
                   (crop(kept[(1, False)].color, window, 3), "ewa K=1")]
@@ -431,7 +431,7 @@ def main() -> None:
     parser.add_argument("--phong-count", type=int, default=30_000, help="Phong splats")
     parser.add_argument("--ks", type=int, nargs="+", default=[1, 2, 3, 4])
     parser.add_argument("--images", type=Path, default=Path(tempfile.gettempdir()) / "edge_quality")
-    parser.add_argument("--docs", type=Path, default=None, help="write the README's crops here (docs/images)")
+    parser.add_argument("--docs", type=Path, default=None, help="write the documentation's crops here (docs/images)")
     parser.add_argument("--variants", nargs="+", choices=list(VARIANTS), default=list(VARIANTS),
                         help="rows of the supersampling table")
     parser.add_argument("--with-cad", action="store_true", help="table (1) also for the CAD part (featuretype.ply)")

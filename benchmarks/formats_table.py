@@ -1,4 +1,4 @@
-"""Inputs and outputs at a glance (issue 15): every input kind and every output kind, made by the real CLI.
+"""Inputs and outputs at a glance: every input kind and every output kind, made by the real CLI.
 
 Usage: python benchmarks/formats_table.py [--width 160] [--height 120] [--keep DIR]
 

@@ -1,4 +1,4 @@
-"""The LiDAR pictures of the README (``docs/images/lidar_*.png``): colour by attribute, EDL, hybrid.
+"""The LiDAR pictures of the documentation (``docs/images/lidar_*.png``): colour by attribute, EDL, hybrid.
 
 Inputs: ``shared/data/simple.las`` (1,065 airborne points) and a generated aerial block
 (:func:`surfsplat.scenes_faulty.aerial`: ground, gable roofs with walls, trees; 400 k ground

@@ -1,4 +1,4 @@
-"""The blending kernels of Pajarola et al. 2003 (figures 10, 18 and 19): README pictures.
+"""The blending kernels of Pajarola et al. 2003 (figures 10, 18 and 19): documentation pictures.
 
 Usage: python benchmarks/pajarola_kernels.py [--out docs/images] [--size 384]
 

@@ -1,4 +1,4 @@
-"""The experiments of Botsch, Spernat & Kobbelt 2004 (Phong splatting): numbers and README pictures.
+"""The experiments of Botsch, Spernat & Kobbelt 2004 (Phong splatting): numbers and documentation pictures.
 
 Usage: python benchmarks/phong_experiments.py [--size 512] [--samples 1000000] [--out docs/images]
        [--cache DIR] [--skip-timing]

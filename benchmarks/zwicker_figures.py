@@ -1,4 +1,4 @@
-"""The experiments of Zwicker et al. 2004 (figures 3, 6 and 7): README pictures and numbers.
+"""The experiments of Zwicker et al. 2004 (figures 3, 6 and 7): documentation pictures and numbers.
 
 Usage: python benchmarks/zwicker_figures.py [--out docs/images]
 

@@ -534,7 +534,9 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
         technique: the starting technique (T and 1..9 switch).
         size: window size (width, height) in screen coordinates; the image has the
             framebuffer's size (larger on HiDPI screens).
-        lights, background, options: as for :func:`surfsplat.render`.
+        lights: as for :func:`surfsplat.render`.
+        background: as for :func:`surfsplat.render`.
+        options: as for :func:`surfsplat.render`.
         lod: the level of detail (:class:`~surfsplat.pipeline.LodOptions`): the model's point-octree
             (built on loading, or a ``.npz`` from ``surfsplat build``) is cut per view where nodes
             project to at most ``tolerance`` pixels (default 1; +/- change it in the window); with a
@@ -544,10 +546,10 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
             where it can (:func:`surfsplat.pipeline.lod.lod_strategy`).
         motion: what is drawn while the camera moves (:class:`MotionOptions`).
         hud: show the heads-up display (status; help on H).
-        frames, orbit, screenshot: scripted mode: render ``frames`` frames, turning the eye
-            ``orbit`` degrees about ``up`` before each, save the last view at full quality
-            without the HUD to ``screenshot`` (if given), close. ``screenshot`` alone means
-            one frame.
+        frames: scripted mode: render ``frames`` frames (with ``orbit`` and ``screenshot``), close.
+        orbit: scripted mode: turn the eye ``orbit`` degrees about ``up`` before each frame.
+        screenshot: scripted mode: save the last view at full quality without the HUD to this
+            path (if given). ``screenshot`` alone means one frame.
         title: window title (default: the input's name).
         source_options: how the source becomes splats (:class:`~surfsplat.pipeline.SourceOptions`:
             raw points preprocessed, a mesh's surface sampled once on loading for the window's size,
