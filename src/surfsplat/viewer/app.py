@@ -595,8 +595,6 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
         point_budget = check_point_budget(point_budget)
     if record is not None:
         record = check_video_path(record)
-        if record.exists():
-            raise InputError(f"{record}: exists; choose another name for the recording")
     hybrid = is_lidar(source) if hybrid is None else bool(hybrid)
     if screenshot is not None:
         screenshot = check_image_path(screenshot)
