@@ -69,19 +69,19 @@ def check_image_outputs(args, inputs: tuple[Path, ...] = ()) -> tuple[Path, Path
     for flag in OUTPUT_FLAGS:   # an input named as an output is the first thing to say
         if getattr(args, flag, None):
             refuse_overwriting_inputs(Path(getattr(args, flag)), inputs)
-    out = check_output(check_image_path(args.output), inputs)
-    depth = Path(args.depth) if getattr(args, "depth", None) else None
-    if depth is not None:
-        check_output(check_map_path("depth", depth), inputs)
-    for kind in ("normals", "coverage"):
-        if getattr(args, kind, None):
-            check_output(check_map_path(kind, getattr(args, kind)), inputs)
-    camera_file = Path(args.save_camera) if args.save_camera else None
-    if camera_file is not None:
-        check_output(camera_file, inputs)
     named = [Path(getattr(args, flag)).resolve() for flag in OUTPUT_FLAGS if getattr(args, flag, None)]
     if len(set(named)) < len(named):
         raise InputError(f"{args.output}: two outputs of one render name the same file")
+    out = check_writable(check_image_path(args.output))
+    depth = Path(args.depth) if getattr(args, "depth", None) else None
+    if depth is not None:
+        check_writable(check_map_path("depth", depth))
+    for kind in ("normals", "coverage"):
+        if getattr(args, kind, None):
+            check_writable(check_map_path(kind, getattr(args, kind)))
+    camera_file = Path(args.save_camera) if args.save_camera else None
+    if camera_file is not None:
+        check_writable(camera_file)
     return out, depth, camera_file
 
 
