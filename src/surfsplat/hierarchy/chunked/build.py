@@ -93,7 +93,8 @@ def build_chunked(source, output, *, k: int = 8, outliers: str = "drop", sharp_a
         A :class:`BuildReport`.
 
     Raises:
-        InputError: bad arguments, an unreadable input, or an output that exists.
+        InputError: bad arguments, an unreadable input, or an output that exists and is not a chunked
+            hierarchy (or any existing output with ``overwrite=False``).
     """
     start = time.perf_counter()
     source, output = Path(source), Path(output)
