@@ -160,8 +160,8 @@ def colormap_names() -> list[str] | None:
 
 def check_colormap(colormap: str) -> str:
     """``colormap`` if it names one: :data:`ASPRS` (any case) or a colormap in matplotlib's registry.
-    InputError otherwise, with the closest names; without matplotlib every name but asprs is one
-    (it needs matplotlib: the ``color`` extra)."""
+    InputError otherwise, naming the closest one; without matplotlib (the ``color`` extra) every name
+    but asprs is refused, saying so."""
     if not isinstance(colormap, str) or not colormap:
         raise InputError(f"a colormap needs a name, got {colormap!r}")
     if colormap.lower() == ASPRS:
@@ -174,7 +174,7 @@ def check_colormap(colormap: str) -> str:
     if colormap in names:
         return colormap
     close = difflib.get_close_matches(colormap, names + [ASPRS], n=1, cutoff=0.6)
-    if not close:   # a wrong case ("Viridis") is as close as a name gets
+    if not close:   # a name in the wrong case ("VIRIDIS") can score below the cutoff
         close = [name for name in names if name.lower() == colormap.lower()][:1]
     hint = f"did you mean {close[0]!r}? " if close else ""
     raise InputError(f"unknown colormap {colormap!r}; {hint}e.g. viridis, turbo, magma, cividis, "
