@@ -116,8 +116,8 @@ def unknown_attribute(by: str, names) -> str:
     elevation) and the closest of them."""
     available = [ELEVATION] + list(names)
     close = difflib.get_close_matches(by.lower(), [name.lower() for name in available], n=1, cutoff=0.6)
-    hint = f"; did you mean {available[[a.lower() for a in available].index(close[0])]!r}?" if close else ""
-    return f"no attribute {by!r} to colour by{hint} (available: {', '.join(available)})"
+    hint = f" (did you mean {available[[a.lower() for a in available].index(close[0])]!r}?)" if close else ""
+    return f"no attribute {by!r} to colour by{hint}; available: {', '.join(available)}"
 
 
 def check_color_source(cloud, options, *, added=()) -> None:
