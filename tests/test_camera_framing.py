@@ -82,7 +82,9 @@ def test_camera_files_round_trip_and_refuse_bad_files(tmp_path):
     path = save_camera(cam, tmp_path / "cam.json")
     assert load_camera(path) == cam
     with pytest.raises(InputError, match="exists"):
-        save_camera(cam, path)
+        save_camera(cam, path, overwrite=False)
+    other = Camera(eye=(0, 0, 5), target=(0, 0, 0), fov=40, width=20, height=10)
+    assert load_camera(save_camera(other, path)) == other   # replaced by default
     (tmp_path / "bad.json").write_text('{"format": "something else"}')
     with pytest.raises(InputError, match="bad.json: not a surfsplat camera file"):
         load_camera(tmp_path / "bad.json")
@@ -105,11 +107,11 @@ def test_cli_prints_the_camera_saves_it_and_reuses_it(tmp_path, capsys):
     assert np.abs(a - c).max() <= 1   # the printed flags reproduce the view (to 10 digits)
 
 
-def test_cli_outputs_are_checked_before_loading_and_never_clobbered(tmp_path, capsys):
+def test_cli_outputs_are_checked_before_loading_and_inputs_never_clobbered(tmp_path, capsys):
     missing = tmp_path / "never-read.ply"
     out = tmp_path / "out.png"
     out.write_bytes(b"precious")
-    for flags, message in ((["-o", str(out)], "exists; use --force"),
+    for flags, message in ((["-o", str(out), "--camera", str(out)], "refusing to overwrite the input"),
                            (["-o", str(tmp_path / "no" / "x.png")], "does not exist"),
                            (["-o", str(tmp_path / "x")], "unsupported image format"),
                            (["-o", str(tmp_path / "x.png"), "--depth", str(tmp_path / "d.tiff")], "--depth writes")):

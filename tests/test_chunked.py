@@ -271,7 +271,11 @@ def test_cli_builds_and_renders(tmp_path, capsys):
     args = ["build", str(source), "-o", str(out), "--chunked", "--cell-points", "3000", "--scheduler", "threads",
             "--workers", "2", "--quiet"]
     assert main(args) == 0 and len(open_chunked(out).cells) > 1
-    assert main(args) == 2  # exists: --force needed
+    manifest = out / "manifest.json"
+    inode = manifest.stat().st_ino
+    assert main(args) == 0  # an existing chunked hierarchy is replaced (a new folder renamed over it)
+    assert manifest.stat().st_ino != inode and len(open_chunked(out).cells) > 1
+    assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(".")]   # no partial folder left
     assert main(args + ["--force"]) == 0
     capsys.readouterr()
     assert main(["info", str(out)]) == 0
@@ -294,7 +298,7 @@ def test_bad_arguments_are_clear_errors(tmp_path):
     (tmp_path / "folder").mkdir()
     with pytest.raises(InputError, match="folder: exists and is not a chunked hierarchy"):
         build_chunked(source, tmp_path / "folder", overwrite=True)
-    assert not (tmp_path / "x.ssh").exists() and not (tmp_path / "x.ssh.partial").exists()
+    assert not (tmp_path / "x.ssh").exists() and not [p.name for p in tmp_path.iterdir() if p.name.startswith(".")]
 
 
 def test_a_lone_point_far_away_is_dropped_not_fatal(tmp_path):

@@ -339,11 +339,12 @@ def test_save_load_round_trip(torus_h, tmp_path):
     assert set(h.arrays()) == set(torus_h.arrays())
     assert (h.leaf_capacity, h.max_depth) == (torus_h.leaf_capacity, torus_h.max_depth)
     assert h.describe() == torus_h.describe()
-    # no overwrite without the flag; with it, replaced
-    with pytest.raises(InputError, match="exists"):
-        save_hierarchy(torus_h, path)
+    # replaced by default; overwrite=False refuses
     small = build_hierarchy(scenes.sphere(300))
-    save_hierarchy(small, path, overwrite=True)
+    save_hierarchy(small, path)
+    assert len(load_hierarchy(path).points) == 300
+    with pytest.raises(InputError, match="exists"):
+        save_hierarchy(torus_h, path, overwrite=False)
     assert len(load_hierarchy(path).points) == 300
     assert [p.name for p in tmp_path.iterdir()] == ["torus.npz"]
 

@@ -107,16 +107,17 @@ def test_save_load_round_trip_positions_only(tmp_path, binary):
     assert PlyData.read(str(path))["vertex"].data.dtype.names == ("x", "y", "z")
 
 
-def test_save_refuses_to_overwrite(tmp_path):
+def test_save_replaces_unless_told_not_to(tmp_path):
     cloud = SplatCloud(positions=np.zeros((3, 3)))
     path = save_ply(cloud, tmp_path / "out.ply")
+    save_ply(SplatCloud(positions=np.ones((5, 3))), path)   # replaced, as image and point-cloud tools do
+    assert len(load(path)) == 5
     before = path.read_bytes()
     with pytest.raises(InputError, match="out.ply") as info:
-        save_ply(SplatCloud(positions=np.ones((5, 3))), path)
+        save_ply(SplatCloud(positions=np.zeros((7, 3))), path, overwrite=False)
     assert "overwrite" in str(info.value)
     assert path.read_bytes() == before
-    save_ply(SplatCloud(positions=np.ones((5, 3))), path, overwrite=True)
-    assert len(load(path)) == 5
+    assert [p.name for p in tmp_path.iterdir()] == ["out.ply"]   # no temporary file left
 
 
 def test_save_into_missing_directory_names_file(tmp_path):

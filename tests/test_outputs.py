@@ -59,8 +59,11 @@ def test_depth_exr_round_trip_is_exact(tmp_path):
     assert np.array_equal(back, depth)   # float32 stored losslessly, inf kept
     channels, header = load_exr(path)
     assert list(channels) == ["Z"] and "inf = empty" in header[DEPTH_KEY]
+    save_depth_exr(depth * 2.0, path)   # replaced
+    assert np.array_equal(load_depth_exr(path), depth * 2.0)
     with pytest.raises(InputError, match="exists"):
-        save_depth_exr(depth, path)
+        save_depth_exr(depth, path, overwrite=False)
+    assert np.array_equal(load_depth_exr(path), depth * 2.0)
 
 
 def test_normals_of_an_analytic_sphere():

@@ -12,6 +12,7 @@ colormap gives them, as 8-bit file colours are (no gamma, see :mod:`surfsplat.li
 
 from __future__ import annotations
 
+import difflib
 from dataclasses import dataclass
 
 import numpy as np
@@ -75,6 +76,8 @@ class ColorOptions:
     def __post_init__(self) -> None:
         if not isinstance(self.by, str) or not self.by:
             raise InputError(f"color-by needs an attribute name, got {self.by!r}")
+        if self.colormap is not None:
+            check_colormap(self.colormap)   # a misspelt name fails here, before any file is read
         if self.value_range is not None:
             lo, hi = (float(x) for x in self.value_range)
             if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
@@ -93,14 +96,89 @@ def attribute_values(cloud: SplatCloud, by: str, up=(0.0, 0.0, 1.0)) -> tuple[st
             raise InputError(f"elevation needs a non-zero up axis, got {up!r}")
         return ELEVATION, cloud.positions.astype(np.float64) @ (axis / norm)
     attributes = cloud.attributes or {}
-    if by in attributes:
-        return by, attributes[by]
-    folded = {name.lower(): name for name in attributes}
-    if by.lower() in folded:
-        name = folded[by.lower()]
-        return name, attributes[name]
-    available = ", ".join([ELEVATION] + list(attributes))
-    raise InputError(f"no attribute {by!r} to colour by; available: {available}")
+    name = attribute_name(by, attributes)
+    if name is None:
+        raise InputError(unknown_attribute(by, attributes))
+    return name, attributes[name]
+
+
+def attribute_name(by: str, names) -> str | None:
+    """The one of ``names`` that ``by`` names: the same, else the same ignoring case; None if none."""
+    names = list(names)
+    if by in names:
+        return by
+    folded = {name.lower(): name for name in names}
+    return folded.get(by.lower())
+
+
+def unknown_attribute(by: str, names) -> str:
+    """The message of an attribute ``by`` that is none of ``names``: those available (and
+    elevation) and the closest of them."""
+    available = [ELEVATION] + list(names)
+    close = difflib.get_close_matches(by.lower(), [name.lower() for name in available], n=1, cutoff=0.6)
+    hint = f" (did you mean {available[[a.lower() for a in available].index(close[0])]!r}?)" if close else ""
+    return f"no attribute {by!r} to colour by{hint}; available: {', '.join(available)}"
+
+
+def check_color_source(cloud, options, *, added=()) -> None:
+    """InputError, before any further work on a loaded ``cloud``, when ``options`` colours by an
+    attribute it lacks (the same rule as :func:`attribute_values`: exact name, else ignoring case;
+    ``elevation`` always exists).
+
+    Call it right after a point file is loaded and before it is preprocessed or its hierarchy
+    built, so that a misspelt ``--color-by`` fails in a moment, not after minutes of work.
+
+    Args:
+        cloud: the loaded SplatCloud (or a hierarchy: its ``points``' attributes; an object with
+            no attributes, such as a mesh, has elevation only).
+        options: a :class:`ColorOptions`, an object with one as ``color`` (``SourceOptions``), or None.
+        added: names the later steps add (preprocessing adds ``nonplanar``), accepted too.
+    """
+    color = getattr(options, "color", options)
+    if color is None:
+        return
+    if not isinstance(color, ColorOptions):
+        raise InputError(f"color options must be a ColorOptions, got {type(color).__name__}")
+    if color.by.lower() == ELEVATION:
+        return
+    attributes = getattr(cloud, "attributes", None)
+    if attributes is None and hasattr(cloud, "points"):
+        attributes = getattr(cloud.points, "attributes", None)
+    names = list(attributes or {}) + [name for name in added if name not in (attributes or {})]
+    if attribute_name(color.by, names) is None:
+        raise InputError(unknown_attribute(color.by, names))
+
+
+def colormap_names() -> list[str] | None:
+    """The colormap names matplotlib knows (case matters), or None without matplotlib."""
+    try:
+        import matplotlib
+    except ImportError:
+        return None
+    return list(matplotlib.colormaps)
+
+
+def check_colormap(colormap: str) -> str:
+    """``colormap`` if it names one: :data:`ASPRS` (any case) or a colormap in matplotlib's registry.
+    InputError otherwise, naming the closest one; without matplotlib (the ``color`` extra) every name
+    but asprs is refused, saying so."""
+    if not isinstance(colormap, str) or not colormap:
+        raise InputError(f"a colormap needs a name, got {colormap!r}")
+    if colormap.lower() == ASPRS:
+        return colormap
+    names = colormap_names()
+    if names is None:
+        hint = f" (or use {ASPRS!r}, built in)" if difflib.get_close_matches(colormap.lower(), [ASPRS]) else ""
+        raise InputError(f"colormap {colormap!r} needs matplotlib: `pip install matplotlib` (or `pip install "
+                         f"\".[color]\"` in the surfsplat checkout){hint}")
+    if colormap in names:
+        return colormap
+    close = difflib.get_close_matches(colormap, names + [ASPRS], n=1, cutoff=0.6)
+    if not close:   # a name in the wrong case ("VIRIDIS") can score below the cutoff
+        close = [name for name in names if name.lower() == colormap.lower()][:1]
+    hint = f"did you mean {close[0]!r}? " if close else ""
+    raise InputError(f"unknown colormap {colormap!r}; {hint}e.g. viridis, turbo, magma, cividis, "
+                     f"or {ASPRS} for LAS classes")
 
 
 def robust_range(values: np.ndarray) -> tuple[float, float]:
@@ -117,16 +195,11 @@ def robust_range(values: np.ndarray) -> tuple[float, float]:
 
 def colormap_colors(colormap: str, t: np.ndarray) -> np.ndarray:
     """(N, 3) float32 RGB of ``t`` in [0, 1] through the matplotlib colormap ``colormap``."""
-    try:
-        import matplotlib
-    except ImportError as exc:
-        raise InputError(f"colormap {colormap!r} needs matplotlib: `pip install matplotlib` "
-                         "(or `pip install \".[color]\"` in the surfsplat checkout)") from exc
-    try:
-        cmap = matplotlib.colormaps[colormap]
-    except KeyError:
-        raise InputError(f"unknown colormap {colormap!r}; e.g. viridis, turbo, magma, cividis, "
-                         f"or {ASPRS} for LAS classes") from None
+    if check_colormap(colormap).lower() == ASPRS:
+        raise InputError(f"{ASPRS} is the palette of class codes (class_colors), not a colormap of [0, 1]")
+    import matplotlib   # there: check_colormap asks for it
+
+    cmap = matplotlib.colormaps[colormap]
     return np.asarray(cmap(np.clip(t, 0.0, 1.0)), dtype=np.float32)[:, :3]
 
 
@@ -192,5 +265,5 @@ def describe_attributes(cloud: SplatCloud) -> list[str]:
 
 
 __all__ = ["ColorOptions", "colorize", "attribute_values", "robust_range", "asprs_palette", "colormap_colors",
-           "describe_attributes", "resolve_colormap", "is_class_palette", "class_colors", "ASPRS_CLASSES",
-           "ELEVATION", "ASPRS", "DEFAULT_COLORMAP"]
+           "describe_attributes", "resolve_colormap", "check_colormap", "check_color_source", "colormap_names",
+           "is_class_palette", "class_colors", "ASPRS_CLASSES", "ELEVATION", "ASPRS", "DEFAULT_COLORMAP"]

@@ -1,6 +1,7 @@
 """Command line: ``surfsplat render|demo|build|info|preprocess|phong|sample|view``.
 
-The parser is built here from the shared option groups of :mod:`surfsplat.cli.options`; each
+The parser (:class:`surfsplat.cli.parser.Parser`: short usage errors with suggestions) is built
+here from the shared option groups of :mod:`surfsplat.cli.options`; each
 subcommand (:mod:`surfsplat.cli.commands`, :mod:`surfsplat.cli.view`) converts its flags into
 the typed options of :mod:`surfsplat.api` and calls it.
 """
@@ -17,6 +18,7 @@ from ..errors import SurfsplatError
 from ..scenes import SCENES
 from . import chunked, commands
 from . import options as opt
+from .parser import Parser
 from .view import add_view_command
 
 PROG = "surfsplat"
@@ -30,10 +32,10 @@ def _add_quiet(p: argparse.ArgumentParser, default) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``surfsplat`` command."""
-    parser = argparse.ArgumentParser(prog=PROG, description="High-quality surface splatting of point clouds.")
+    parser = Parser(prog=PROG, description="High-quality surface splatting of point clouds.")
     parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
     _add_quiet(parser, False)
-    sub = parser.add_subparsers(dest="command", required=True)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
     p = sub.add_parser("render", help="render a point cloud, splat model or LOD hierarchy to an image")
     p.add_argument("input", nargs="+", help="point, splat or mesh files or hierarchies MODEL.npz (surfsplat "

@@ -8,6 +8,7 @@ describes a chunked hierarchy and leaves everything else to ``surfsplat info``.
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from .. import progress
 from ..errors import InputError
@@ -44,17 +45,29 @@ def cmd_build(args) -> None:
                 raise InputError(f"--{name.replace('_', '-')} needs --chunked")
         commands.cmd_build(args)
         return
+    check_chunked_output(Path(args.output), Path(args.input))
     options = opt.source_options(args)
     report = build_chunked(args.input, args.output, k=options.k, outliers=options.outliers,
                            sharp_angle=options.raw_sharp_angle, leaf_capacity=args.leaf_capacity,
                            cell_points=args.cell_points, chunk_points=args.chunk_points, scheduler=args.scheduler,
-                           workers=args.workers, overwrite=args.force)
+                           workers=args.workers)
     s = report.seconds
     progress.message(f"{report.points:,} splats ({report.input_points:,} points read) in {report.cells:,} cells "
                      f"({report.flipped} flipped to agree with their neighbours), {report.nodes:,} nodes, "
                      f"{report.bytes / 2**20:,.1f} MiB ({report.bytes / max(report.points, 1):.0f} B a splat) in "
                      f"{s['total']:.1f} s (stream {s['stream']:.1f}, preprocess {s['preprocess']:.1f}, "
                      f"orient {s['orient']:.1f}, build {s['build']:.1f}) -> {report.path}")
+
+
+def check_chunked_output(out: Path, source: Path) -> None:
+    """Before any work: the output folder is not the input, does not hold it, and is a chunked
+    hierarchy if it exists (a build replaces only its own kind of folder; anything else is refused)."""
+    commands.check_output(out, (source,), directory=True)
+    if source.resolve().is_relative_to(out.resolve()):
+        raise InputError(f"{out}: refusing to replace the folder holding the input {source}")
+    if out.exists() and not is_chunked_hierarchy(out):
+        raise InputError(f"{out}: exists and is not a chunked hierarchy; refusing to replace it "
+                         f"(remove it or name another output)")
 
 
 def cmd_info(args) -> None:

@@ -3,7 +3,6 @@ library function that does the work, writes the output and reports what it did."
 
 from __future__ import annotations
 
-import os
 import argparse
 import time
 from pathlib import Path
@@ -15,7 +14,7 @@ from ..pipeline import DEMO_PREFIX, View, check_source, is_hierarchy_file, load_
 from ..camera import camera_flags
 from ..camera_path import interpolate_cameras
 from ..errors import InputError
-from ..io.atomic import check_writable
+from ..io.atomic import check_writable, same_file
 from ..io.camera_file import save_camera
 from ..io.camera_formats import load_cameras
 from ..io.image_maps import check_map_path, normals_from_depth, save_coverage, save_depth, save_normals
@@ -32,46 +31,68 @@ from ..io import load, load_mesh, save_ply
 from . import options as opt
 
 
+#: The flags naming input files (besides the positional inputs).
+INPUT_FLAGS = ("camera", "cameras", "path")
+
+
+def inputs_of(args) -> tuple[Path, ...]:
+    """Every input file the parsed flags name: the positional input(s) (``demo:NAME`` is none) and
+    the files of ``--camera``, ``--cameras``, ``--path``."""
+    named = []
+    for flag in ("input", "mesh", *INPUT_FLAGS):
+        value = getattr(args, flag, None)
+        for item in value if isinstance(value, list) else [value]:
+            if isinstance(item, (str, Path)) and not str(item).startswith(DEMO_PREFIX):
+                named.append(Path(item))
+    return tuple(named)
+
+
 def refuse_overwriting_inputs(out: Path, inputs: tuple[Path, ...]) -> None:
     """InputError when ``out`` is one of the input files: the same file (device and inode), so a
-    symbolic or hard link to an input counts as the input."""
+    symbolic or hard link to an input counts as the input. Outputs are otherwise replaced."""
     for path in inputs:
-        try:
-            same = os.path.samefile(out, path)
-        except OSError:  # one of them does not exist (yet)
-            same = False
-        if same:
+        if same_file(out, path):
             raise InputError(f"{out}: refusing to overwrite the input file {path} (the same file)")
 
 
-def check_image_outputs(args, inputs: tuple[Path, ...]) -> tuple[Path, Path | None, Path | None]:
-    """Before any work: the image, depth and camera outputs can be written (suffix, folder, not an
-    input, not existing unless --force). Returns (image, depth or None, camera file or None)."""
-    refuse_overwriting_inputs(Path(args.output), inputs)
-    out = check_writable(check_image_path(args.output), overwrite=args.force)
-    depth = getattr(args, "depth", None)
-    if depth:
-        depth = Path(depth)
-        refuse_overwriting_inputs(depth, inputs)
-        check_writable(check_map_path("depth", depth), overwrite=args.force)
+def check_output(out, inputs: tuple[Path, ...], *, directory: bool = False) -> Path:
+    """Before any work: ``out`` can be written (its folder exists) and is none of ``inputs``; an
+    existing output is replaced when the command writes it (atomically, :mod:`surfsplat.io.atomic`)."""
+    out = Path(out)
+    refuse_overwriting_inputs(out, inputs)
+    return check_writable(out, directory=directory)
+
+
+def check_image_outputs(args, inputs: tuple[Path, ...] = ()) -> tuple[Path, Path | None, Path | None]:
+    """Before any work: the image, depth, normal, coverage and camera outputs can be written (suffix,
+    folder, none of them an input nor another output). Returns (image, depth or None, camera file or None)."""
+    inputs = tuple(dict.fromkeys(inputs + inputs_of(args)))
+    for flag in OUTPUT_FLAGS:   # an input named as an output is the first thing to say
+        if getattr(args, flag, None):
+            refuse_overwriting_inputs(Path(getattr(args, flag)), inputs)
+    named = [Path(getattr(args, flag)).resolve() for flag in OUTPUT_FLAGS if getattr(args, flag, None)]
+    if len(set(named)) < len(named):
+        raise InputError(f"{args.output}: two outputs of one render name the same file")
+    out = check_writable(check_image_path(args.output))
+    depth = Path(args.depth) if getattr(args, "depth", None) else None
+    if depth is not None:
+        check_writable(check_map_path("depth", depth))
     for kind in ("normals", "coverage"):
         if getattr(args, kind, None):
-            refuse_overwriting_inputs(Path(getattr(args, kind)), inputs)
-            check_writable(check_map_path(kind, getattr(args, kind)), overwrite=args.force)
+            check_writable(check_map_path(kind, getattr(args, kind)))
     camera_file = Path(args.save_camera) if args.save_camera else None
     if camera_file is not None:
-        refuse_overwriting_inputs(camera_file, inputs)
-        check_writable(camera_file, overwrite=args.force)
+        check_writable(camera_file)
     return out, depth, camera_file
 
 
-def save_outputs(frame, camera_file: Path | None, depth: Path | None, force: bool) -> None:
-    """Write the depth array and the camera file (atomically; see :mod:`surfsplat.io.atomic`)."""
+def save_outputs(frame, camera_file: Path | None, depth: Path | None) -> None:
+    """Write the depth array and the camera file (replaced atomically; see :mod:`surfsplat.io.atomic`)."""
     if depth is not None:
-        convention = save_depth(frame.depth, depth, *depth_range(frame), overwrite=force)
+        convention = save_depth(frame.depth, depth, *depth_range(frame))
         progress.message(f"depth ({convention}) -> {depth}")
     if camera_file is not None:
-        save_camera(frame.camera, camera_file, overwrite=force)
+        save_camera(frame.camera, camera_file)
         progress.message(f"camera -> {camera_file}")
 
 
@@ -79,10 +100,10 @@ def save_maps(frame, args) -> None:
     """Write the normal and coverage maps ``--normals``, ``--coverage`` ask for
     (:mod:`surfsplat.io.image_maps`)."""
     if getattr(args, "normals", None):
-        save_normals(normals_from_depth(frame.depth, frame.camera), args.normals, overwrite=args.force)
+        save_normals(normals_from_depth(frame.depth, frame.camera), args.normals)
         progress.message(f"normals (camera space, from the depth map) -> {args.normals}")
     if getattr(args, "coverage", None):
-        save_coverage(frame.alpha, args.coverage, bit_depth=args.bit_depth, overwrite=args.force)
+        save_coverage(frame.alpha, args.coverage, bit_depth=args.bit_depth)
         progress.message(f"coverage -> {args.coverage}")
 
 
@@ -112,10 +133,10 @@ def draw_and_save(plan: View, camera, args, outputs) -> None:
     and the depth and camera files of ``outputs`` (:func:`check_image_outputs`)."""
     out, depth, camera_file = outputs
     result = plan.render(camera, **render_args(args))
-    result.frame.save(out, overwrite=args.force, transparent=args.transparent, bit_depth=args.bit_depth)
+    result.frame.save(out, transparent=args.transparent, bit_depth=args.bit_depth)
     progress.message(f"rendered {result.describe()} with {args.technique} at {camera.width}x{camera.height} "
                      f"in {result.seconds:.2f} s -> {out}")
-    save_outputs(result.frame, camera_file, depth, args.force)
+    save_outputs(result.frame, camera_file, depth)
     save_maps(result.frame, args)
 
 
@@ -211,7 +232,7 @@ def render_views(args) -> None:
 def cmd_turntable(args) -> None:
     """``surfsplat turntable``: frames orbiting the model about its up axis, as GIF, MP4 or WebM."""
     out = check_video_path(args.output)
-    check_new_output(out, (Path(args.input),) if not args.input.startswith(DEMO_PREFIX) else (), args.force)
+    check_output(out, inputs_of(args))
     check_source(args.input)
     camera = opt.camera_spec(args)
     width, height = opt.image_size(args, camera)
@@ -226,7 +247,7 @@ def cmd_turntable(args) -> None:
                          f"{camera_flags(cameras[0])}")
     width, height = cameras[0].width, cameras[0].height
     frames = plan.frames(cameras, **draw)
-    write_video(frames, out, fps=args.frames / seconds, overwrite=args.force)
+    write_video(frames, out, fps=args.frames / seconds)
     progress.message(f"wrote {args.frames} frames at {width}x{height} -> {out}")
 
 
@@ -242,7 +263,6 @@ def path_cameras(args) -> list | None:
         raise InputError("give either --path FILE or --camera/--eye/--target/--up, not both")
     if args.elevation is not None or args.degrees != 360.0:
         raise InputError("--degrees and --elevation shape the orbit; a --path gives the cameras itself")
-    refuse_overwriting_inputs(Path(args.output), (Path(args.path),))
     keys = [camera for _, camera in load_cameras(args.path, width=args.width, height=args.height)]
     if len(keys) < 2:
         raise InputError(f"{args.path}: a camera path needs at least 2 key views, the file has {len(keys)}")
@@ -262,10 +282,10 @@ def render_mesh_and_save(args, inputs: tuple[Path, ...]) -> None:
     frame = api.render_mesh(args.input, camera, width=width, height=height, lights=opt.lights(args),
                             background=args.background, supersample=max(4, args.supersample))
     progress.message(f"camera: {camera_flags(frame.camera)}")
-    frame.save(out, overwrite=args.force, transparent=args.transparent, bit_depth=args.bit_depth)
+    frame.save(out, transparent=args.transparent, bit_depth=args.bit_depth)
     progress.message(f"rendered the mesh at {frame.camera.width}x{frame.camera.height} "
                      f"in {time.perf_counter() - start:.2f} s -> {out}")
-    save_outputs(frame, camera_file, depth, args.force)
+    save_outputs(frame, camera_file, depth)
     save_maps(frame, args)
 
 
@@ -317,13 +337,6 @@ def hierarchy_info(path) -> None:
     print(f"memory:     {d['bytes'] / 2**20:.1f} MiB")
 
 
-def check_new_output(out: Path, inputs: tuple[Path, ...], force: bool) -> None:
-    """Before any work: the output is not an input, and exists only with ``--force``."""
-    refuse_overwriting_inputs(out, inputs)
-    if out.exists() and not force:
-        raise InputError(f"{out}: exists; use --force to overwrite it")
-
-
 def surface_splats_of(args) -> SplatCloud:
     """The splats of ``args.input`` with no view known: a mesh's surface sampled with the model
     :data:`~surfsplat.cli.options.IMAGE_SIZE` pixels wide (or ``--samples``), raw points
@@ -345,13 +358,13 @@ def cmd_build(args) -> None:
     out = Path(args.output)
     if not is_hierarchy_file(out):
         raise InputError(f"{out}: a hierarchy is saved as .npz; name the output MODEL.npz")
-    check_new_output(out, (Path(args.input),), args.force)
+    check_output(out, inputs_of(args))
     cloud = surface_splats_of(args)
     start = time.perf_counter()
     with progress.stage(f"building the point-octree of {len(cloud):,} splats"):
         hierarchy = build_hierarchy(cloud, args.leaf_capacity, source=args.input)
     seconds = time.perf_counter() - start
-    save_hierarchy(hierarchy, out, overwrite=args.force)
+    save_hierarchy(hierarchy, out)
     progress.message(f"{len(hierarchy):,} nodes in {hierarchy.levels} levels, built in {seconds:.2f} s "
                      f"({len(cloud) / max(seconds, 1e-9):,.0f} points/s) -> {out}")
 
@@ -361,13 +374,13 @@ def cmd_phong(args) -> None:
     out = Path(args.output)
     if (args.error is None) == (args.count is None):
         raise InputError("give exactly one of --error EPS (model units) and --count N")
-    check_new_output(out, (Path(args.input),), args.force)
+    check_output(out, inputs_of(args))
     cloud = load_cloud(args.input, "samples")
     start = time.perf_counter()
     splats = phong_splats(cloud, args.error, count=args.count, sharp_angle=args.sharp_angle, relax=args.relax,
                           margin=args.margin, source=args.input)
     seconds = time.perf_counter() - start
-    save_ply(splats, out, overwrite=args.force)
+    save_ply(splats, out)
     progress.message(f"{len(splats):,} Phong splats from {len(cloud):,} samples in {seconds:.1f} s "
                      f"({len(cloud) / max(seconds, 1e-9):,.0f} samples/s) -> {out}")
 
@@ -375,19 +388,19 @@ def cmd_phong(args) -> None:
 def cmd_preprocess(args) -> None:
     """``surfsplat preprocess``: splats of raw points (normals, ellipses) or of a mesh's surface, saved as a PLY."""
     out = Path(args.output)
-    check_new_output(out, (Path(args.input),), args.force)
+    check_output(out, inputs_of(args))
     cloud = surface_splats_of(args)
-    save_ply(cloud, out, overwrite=args.force)
+    save_ply(cloud, out)
     progress.message(f"wrote {len(cloud):,} splats -> {out}")
 
 
 def cmd_sample(args) -> None:
     """``surfsplat sample``: points uniformly by area on a triangle mesh."""
     out = Path(args.output)
-    check_new_output(out, (Path(args.mesh),), args.force)
+    check_output(out, inputs_of(args))
     mesh = load_mesh(args.mesh)
     with progress.stage(f"sampling {args.n:,} points", count=args.n):
         cloud = sample_mesh(mesh, args.n, seed=args.seed, sharp_angle=args.sharp_angle,
                             smooth_normals=args.smooth_normals)
-    save_ply(cloud, out, overwrite=args.force)
+    save_ply(cloud, out)
     progress.message(f"wrote {len(cloud):,} samples -> {out}")

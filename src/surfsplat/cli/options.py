@@ -17,7 +17,7 @@ from .. import defaults
 from ..pipeline import LOD_AUTO, LOD_MODES, CameraSpec, LodOptions, SourceOptions
 from ..rendering.lod_auto import AUTO_MIN_DENSITY
 from ..camera import MIN_FOV, Camera
-from ..colors import ColorOptions
+from ..colors import ColorOptions, check_colormap
 from ..errors import InputError
 from ..hierarchy import SHADINGS
 from ..io.camera_file import load_camera
@@ -120,6 +120,15 @@ def add_source_options(p: argparse.ArgumentParser) -> None:
     add_color_options(p)
 
 
+def colormap_name(text: str) -> str:
+    """argparse ``type=`` of ``--colormap``: a name :func:`surfsplat.colors.check_colormap` knows
+    (matplotlib's registry, or asprs), checked as the command line is parsed, before any file is read."""
+    try:
+        return check_colormap(text)
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def add_color_options(p: argparse.ArgumentParser) -> None:
     """Colour by attribute: ``--color-by``, ``--colormap``, ``--color-range`` (:mod:`surfsplat.colors`)."""
     g = p.add_argument_group("colour by attribute")
@@ -127,7 +136,7 @@ def add_color_options(p: argparse.ArgumentParser) -> None:
                    help="colour the splats by elevation (along the up axis: +z for LAS/LAZ) or a per-point "
                         "attribute of the file: intensity, classification, return_number, gps_time, a PLY "
                         "property such as confidence, ... (`surfsplat info FILE` lists them)")
-    g.add_argument("--colormap", metavar="NAME",
+    g.add_argument("--colormap", type=colormap_name, metavar="NAME",
                    help="matplotlib colormap (viridis, turbo, magma, ...; needs the `color` extra) or asprs "
                         "(LAS class palette); default: asprs for classification, else viridis")
     g.add_argument("--color-range", type=number(float), nargs=2, metavar=("LO", "HI"),
@@ -160,8 +169,10 @@ def add_k_option(p: argparse.ArgumentParser) -> None:
 
 
 def add_force_option(p: argparse.ArgumentParser) -> None:
-    """``--force``: overwrite an existing output file."""
-    p.add_argument("--force", action="store_true", help="overwrite an existing output file")
+    """``--force``: accepted and ignored (outputs are always replaced), so older scripts keep working."""
+    p.add_argument("--force", action="store_true",
+                   help="no effect, kept for compatibility: an existing output is always replaced (atomically); "
+                        "an input file is never overwritten")
 
 
 def add_lod_options(p: argparse.ArgumentParser, *, window: bool = False) -> None:

@@ -7,6 +7,7 @@ import argparse
 from .. import defaults
 from ..viewer import MOTION_MODES, MotionOptions, view
 from . import options as opt
+from .commands import check_output, inputs_of
 
 VIEW_EPILOG = """\
 keys in the window: mouse left drag orbit, right/middle drag pan, wheel zoom; F fly mode
@@ -62,6 +63,9 @@ def add_view_command(subparsers) -> argparse.ArgumentParser:
 
 def cmd_view(args) -> None:
     """Run ``surfsplat view`` with parsed arguments."""
+    for out in (args.screenshot, args.record):   # replaced when written, unless it is an input
+        if out:
+            check_output(out, inputs_of(args))
     width, height = args.size
     view(args.input, opt.camera_spec(args), technique=args.technique,
          size=(args.width or width, args.height or height), lights=opt.lights(args),

@@ -77,17 +77,17 @@ _SPEC = {
 }
 
 
-def save_hierarchy(hierarchy: Hierarchy, path, *, overwrite: bool = False) -> Path:
+def save_hierarchy(hierarchy: Hierarchy, path, *, overwrite: bool = True) -> Path:
     """Write a hierarchy to one uncompressed ``.npz`` file (see the module docstring) and return its Path.
 
     The name is used as given (no extension is added; ``.npz`` is the
-    convention). An existing file is replaced only with ``overwrite=True``
+    convention). An existing file is replaced unless ``overwrite=False``.
     Every write goes to a temporary file beside ``path`` that replaces it on success
     (:func:`surfsplat.io.atomic.atomic_path`): a failed write (disk full, file size
     limit) leaves no partial file and an existing file as it was.
 
     Raises:
-        InputError: the file exists (without ``overwrite``), is a directory,
+        InputError: the file exists (with ``overwrite=False``), is a directory,
             or cannot be written; the message names the file.
     """
     path = Path(path)

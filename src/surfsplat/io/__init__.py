@@ -153,7 +153,7 @@ def load_input(path: str | os.PathLike) -> Mesh | SplatCloud:
 
 
 def save_ply(cloud: SplatCloud, path: str | os.PathLike, *, binary: bool = True,
-             overwrite: bool = False) -> Path:
+             overwrite: bool = True) -> Path:
     """Write every array of ``cloud`` to a PLY file and return the Path written.
 
     One ``vertex`` element with the properties, in this order, of the arrays
@@ -169,7 +169,8 @@ def save_ply(cloud: SplatCloud, path: str | os.PathLike, *, binary: bool = True,
         cloud: the splats to write.
         path: destination file (conventionally ``.ply``).
         binary: binary_little_endian (default) or ascii.
-        overwrite: replace an existing file; without it an existing file
+        overwrite: replace an existing file (default; atomically, see
+            :func:`surfsplat.io.atomic.atomic_path`); False: an existing file
             raises InputError.
     """
     path = Path(path)

@@ -1,7 +1,9 @@
 """Safe file access.
 
-Writing: a failed or interrupted write never leaves a partial file nor touches an existing one: the
-data go to a temporary file beside the target, which then replaces it (:func:`atomic_path`).
+Writing: outputs are replaced, as image and point-cloud tools do, and atomically: the data go to a
+temporary file (or folder) beside the target, which then replaces it (:func:`atomic_path`), so a
+failed or interrupted write never leaves a partial file and never touches the existing one, and a
+reader sees either the old file or the new one. Every writer of surfsplat goes through it.
 
 Reading: :func:`check_readable` accepts only regular files (a FIFO would block forever, a device such as
 ``/dev/zero`` never ends, a folder is no file), and :func:`memory_limit` bounds what a reader may
@@ -11,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import stat
 import tempfile
 from pathlib import Path
@@ -18,18 +21,30 @@ from pathlib import Path
 from ..errors import InputError
 
 
-def check_writable(path: str | os.PathLike, *, overwrite: bool = False) -> Path:
+def check_writable(path: str | os.PathLike, *, overwrite: bool = True, directory: bool = False) -> Path:
     """``path`` as a Path after checking, before any work, that it can be written: its folder exists,
-    it is not a folder, and it does not exist unless ``overwrite`` (InputError naming it)."""
+    and it is not a folder (with ``directory``: not a file). An existing output is refused only with
+    ``overwrite=False``. InputError naming the path."""
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise InputError(f"{path}: folder {folder} does not exist")
-    if path.is_dir():
+    if directory and path.exists() and not path.is_dir():
+        raise InputError(f"{path}: exists and is not a folder")
+    if not directory and path.is_dir():
         raise InputError(f"{path}: is a folder")
     if path.exists() and not overwrite:
-        raise InputError(f"{path}: exists; use --force to overwrite it")
+        raise InputError(f"{path}: exists (not replaced: overwrite=False)")
     return path
+
+
+def same_file(path: str | os.PathLike, other: str | os.PathLike) -> bool:
+    """Whether ``path`` and ``other`` are the same existing file or folder: the same device and inode,
+    so a hard link or a symbolic link (followed) to ``other`` counts as ``other``."""
+    try:
+        return os.path.samefile(path, other)
+    except (OSError, ValueError):   # one of them does not exist (yet), or a name NUL cannot be
+        return False
 
 
 def check_readable(path: str | os.PathLike) -> Path:
@@ -69,33 +84,70 @@ def memory_limit() -> int:
 
 
 @contextlib.contextmanager
-def atomic_path(path: str | os.PathLike, *, overwrite: bool = False):
-    """Yield a temporary path beside ``path`` to write; on success it replaces ``path`` (atomically on
-    one file system), on any error it is removed and ``path`` is left as it was."""
-    path = check_writable(path, overwrite=overwrite)
+def atomic_path(path: str | os.PathLike, *, overwrite: bool = True, directory: bool = False):
+    """Yield a temporary path beside ``path`` to write (a new empty folder with ``directory``); when
+    the block succeeds it replaces ``path``, on any error it is removed and ``path`` is left as it was.
+
+    A file is replaced by one ``os.replace`` (atomic on one file system: a reader sees the old file
+    or the new one). A folder cannot be replaced in one step: the old one is renamed aside, the new
+    one renamed in, then the old one deleted. ``overwrite=False`` refuses an existing ``path``; a
+    symbolic link at ``path`` is itself replaced (the file it points to is not written). Refusing
+    the caller's own inputs is the caller's business (:func:`same_file`). OSError while writing a
+    file (disk full, file size limit) -> InputError naming ``path``."""
+    path = check_writable(path, overwrite=overwrite, directory=directory)
+    folder = path.parent if str(path.parent) else Path(".")
     try:
-        handle, temp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp",
-                                        dir=path.parent if str(path.parent) else ".")
+        if directory:
+            temp = tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".partial", dir=folder)
+        else:
+            handle, temp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+            os.close(handle)
     except OSError as exc:
         raise InputError(f"{path}: cannot write in its folder: {exc.strerror or exc}") from exc
-    os.close(handle)
     try:
         try:
             yield Path(temp)
         except OSError as exc:  # disk full, file size limit, ...: the old file stays as it was
+            if directory:   # a folder's builder reads inputs too: its errors are its own to word
+                raise
             raise InputError(f"{path}: cannot write: {exc.strerror or exc}") from exc
         if not overwrite and path.exists():
-            raise InputError(f"{path}: exists; use --force to overwrite it")
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(temp, 0o666 & ~umask)   # mkstemp made it private; a new file gets the usual mode
-        os.replace(temp, path)
+            raise InputError(f"{path}: exists (not replaced: overwrite=False)")
+        if directory:
+            _replace_folder(Path(temp), path)
+        else:
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(temp, 0o666 & ~umask)   # mkstemp made it private; a new file gets the usual mode
+            os.replace(temp, path)
     finally:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(temp)
+        if directory:
+            shutil.rmtree(temp, ignore_errors=True)
+        else:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(temp)
 
 
-def write_atomically(path: str | os.PathLike, data: bytes, *, overwrite: bool = False) -> Path:
+def _replace_folder(temp: Path, path: Path) -> None:
+    """Rename the finished folder ``temp`` to ``path``, an old ``path`` first renamed aside and deleted
+    after (a crash in between leaves it under a hidden ``.NAME.*.old`` name, never half deleted)."""
+    if not (path.exists() or path.is_symlink()):
+        os.rename(temp, path)
+        return
+    old = temp.with_name(temp.name + ".old")
+    os.rename(path, old)
+    try:
+        os.rename(temp, path)
+    except OSError:
+        os.rename(old, path)
+        raise
+    if old.is_dir() and not old.is_symlink():
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        old.unlink()
+
+
+def write_atomically(path: str | os.PathLike, data: bytes, *, overwrite: bool = True) -> Path:
     """Write ``data`` to ``path`` through :func:`atomic_path`."""
     with atomic_path(path, overwrite=overwrite) as temp:
         temp.write_bytes(data)

@@ -37,9 +37,9 @@ def _camera_fields(camera: Camera) -> dict:
     return fields
 
 
-def save_cameras(cameras, path: str | os.PathLike, *, overwrite: bool = False) -> Path:
+def save_cameras(cameras, path: str | os.PathLike, *, overwrite: bool = True) -> Path:
     """Write several cameras (Cameras, or ``(name, Camera)`` pairs) as one camera file with a
-    ``"cameras"`` list; an existing file only with ``overwrite``. Returns the path."""
+    ``"cameras"`` list; an existing file is replaced unless ``overwrite=False``. Returns the path."""
     entries = []
     for i, item in enumerate(cameras):
         name, camera = item if isinstance(item, tuple) else (str(i), item)
@@ -53,8 +53,8 @@ def save_cameras(cameras, path: str | os.PathLike, *, overwrite: bool = False) -
     return Path(path)
 
 
-def save_camera(camera: Camera, path: str | os.PathLike, *, overwrite: bool = False) -> Path:
-    """Write ``camera`` as JSON to ``path``; an existing file only with ``overwrite``. Returns the path."""
+def save_camera(camera: Camera, path: str | os.PathLike, *, overwrite: bool = True) -> Path:
+    """Write ``camera`` as JSON to ``path``; an existing file is replaced unless ``overwrite=False``. Returns the path."""
     path = Path(path)
     text = json.dumps(camera_to_dict(camera), indent=2) + "\n"
     write_atomically(path, text.encode("utf-8"), overwrite=overwrite)

@@ -37,7 +37,7 @@ def depth_to_png_values(depth: np.ndarray, near: float, far: float) -> np.ndarra
 
 
 def save_depth_png(depth: np.ndarray, near: float, far: float, path: str | os.PathLike, *,
-                   overwrite: bool = False) -> Path:
+                   overwrite: bool = True) -> Path:
     """Write ``depth`` as a 16-bit depth PNG (see the module docstring), atomically; returns the path."""
     path = Path(path)
     values = depth_to_png_values(depth, near, far)
@@ -63,7 +63,7 @@ def load_depth_png(path: str | os.PathLike) -> np.ndarray:
     return np.where(values > 0, near + (values - 1) / DEPTH_STEPS * (far - near), np.inf)
 
 
-def save_normal_png(normals: np.ndarray, path: str | os.PathLike, *, overwrite: bool = False) -> Path:
+def save_normal_png(normals: np.ndarray, path: str | os.PathLike, *, overwrite: bool = True) -> Path:
     """Write (H, W, 3) camera-space normals (NaN or zero where empty) as an RGB PNG; returns the path."""
     path = Path(path)
     n = np.asarray(normals, dtype=np.float64)

@@ -37,7 +37,7 @@ def check_exr(path: str | os.PathLike) -> Path:
 
 
 def save_exr(channels: dict[str, np.ndarray], path: str | os.PathLike, *, attributes: dict[str, str] | None = None,
-             overwrite: bool = False) -> Path:
+             overwrite: bool = True) -> Path:
     """Write float32 ``channels`` (name -> (H, W) array, or (H, W, 3) split into R, G, B when named
     ``"RGB"``) as a ZIP-compressed scanline EXR, row 0 at the top, atomically; returns the path."""
     import OpenEXR   # optional: the `exr` extra (checked by check_exr)
@@ -66,7 +66,7 @@ def load_exr(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dict]:
         raise InputError(f"{path}: cannot read the OpenEXR file: {exc}") from None
 
 
-def save_depth_exr(depth: np.ndarray, path: str | os.PathLike, *, overwrite: bool = False) -> Path:
+def save_depth_exr(depth: np.ndarray, path: str | os.PathLike, *, overwrite: bool = True) -> Path:
     """Write (H, W) camera-space depth (+inf where empty) as a one-channel float32 depth EXR (see the
     module docstring); returns the path."""
     depth = np.asarray(depth)

@@ -57,7 +57,7 @@ def _save_npy(values: np.ndarray, path: Path, overwrite: bool) -> None:
 
 
 def save_depth(depth: np.ndarray, path: str | os.PathLike, near: float, far: float, *,
-               overwrite: bool = False) -> str:
+               overwrite: bool = True) -> str:
     """Write camera-space ``depth`` (+inf where empty) as ``.npy``, ``.exr`` or 16-bit ``.png``
     (``near``..``far``: the PNG's range, model units); returns a description of the convention."""
     path = check_map_path("depth", path)
@@ -136,7 +136,7 @@ def normals_from_depth(depth: np.ndarray, camera: Camera, *, space: str = "camer
     return normal.astype(np.float32)
 
 
-def save_normals(normals: np.ndarray, path: str | os.PathLike, *, overwrite: bool = False) -> Path:
+def save_normals(normals: np.ndarray, path: str | os.PathLike, *, overwrite: bool = True) -> Path:
     """Write (H, W, 3) unit normals (NaN where empty) as ``.png`` (``0.5 + 0.5 n``, black where empty),
     ``.exr`` (channels R, G, B = x, y, z) or ``.npy`` (float32); returns the path."""
     path = check_map_path("normals", path)
@@ -154,7 +154,7 @@ def save_normals(normals: np.ndarray, path: str | os.PathLike, *, overwrite: boo
 
 
 def save_coverage(alpha: np.ndarray, path: str | os.PathLike, *, bit_depth: int = 8,
-                  overwrite: bool = False) -> Path:
+                  overwrite: bool = True) -> Path:
     """Write (H, W) coverage in [0, 1] as a grey ``.png`` of ``bit_depth`` 8 or 16 bits, ``.npy``
     (float32) or ``.exr`` (channel A); returns the path."""
     path = check_map_path("coverage", path)

@@ -464,7 +464,7 @@ def _group(data: np.ndarray, names: set[str], group: tuple[str, ...], source: st
 # -- writing ---------------------------------------------------------------
 
 
-def write_ply(cloud: SplatCloud, path: Path, *, binary: bool = True, overwrite: bool = False) -> Path:
+def write_ply(cloud: SplatCloud, path: Path, *, binary: bool = True, overwrite: bool = True) -> Path:
     """Write ``cloud`` as a PLY ``vertex`` element; see ``surfsplat.io.save_ply``."""
     path = Path(path)
     columns = ply_columns(cloud)
@@ -486,8 +486,6 @@ def write_ply(cloud: SplatCloud, path: Path, *, binary: bool = True, overwrite: 
                 fmt = ["%d" if values.dtype.kind in "ui" else "%.9g" for _, values in columns]
                 np.savetxt(stream, np.column_stack([values.astype(np.float64) for _, values in columns]),
                            fmt=fmt, delimiter=" ", newline="\n")
-    except FileExistsError as exc:
-        raise InputError(f"{path}: file exists; pass overwrite=True to replace it") from exc
     except OSError as exc:
         raise InputError(f"{path}: cannot write PLY file: {exc.strerror or exc}") from exc
     return path

@@ -64,7 +64,7 @@ def _write_ffmpeg(frames: Iterable[np.ndarray], temp: Path, path: Path, fps: flo
 
 
 def write_video(frames: Iterable[np.ndarray], path: str | os.PathLike, *, fps: float,
-                overwrite: bool = False) -> Path:
+                overwrite: bool = True) -> Path:
     """Write (H, W, 3) uint8 frames as an animation at ``fps`` frames per second: a looping GIF, or
     H.264 MP4 / VP9 WebM through ffmpeg (frame sizes rounded down to even for the codecs). MP4/WebM
     frames are streamed one at a time; a GIF keeps them until written. Returns the path."""

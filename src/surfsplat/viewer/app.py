@@ -577,8 +577,6 @@ def view(source, camera: Camera | CameraSpec | None = None, *, technique: Techni
     check_render_args(technique=technique, background=background, options=options, lights=lights)
     if record is not None:
         record = check_video_path(record)
-        if record.exists():
-            raise InputError(f"{record}: exists; choose another name for the recording")
     if screenshot is not None:
         screenshot = check_image_path(screenshot)
         frames = 1 if frames is None else frames

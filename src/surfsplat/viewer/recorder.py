@@ -31,7 +31,7 @@ _END = None
 class Recorder:
     """Feeds shown frames to :func:`~surfsplat.io.video.write_video` in a background thread."""
 
-    def __init__(self, path, fps: float = RECORD_FPS, *, realtime: bool = True, overwrite: bool = False):
+    def __init__(self, path, fps: float = RECORD_FPS, *, realtime: bool = True, overwrite: bool = True):
         self.path = check_video_path(path)
         self.fps, self.realtime = float(fps), realtime
         self.frames = 0

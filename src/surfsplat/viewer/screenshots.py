@@ -1,4 +1,5 @@
-"""Screenshots of the viewer: unique names, files never overwritten, checked paths."""
+"""Screenshots of the viewer: unique names (files never overwritten) for key S, a named file (replaced
+atomically) for ``--screenshot``, checked paths."""
 
 from __future__ import annotations
 
@@ -9,6 +10,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from ..errors import InputError
+from ..io.atomic import atomic_path
 
 
 def unique_screenshot_path(folder: Path | None = None, now: float | None = None) -> Path:
@@ -29,8 +32,12 @@ def save_image(image: np.ndarray, path: Path, exclusive: bool = False) -> Path:
     ``-2``, ... until a new file can be created (opened with O_EXCL, so no race). Returns the path."""
     path = Path(path)
     picture = Image.fromarray(image)
-    if not exclusive:
-        picture.save(path)
+    if not exclusive:   # replaced atomically: a failed write leaves the old file as it was
+        kind = Image.registered_extensions().get(path.suffix.lower())
+        if kind is None:
+            raise InputError(f"{path}: unknown image type {path.suffix!r}; name it .png")
+        with atomic_path(path) as temp:
+            picture.save(temp, format=kind)
         return path
     stem, suffix = path.stem, path.suffix
     for i in itertools.count():

@@ -4,8 +4,9 @@ The driver streams the file (:mod:`.stream`: bounds, voxel counts, the cell grid
 bucketed into per-cell files), runs the per-cell work of :mod:`.cells` as Dask tasks (local
 threads or processes, or a Dask cluster given its scheduler address), chooses each cell's
 orientation sign so that adjacent cells agree, builds the coarse top hierarchy over the cells'
-roots and writes the manifest (:mod:`.layout`). The build goes to ``OUTPUT.partial`` and is
-renamed to ``OUTPUT`` when complete.
+roots and writes the manifest (:mod:`.layout`). The build goes to a hidden folder beside
+``OUTPUT`` that replaces it when complete (:func:`surfsplat.io.atomic.atomic_path`); an existing
+folder that is not a chunked hierarchy is never replaced.
 
 Memory: the driver holds one chunk of ``chunk_points`` points and a voxel histogram (at most
 128**3 counters); each worker holds one cell (at most ``cell_points`` points plus its halo)
@@ -32,6 +33,7 @@ from ...cloud import SplatCloud
 from ...colors import robust_range
 from ...errors import InputError
 from ...geometry.robust import OUTLIER_ACTIONS
+from ...io.atomic import atomic_path
 from ..octree import build_hierarchy
 from ..storage import save_hierarchy
 from .cells import build_cell, orientation_votes, preprocess_cell
@@ -68,14 +70,14 @@ class BuildReport:
 
 def build_chunked(source, output, *, k: int = 8, outliers: str = "drop", sharp_angle: float | None = None,
                   leaf_capacity: int = 8, cell_points: int = CELL_POINTS, chunk_points: int = CHUNK_POINTS,
-                  scheduler=None, workers: int | None = None, overwrite: bool = False) -> BuildReport:
+                  scheduler=None, workers: int | None = None, overwrite: bool = True) -> BuildReport:
     """Build a chunked hierarchy (a directory, ``docs/chunked_format.md``) from a point file.
 
     Args:
         source: a LAS/LAZ or binary PLY file (streamed), any other point file (read whole), or a
             folder of LAS/LAZ/PLY tiles (read in name order as one cloud; ``ids`` count on across them).
-        output: the directory to write; an existing chunked hierarchy is replaced only with
-            ``overwrite``, anything else there is refused.
+        output: the directory to write; an existing chunked hierarchy is replaced (unless
+            ``overwrite=False``), anything else there is refused.
         k, outliers, sharp_angle: preprocessing (:func:`surfsplat.geometry.preprocess.preprocess`).
         leaf_capacity: points per leaf of each cell's octree.
         cell_points: most points of a cell (the grid is refined until no cell holds more, down to
@@ -85,13 +87,14 @@ def build_chunked(source, output, *, k: int = 8, outliers: str = "drop", sharp_a
             address (``tcp://host:8786``: the workers must see ``output``'s folder), or a
             ``distributed.Client``.
         workers: local threads or processes (None: Dask's default, the CPU count).
-        overwrite: replace an existing chunked hierarchy.
+        overwrite: replace an existing chunked hierarchy (default).
 
     Returns:
         A :class:`BuildReport`.
 
     Raises:
-        InputError: bad arguments, an unreadable input, or an output that exists.
+        InputError: bad arguments, an unreadable input, or an output that exists and is not a chunked
+            hierarchy (or any existing output with ``overwrite=False``).
     """
     start = time.perf_counter()
     source, output = Path(source), Path(output)
@@ -103,85 +106,79 @@ def build_chunked(source, output, *, k: int = 8, outliers: str = "drop", sharp_a
         raise InputError(f"outliers must be one of {', '.join(OUTLIER_ACTIONS)}, got {outliers!r}")
     _check_output(output, overwrite)
     runner = _Runner(scheduler, workers)
-    partial = output.with_name(output.name + ".partial")
-    if partial.exists():
-        shutil.rmtree(partial)
-    work = partial / "work"
     seconds = {}
-    try:
-        stream = PointStream(source, chunk_points)
-        progress.message(f"{stream.count:,} points in {source} (read {stream.kind}: "
-                         f"{'whole' if stream.kind == 'whole' else f'{chunk_points:,} at a time'})")
-        grid = build_grid(stream, cell_points)
-        dtype = bucket(stream, grid, work / "buckets")
-        ijks = sorted(tuple(int(g) for g in _KEY.match(p.name).groups()) for p in (work / "buckets").iterdir()
-                      if _KEY.match(p.name))
-        keys = [cell_key(ijk) for ijk in ijks]
-        index = {ijk: i for i, ijk in enumerate(ijks)}
-        progress.message(f"  {len(keys):,} cells of side {grid.cell_size:.4g} (at most {cell_points:,} points each)")
-        seconds["stream"] = time.perf_counter() - start
+    try:  # into a hidden folder beside ``output`` that replaces it when complete
+        with atomic_path(output, overwrite=overwrite, directory=True) as partial:
+            work = partial / "work"
+            stream = PointStream(source, chunk_points)
+            progress.message(f"{stream.count:,} points in {source} (read {stream.kind}: "
+                             f"{'whole' if stream.kind == 'whole' else f'{chunk_points:,} at a time'})")
+            grid = build_grid(stream, cell_points)
+            dtype = bucket(stream, grid, work / "buckets")
+            ijks = sorted(tuple(int(g) for g in _KEY.match(p.name).groups()) for p in (work / "buckets").iterdir()
+                          if _KEY.match(p.name))
+            keys = [cell_key(ijk) for ijk in ijks]
+            index = {ijk: i for i, ijk in enumerate(ijks)}
+            progress.message(f"  {len(keys):,} cells of side {grid.cell_size:.4g} "
+                             f"(at most {cell_points:,} points each)")
+            seconds["stream"] = time.perf_counter() - start
 
-        t = time.perf_counter()
-        options = {"k": int(k), "outliers": outliers, "sharp_angle": sharp_angle}
-        calls = [(str(work), key, grid.cell_box(ijk), grid.cell_size, _neighbours(ijk, index, keys), dtype, options)
-                 for key, ijk in zip(keys, ijks)]
-        pre = runner.run(preprocess_cell, calls, "preprocessing cells (with halos)")
-        seconds["preprocess"] = time.perf_counter() - t
+            t = time.perf_counter()
+            options = {"k": int(k), "outliers": outliers, "sharp_angle": sharp_angle}
+            calls = [(str(work), key, grid.cell_box(ijk), grid.cell_size, _neighbours(ijk, index, keys), dtype, options)
+                     for key, ijk in zip(keys, ijks)]
+            pre = runner.run(preprocess_cell, calls, "preprocessing cells (with halos)")
+            seconds["preprocess"] = time.perf_counter() - t
 
-        t = time.perf_counter()
-        votes = runner.run(orientation_votes, [(str(work), key, i, keys) for i, key in enumerate(keys)],
-                           "orientation across cells")
-        flips = cell_flips(len(keys), [v for cell in votes for v in cell], [p["top"] for p in pre])
-        seconds["orient"] = time.perf_counter() - t
+            t = time.perf_counter()
+            votes = runner.run(orientation_votes, [(str(work), key, i, keys) for i, key in enumerate(keys)],
+                               "orientation across cells")
+            flips = cell_flips(len(keys), [v for cell in votes for v in cell], [p["top"] for p in pre])
+            seconds["orient"] = time.perf_counter() - t
 
-        t = time.perf_counter()
-        total = sum(p["points"] for p in pre)
-        if total == 0:
-            raise InputError(f"{source}: no point was kept by preprocessing")
-        keep = [i for i, p in enumerate(pre) if p["points"] > 0]
-        names = tuple(stream.attributes)
-        calls = [(str(work), str(partial), keys[i], bool(flips[i]), int(leaf_capacity),
-                  max(1, PREVIEW_SPLATS * pre[i]["points"] // total), names) for i in keep]
-        cells = runner.run(build_cell, calls, "cell hierarchies")
-        for i, cell in zip(keep, cells):
-            cell["ijk"] = list(ijks[i])
-            cell["halo"] = {"margin": pre[i]["margin"], "points": pre[i]["halo"]}
-        previews = [cell.pop("preview") for cell in cells]
-        samples = [cell.pop("samples") for cell in cells]
-        with progress.stage(f"top hierarchy over {len(cells):,} cell roots"), progress.enabled(False):
-            top = _top_hierarchy(cells, leaf_capacity, stream.attributes)
-            save_hierarchy(top, partial / TOP)
-            _save_preview(partial / PREVIEW, previews)
-        seconds["build"] = time.perf_counter() - t
-        shutil.rmtree(work)
-        seconds["total"] = time.perf_counter() - start
-        manifest = {
-            "format": FORMAT, "format_version": FORMAT_VERSION,
-            "origin": [float(x) for x in grid.origin],
-            "bounds": {"min": [float(x) for x in grid.lo], "max": [float(x) for x in grid.hi]},
-            "grid": {"corner": [float(x) for x in grid.corner], "cell_size": float(grid.cell_size),
-                     "dims": list(grid.dims)},
-            "up": [0.0, 0.0, 1.0] if stream.z_up else [0.0, 1.0, 0.0],
-            "points": int(sum(c["points"] for c in cells)), "nodes": int(sum(c["nodes"] for c in cells)),
-            "has_colors": bool(stream.has_colors),
-            "attributes": [{"name": name, "dtype": np.dtype(dtype).str,   # colormaps span the points' 2nd-98th percentiles
-                            "range": list(robust_range(np.concatenate([s[name] for s in samples])))}
-                           for name, dtype in stream.attributes.items()],
-            "build": {"input": str(source), "input_points": int(stream.count),
-                      "files": [{"path": path, "first_id": first} for path, first in stream.files],
-                      "k": int(k), "outliers": outliers,
-                      "sharp_angle": sharp_angle, "leaf_capacity": int(leaf_capacity),
-                      "cell_points": int(cell_points), "chunk_points": int(chunk_points),
-                      "scheduler": runner.name, "seconds": {name: round(s, 3) for name, s in seconds.items()}},
-            "top": TOP, "preview": PREVIEW, "cells": cells,
-        }
-        write_manifest(partial, manifest)
-        if output.exists():
-            shutil.rmtree(output)
-        partial.rename(output)
-    except BaseException:
-        shutil.rmtree(partial, ignore_errors=True)
-        raise
+            t = time.perf_counter()
+            total = sum(p["points"] for p in pre)
+            if total == 0:
+                raise InputError(f"{source}: no point was kept by preprocessing")
+            keep = [i for i, p in enumerate(pre) if p["points"] > 0]
+            names = tuple(stream.attributes)
+            calls = [(str(work), str(partial), keys[i], bool(flips[i]), int(leaf_capacity),
+                      max(1, PREVIEW_SPLATS * pre[i]["points"] // total), names) for i in keep]
+            cells = runner.run(build_cell, calls, "cell hierarchies")
+            for i, cell in zip(keep, cells):
+                cell["ijk"] = list(ijks[i])
+                cell["halo"] = {"margin": pre[i]["margin"], "points": pre[i]["halo"]}
+            previews = [cell.pop("preview") for cell in cells]
+            samples = [cell.pop("samples") for cell in cells]
+            with progress.stage(f"top hierarchy over {len(cells):,} cell roots"), progress.enabled(False):
+                top = _top_hierarchy(cells, leaf_capacity, stream.attributes)
+                save_hierarchy(top, partial / TOP)
+                _save_preview(partial / PREVIEW, previews)
+            seconds["build"] = time.perf_counter() - t
+            shutil.rmtree(work)
+            seconds["total"] = time.perf_counter() - start
+            manifest = {
+                "format": FORMAT, "format_version": FORMAT_VERSION,
+                "origin": [float(x) for x in grid.origin],
+                "bounds": {"min": [float(x) for x in grid.lo], "max": [float(x) for x in grid.hi]},
+                "grid": {"corner": [float(x) for x in grid.corner], "cell_size": float(grid.cell_size),
+                         "dims": list(grid.dims)},
+                "up": [0.0, 0.0, 1.0] if stream.z_up else [0.0, 1.0, 0.0],
+                "points": int(sum(c["points"] for c in cells)), "nodes": int(sum(c["nodes"] for c in cells)),
+                "has_colors": bool(stream.has_colors),
+                # colormaps span the points' 2nd-98th percentiles
+                "attributes": [{"name": name, "dtype": np.dtype(dtype).str,
+                                "range": list(robust_range(np.concatenate([s[name] for s in samples])))}
+                               for name, dtype in stream.attributes.items()],
+                "build": {"input": str(source), "input_points": int(stream.count),
+                          "files": [{"path": path, "first_id": first} for path, first in stream.files],
+                          "k": int(k), "outliers": outliers,
+                          "sharp_angle": sharp_angle, "leaf_capacity": int(leaf_capacity),
+                          "cell_points": int(cell_points), "chunk_points": int(chunk_points),
+                          "scheduler": runner.name, "seconds": {name: round(s, 3) for name, s in seconds.items()}},
+                "top": TOP, "preview": PREVIEW, "cells": cells,
+            }
+            write_manifest(partial, manifest)
     finally:
         runner.close()
     size = sum(p.stat().st_size for p in output.rglob("*") if p.is_file())
@@ -196,7 +193,7 @@ def _check_output(output: Path, overwrite: bool) -> None:
         if not is_chunked_hierarchy(output):
             raise InputError(f"{output}: exists and is not a chunked hierarchy; refusing to replace it")
         if not overwrite:
-            raise InputError(f"{output}: exists; use --force to overwrite it")
+            raise InputError(f"{output}: exists (not replaced: overwrite=False)")
 
 
 def _neighbours(ijk, index: dict, keys: list) -> list:
