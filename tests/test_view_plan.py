@@ -173,3 +173,14 @@ def test_automatic_culling_is_decided_by_the_view(torus):
     assert not view.culls(inside)
     asked = surfsplat.RenderOptions(visibility=surfsplat.VisibilityOptions(cull_backfaces=False))
     assert not view.culls(outside, asked)
+
+
+def test_a_misspelt_colour_attribute_fails_before_preprocessing(monkeypatch):
+    from surfsplat.colors import ColorOptions
+
+    def never(*args, **kw):
+        raise AssertionError("preprocessed before the colour attribute was checked")
+    monkeypatch.setattr(pipeline.sources, "preprocess", never)
+    points = np.random.default_rng(0).random((2000, 3)).astype(np.float32)
+    with pytest.raises(InputError, match="no attribute 'intensty'"):
+        surfsplat.render(points, source_options=SourceOptions(color=ColorOptions("intensty")))

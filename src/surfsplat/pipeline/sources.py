@@ -10,8 +10,9 @@ from pathlib import Path
 
 from .. import progress
 from ..cloud import SplatCloud
+from ..colors import check_color_source
 from ..errors import InputError
-from ..geometry.preprocess import preprocess
+from ..geometry.preprocess import NONPLANAR, preprocess
 from ..hierarchy import Hierarchy, load_hierarchy
 from ..hierarchy.chunked import ChunkedHierarchy, chunked_up, is_chunked_hierarchy, open_chunked
 from ..io import Mesh, load, load_input
@@ -89,6 +90,7 @@ def as_splats(source: SplatCloud | str | Path, options: SourceOptions | None = N
     if not isinstance(source, SplatCloud):
         raise InputError(f"expected a SplatCloud or a file path, got {type(source).__name__}")
     if not source.has_splats:
+        check_color_source(source, options, added=(NONPLANAR,))   # a misspelt attribute fails before the work
         source = preprocess(source, k=options.k, sharp_angle=options.raw_sharp_angle, outliers=options.outliers,
                             mark_nonplanar=True)
     return source
@@ -127,6 +129,7 @@ def read_source(source, options: SourceOptions | None = None):
         with progress.stage(f"loading {source}"):
             data = load_input(source)
         if isinstance(data, Mesh):
+            check_color_source(data, options)
             merged = f"; welded {data.merged_vertices:,} coincident vertices" if data.merged_vertices else ""
             progress.message(f"a mesh: {len(data.faces):,} faces, {len(data.vertices):,} vertices{merged} "
                              f"(its surface is sampled; --vertices draws the vertices instead)")
