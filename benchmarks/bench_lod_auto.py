@@ -81,8 +81,8 @@ def main() -> None:
                "all: PSNR dB", "auto: splats", "auto: frame ms", "auto: speed-up", "auto: PSNR dB", "auto - all dB",
                "1 px cut: splats", "1 px cut: frame ms", "1 px cut: PSNR dB", "cut - all dB"]
     write_table("lod_auto", columns, rows, machine_description(renderer_name(headless_context()))
-                + f"; bunny, technique {args.technique}, PSNR against the mesh over its coverage; frame = "
-                  "View.render of a prepared view (merge or cut, upload, draw, read-back), median of " + str(args.repeat)
+                + f"; bunny, technique {args.technique}, PSNR against the mesh over its coverage; frame = View.render "
+                  f"of a prepared view (merge or cut, upload, draw, read-back), median of {args.repeat}"
                 + f"; hierarchy build (once, not in the 1 px cut's frame) {build:.2f} s")
 
 

@@ -2,8 +2,8 @@
 
 The input is the peers' scenes (../shared/peers: ``bench.py`` writes ``bunny_1000000.ply`` and
 ``torus_1000000.ply`` into its ``--work`` folder, 1M points sampled from the meshes with normals),
-preprocessed as ``bench_peers.py`` does, back faces culled where ``View.culls`` culls
-them, uploaded once, drawn at 1024x1024 with the peers' cameras. Every draw call is wrapped in
+preprocessed as ``bench_peers.py`` does, back faces culled where ``surfsplat.pipeline.View.culls``
+culls them, uploaded once, drawn at 1024x1024 with the peers' cameras. Every draw call is wrapped in
 glFinish and timed in process CPU time (llvmpipe's threads included), which a busy machine disturbs
 less than wall time, and so are the compute passes of the small splats (``render/compute_visibility.py``,
 where the context has OpenGL 4.3; ``--raster-only`` draws every splat instead); the frame is also timed whole
@@ -62,7 +62,8 @@ def pass_name(key: tuple) -> str:
 
 def scene_setup(scene: str, path: Path, size: int):
     """``(cloud, camera, lights, options)`` of a peers' scene: its points preprocessed, back faces culled
-    where ``View.culls`` culls them (normals turned outward where they point in), its camera at ``size`` x ``size`` and its light."""
+    where ``View.culls`` culls them (normals turned outward where they point in), its camera at ``size`` x
+    ``size`` and its light."""
     spec = SCENES[scene]
     cloud = preprocess(load(path))
     camera = Camera(eye=spec["eye"], target=spec["target"], up=spec["up"], fov=spec["fov"], width=size, height=size)
