@@ -8,7 +8,7 @@ hierarchy; a path of ``--frames`` cameras orbiting 90 degrees while the eye move
 the automatic camera's distance. Per frame, as the viewer draws (``Renderer.draw`` into the
 renderer's targets and a glFinish, no read-back):
 
-- CPU cut: ``api.lod_splats`` (select and gather) and ``Renderer.upload`` of the cut (both Python /
+- CPU cut: ``surfsplat.pipeline.lod_splats`` (select and gather) and ``Renderer.upload`` of the cut (both Python /
   NumPy work per frame), then the draw;
 - GPU cut: the layout uploaded once (``render/sequential.py``); per frame the prefix search (Python,
   timed alone) and the draw, the vertex shader keeping the cut.
@@ -32,10 +32,12 @@ sys.path.insert(0, str(HERE))
 from bench_render import bunny  # noqa: E402
 from common import machine_description, write_table  # noqa: E402
 
-from surfsplat import api  # noqa: E402
+from surfsplat.camera import Camera  # noqa: E402
+from surfsplat.camera_path import orbit_cameras  # noqa: E402
 from surfsplat.hierarchy.sequential import drawn_mask, sequential_layout  # noqa: E402
 from surfsplat.lighting import Lights  # noqa: E402
 from surfsplat.metrics import psnr  # noqa: E402
+from surfsplat.pipeline import as_model, auto_camera, lod_splats  # noqa: E402
 from surfsplat.rendering.context import headless_context, renderer_name  # noqa: E402
 from surfsplat.rendering.options import RenderOptions  # noqa: E402
 from surfsplat.rendering.renderer import _with_clip_planes, default_renderer, point_radius  # noqa: E402
@@ -45,16 +47,16 @@ from surfsplat.rendering.techniques import get_technique  # noqa: E402
 
 def camera_path(cloud, width: int, height: int, frames: int) -> list:
     """``frames`` cameras: a 90 degree orbit while the distance goes from 0.7x to 2.5x the automatic one."""
-    start = api.auto_camera(cloud, width, height)
+    start = auto_camera(cloud, width, height)
     target = np.asarray(start.target)
     offset = np.asarray(start.eye) - target
-    cams = api.orbit_cameras(start, frames, 90.0)
+    cams = orbit_cameras(start, frames, 90.0)
     out = []
     for i, cam in enumerate(cams):
         factor = 0.7 * (2.5 / 0.7) ** (i / max(frames - 1, 1))
         eye = target + factor * (np.asarray(cam.eye) - target) * np.linalg.norm(offset) / np.linalg.norm(
             np.asarray(cam.eye) - target)
-        out.append(api.Camera(eye=tuple(eye), target=cam.target, up=cam.up, fov=cam.fov, width=width, height=height))
+        out.append(Camera(eye=tuple(eye), target=cam.target, up=cam.up, fov=cam.fov, width=width, height=height))
     return out
 
 
@@ -71,7 +73,7 @@ def main() -> None:
 
     cloud = bunny(args.splats)
     start = time.perf_counter()
-    tree = api.as_hierarchy(cloud)
+    tree = as_model(cloud).tree().data
     build_s = time.perf_counter() - start
     renderer = default_renderer()
     ctx = renderer.ctx
@@ -94,7 +96,7 @@ def main() -> None:
         scores = []
         for i, cam in enumerate(cams):
             t0 = time.perf_counter()
-            cut, _ = api.lod_splats(tree, cam, args.tolerance)
+            cut, _ = lod_splats(tree, cam, args.tolerance)
             splats = renderer.upload(cut)
             t1 = time.perf_counter()
             renderer.draw(splats, cam, technique, lights, options)

@@ -1,4 +1,4 @@
-"""``lod_tolerance="auto"``: what it costs in quality and saves in time, per resolution.
+"""``LodOptions(tolerance="auto")``: what it costs in quality and saves in time, per resolution.
 
 Usage: python benchmarks/bench_lod_auto.py [--splats 1000000] [--sizes 256 512 1024] [--technique ewa]
 
@@ -8,7 +8,7 @@ camera; per output size: the points per covered pixel (render/lod_auto.points_pe
 merged per half pixel for the view where it is dense: render/lod_auto.merge_in_pixels, timed in the
 frame); the hierarchy's cut at one pixel (the tolerance "auto" cuts a hierarchy at; the build is
 once per model and not in the frame). Per way: splats drawn, the frame (merge or cut, upload, draw,
-read-back: ``api.render_model``), the PSNR against the mesh's ground truth (``api.render_mesh``, 4x4
+read-back: ``View.render`` of a prepared view), the PSNR against the mesh's ground truth (``surfsplat.render_mesh``, 4x4
 supersampled) over the mesh's coverage. Saved as results/lod_auto.md.
 """
 
@@ -25,8 +25,9 @@ sys.path.insert(0, str(HERE))
 from bench_render import SHARED, bunny  # noqa: E402
 from common import machine_description, write_table  # noqa: E402
 
-from surfsplat import api  # noqa: E402
+import surfsplat  # noqa: E402
 from surfsplat.metrics import psnr  # noqa: E402
+from surfsplat.pipeline import LodOptions, View, as_model, auto_camera, local_camera  # noqa: E402
 from surfsplat.rendering.context import headless_context, renderer_name  # noqa: E402
 from surfsplat.rendering.lod_auto import AUTO, AUTO_MIN_DENSITY, points_per_pixel  # noqa: E402
 
@@ -54,19 +55,20 @@ def main() -> None:
 
     cloud = bunny(args.splats)
     start = time.perf_counter()
-    tree = api.as_hierarchy(cloud)
+    tree = as_model(cloud).tree().data
     build = time.perf_counter() - start
+    # prepared once, drawn for every size: every splat; "auto" on the cloud; the hierarchy cut at one pixel
+    full_view, auto_view = View(cloud), View(cloud, lod=LodOptions(tolerance=AUTO))
+    cut_view = View(tree, lod=LodOptions(tolerance=AUTO))
     rows = []
     for size in args.sizes:
-        camera = api.auto_camera(cloud, size, size)
-        truth = api.render_mesh(SHARED / "bunny.ply", camera)
+        camera = auto_camera(cloud, size, size)
+        truth = surfsplat.render_mesh(SHARED / "bunny.ply", camera)
         mask = truth.alpha > 0.5
-        density = points_per_pixel(cloud.positions, api.local_camera(cloud, camera))
-        full, full_s = timed(lambda: api.render_model(cloud, camera, technique=args.technique), args.repeat)
-        auto, auto_s = timed(lambda: api.render_model(cloud, camera, technique=args.technique, lod_tolerance=AUTO),
-                             args.repeat)
-        cut, cut_s = timed(lambda: api.render_model(tree, camera, technique=args.technique, lod_tolerance=AUTO),
-                           args.repeat)
+        density = points_per_pixel(cloud.positions, local_camera(cloud, camera))
+        full, full_s = timed(lambda: full_view.render(camera, technique=args.technique), args.repeat)
+        auto, auto_s = timed(lambda: auto_view.render(camera, technique=args.technique), args.repeat)
+        cut, cut_s = timed(lambda: cut_view.render(camera, technique=args.technique), args.repeat)
         db = [psnr(r.frame.color, truth.color, mask) for r in (full, auto, cut)]
         rows.append([f"{size}x{size}", len(cloud), round(density, 1),
                      "merge per half pixel" if density >= AUTO_MIN_DENSITY else "all splats",
@@ -79,8 +81,8 @@ def main() -> None:
                "all: PSNR dB", "auto: splats", "auto: frame ms", "auto: speed-up", "auto: PSNR dB", "auto - all dB",
                "1 px cut: splats", "1 px cut: frame ms", "1 px cut: PSNR dB", "cut - all dB"]
     write_table("lod_auto", columns, rows, machine_description(renderer_name(headless_context()))
-                + f"; bunny, technique {args.technique}, PSNR against the mesh over its coverage; frame = "
-                  "api.render_model (merge or cut, upload, draw, read-back), median of " + str(args.repeat)
+                + f"; bunny, technique {args.technique}, PSNR against the mesh over its coverage; frame = View.render "
+                  f"of a prepared view (merge or cut, upload, draw, read-back), median of {args.repeat}"
                 + f"; hierarchy build (once, not in the 1 px cut's frame) {build:.2f} s")
 
 

@@ -11,9 +11,9 @@ surfsplat installed)::
   The points PLY is read with the harness's own reader; normals and colours as given; splat axes
   from surfsplat's preprocessing (k nearest neighbours), one-time setup like the peers' radius
   estimation. A frame is ``Renderer.render`` of the uploaded splats with read-back into NumPy (the
-  peers also draw from buffers they keep), with the back faces culled where ``api.cull_automatically``
+  peers also draw from buffers they keep), with the back faces culled where ``View.culls``
   culls them by default (a closed cloud seen from outside); ``--lod-tolerance PX`` times
-  ``api.render_model`` of the hierarchy instead (cut, upload, draw, read-back; the build is setup),
+  ``View.render`` of a view of the hierarchy instead (cut, upload, draw, read-back; the build is setup),
   ``--lod-tolerance auto`` that of the cloud (merged per half pixel where dense); with ``--lod-mode gpu``
   the hierarchy's sequential layout is uploaded once (setup) and each frame's cut is the vertex
   shaders' (the viewer's default path).
@@ -47,11 +47,11 @@ def runner(argv: list[str]) -> None:
     from common import Timer, add_point_args, base_parser, light_from_args, read_points_ply, report, save_png, \
         time_frames
 
-    from surfsplat import api
     from surfsplat.camera import Camera
     from surfsplat.cloud import SplatCloud
     from surfsplat.geometry.preprocess import preprocess
     from surfsplat.lighting import Lights
+    from surfsplat.pipeline import LodOptions, View, as_model, local_camera
     from surfsplat.rendering.options import RenderOptions, VisibilityOptions
     from surfsplat.rendering.renderer import Renderer
 
@@ -76,22 +76,23 @@ def runner(argv: list[str]) -> None:
     lights = Lights(directions=[tuple(light_from_args(args))], ambient=args.ka, diffuse=args.kd, specular=args.ks,
                     shininess=args.shininess)
     background = tuple(np.asarray(args.bg, float) / 255.0)
+    # the default a user gets: back faces culled where the cloud is closed and seen from outside (its
+    # normals turned outward where they point in)
+    view = View(cloud)
+    cull = view.culls(camera)
+    cloud = view.sample(camera).data
+    options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=cull), compute=not args.no_compute)
     if args.lod_tolerance is not None:
         tolerance = args.lod_tolerance if args.lod_tolerance == "auto" else float(args.lod_tolerance)
-        cloud, cull = api.cull_automatically(cloud, camera, closed=False)
-        options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=cull), compute=not args.no_compute)
-        model = cloud if tolerance == "auto" else api.as_hierarchy(cloud)   # auto: a cloud merged per view
-        render_once = lambda: api.render_model(model, camera, technique=args.technique, lights=lights,  # noqa: E731
-                                               background=background, options=options, lod_tolerance=tolerance,
-                                               lod_mode=args.lod_mode).frame.color
+        model = cloud if tolerance == "auto" else as_model(cloud).tree().data   # auto: a cloud merged per view
+        lod_view = View(model, lod=LodOptions(tolerance=tolerance, mode=args.lod_mode))
+        render_once = lambda: lod_view.render(camera, technique=args.technique, lights=lights,  # noqa: E731
+                                              background=background, options=options).frame.color
         render_once()   # the sequential layout's upload (gpu) is setup, as the peers' buffers are
     else:
-        # the default a user gets: back faces culled where the cloud is closed and seen from outside
-        cloud, cull = api.cull_automatically(cloud, camera, closed=False)
-        options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=cull), compute=not args.no_compute)
         renderer = Renderer()
         gpu = renderer.upload(cloud)
-        local = api.local_camera(cloud, camera)
+        local = local_camera(cloud, camera)
         render_once = lambda: renderer.render(gpu, local, args.technique, lights, options,  # noqa: E731
                                               background=background).color
     timer.mark("setup_s")

@@ -91,7 +91,7 @@ def speed_rows(n: int, size: int, repeat: int, techniques: list[str]) -> list[di
     """One dict per technique: wall/CPU ms per frame and the breakdown (this process's surfsplat)."""
     import numpy as np
 
-    from surfsplat.api import auto_camera
+    from surfsplat.pipeline import auto_camera
     from surfsplat.lighting import Lights
     from surfsplat.rendering.context import renderer_name
     from surfsplat.rendering.renderer import Renderer
@@ -168,7 +168,7 @@ def memory_child(n: int, size: int) -> dict:
     memory before it (the cloud, the context and the compiled programs already there)."""
     import numpy as np
 
-    from surfsplat.api import auto_camera
+    from surfsplat.pipeline import auto_camera
     from surfsplat.lighting import Lights
     from surfsplat.rendering.renderer import Renderer
 

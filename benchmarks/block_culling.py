@@ -30,7 +30,7 @@ from common import machine_description, write_table  # noqa: E402
 
 def views(cloud, size: int) -> dict:
     """The three cameras: whole model, close-up, inside the bounds."""
-    from surfsplat.api import CameraSpec
+    from surfsplat.pipeline import CameraSpec
     from surfsplat.camera import Camera
 
     lo, hi = cloud.bounds()

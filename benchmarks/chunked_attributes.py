@@ -31,7 +31,7 @@ from common import machine_description  # noqa: E402
 from lidar_pictures import pair, write_las  # noqa: E402
 
 import surfsplat  # noqa: E402
-from surfsplat.api import CameraSpec, SourceOptions  # noqa: E402
+from surfsplat.pipeline import CameraSpec, LodOptions, SourceOptions  # noqa: E402
 from surfsplat.colors import ColorOptions, asprs_palette  # noqa: E402
 from surfsplat.hierarchy.chunked import build_chunked, open_chunked  # noqa: E402
 from surfsplat.metrics import psnr  # noqa: E402
@@ -52,7 +52,7 @@ CAMERA = CameraSpec(eye=(-40.0, -60.0, 95.0), target=(80.0, 80.0, 0.0), up=(0.0,
 
 def draw(source, by: str, lights: bool) -> tuple[np.ndarray, float]:
     start = time.perf_counter()
-    frame = surfsplat.render(source, CAMERA, width=WIDTH, height=HEIGHT, lod_tolerance=1.0,
+    frame = surfsplat.render(source, CAMERA, width=WIDTH, height=HEIGHT, lod=LodOptions(tolerance=1.0),
                              lights=surfsplat.Lights(enabled=lights),
                              source_options=SourceOptions(color=ColorOptions(by)))
     return frame.image(), time.perf_counter() - start

@@ -163,25 +163,26 @@ def build(source: Path, output: Path, cell_points: int, scheduler: str, workers:
 
 def render(output: Path, folder: Path) -> list[tuple[str, float, str]]:
     """Open lazily and draw an overview and a close-up at 1024x768; (what, seconds, detail) rows."""
-    from surfsplat import api
     from surfsplat.hierarchy.chunked import open_chunked
+    from surfsplat.pipeline import CameraSpec, LodOptions, View
     rows = []
     t = time.perf_counter()
     model = open_chunked(output)
     rows.append(("open (manifest, top hierarchy, preview)", time.perf_counter() - t, f"{len(model.cells)} cells"))
-    camera = api.resolve_camera(model, None, 1024, 768, default_up=model.up)
+    framing = View(model)   # its cameras about the chunked model's own up axis
+    camera = framing.camera(None, 1024, 768)
     center = model.origin + [0.0, 0.0, 0.0]
-    close = api.resolve_camera(model, api.CameraSpec(eye=tuple(center + [-60, -90, 70]),
-                                                     target=tuple(center + [0, 0, 10]), up=(0, 0, 1), fov=50),
-                               1024, 768)
-    far = api.resolve_camera(model, api.CameraSpec(eye=tuple(model.origin + [-100_000, -150_000, 80_000]),
-                                                   target=tuple(model.origin), up=(0, 0, 1), fov=40), 1024, 768)
+    close = framing.camera(CameraSpec(eye=tuple(center + [-60, -90, 70]), target=tuple(center + [0, 0, 10]),
+                                      up=(0, 0, 1), fov=50), 1024, 768)
+    far = framing.camera(CameraSpec(eye=tuple(model.origin + [-100_000, -150_000, 80_000]),
+                                    target=tuple(model.origin), up=(0, 0, 1), fov=40), 1024, 768)
     for name, cam, budget, tolerance in (("overview", camera, None, 1.0), ("overview", camera, 1_000_000, 1.0),
                                          ("close-up", close, None, 1.0), ("close-up", close, 1_000_000, 1.0),
                                          ("far", far, None, 4.0)):
+        view = View(model, lod=LodOptions(tolerance=tolerance, point_budget=budget))   # the model's cell cache shared
         for attempt in ("cold", "warm"):
             t = time.perf_counter()
-            result = api.render_model(model, cam, lod_tolerance=tolerance, point_budget=budget)
+            result = view.render(cam)
             seconds = time.perf_counter() - t
             s = result.selection
             rows.append((f"render {name}, tolerance {tolerance:g} px, budget {budget or 'none'} ({attempt} cache)",
@@ -196,18 +197,19 @@ def compare(chunked: Path, single: Path, folder: Path) -> list[str]:
     """Table rows: the chunked directory against the one-file hierarchy of the same cloud, one close-up."""
     from PIL import Image
 
-    from surfsplat import api
     from surfsplat.hierarchy import load_hierarchy
     from surfsplat.hierarchy.chunked import open_chunked
     from surfsplat.metrics import psnr
+    from surfsplat.pipeline import CameraSpec, LodOptions, View
     model, memory = open_chunked(chunked), load_hierarchy(single)
     c = model.origin
-    close = api.resolve_camera(model, api.CameraSpec(eye=tuple(c + [-60, -90, 70]), target=tuple(c + [0, 0, 10]),
-                                                     up=(0, 0, 1), fov=50), 640, 480)
+    close = View(model).camera(CameraSpec(eye=tuple(c + [-60, -90, 70]), target=tuple(c + [0, 0, 10]),
+                                          up=(0, 0, 1), fov=50), 640, 480)
     rows = []
     for tolerance in (0.0, 1.0):
-        a = api.render_model(model, close, lod_tolerance=tolerance)
-        b = api.render_model(memory, close, lod_tolerance=tolerance)
+        lod = LodOptions(tolerance=tolerance)
+        a = View(model, lod=lod).render(close)
+        b = View(memory, lod=lod).render(close)
         d = np.abs(a.frame.color - b.frame.color)
         rows.append(f"| {tolerance:g} px | {a.splats:,} / {b.splats:,} | {psnr(a.frame.color, b.frame.color):.1f} | "
                     f"{100 * (d.max(axis=-1) > 0.05).mean():.2f} % |")

@@ -29,9 +29,9 @@ sys.path.insert(0, str(HERE.parent / "tests"))
 
 from test_chunked import torus_points, write_ply  # noqa: E402
 
-from surfsplat.api import CameraSpec, load_model  # noqa: E402
 from surfsplat.hierarchy.chunked import build_chunked  # noqa: E402
 from surfsplat.lighting import Lights  # noqa: E402
+from surfsplat.pipeline import CameraSpec, LodOptions, View  # noqa: E402
 from surfsplat.rendering.options import RenderOptions  # noqa: E402
 from surfsplat.viewer import app  # noqa: E402
 from surfsplat.viewer import camera_control as cc  # noqa: E402
@@ -68,11 +68,13 @@ def main() -> None:
         t = time.perf_counter()
         build_chunked(source, folder / "torus.ssh", cell_points=args.cell_points, scheduler="threads")
         build_s = time.perf_counter() - t
-        model = load_model(str(folder / "torus.ssh"))
+        plan = View(str(folder / "torus.ssh"), lod=LodOptions(tolerance=1.0, point_budget=args.point_budget),
+                    interactive=True)   # as surfsplat.view prepares it
+        model = plan.model.data
         glfw, window, ctx = app.open_window(*args.size, "chunked_view benchmark")
-        viewer = app.Viewer(glfw, window, ctx, model, CameraSpec(), technique="ewa", lights=Lights(),
-                            options=RenderOptions(), background=(1, 1, 1), lod_tolerance=1.0,
-                            motion=app.MotionOptions("flat"), hud=True, point_budget=args.point_budget)
+        viewer = app.Viewer(glfw, window, ctx, plan, CameraSpec(), technique="ewa", lights=Lights(),
+                            options=RenderOptions(), background=(1, 1, 1), motion=app.MotionOptions("flat"),
+                            hud=True)
         rows = [("first view", settle(viewer))]
         for name, move in (("zoomed in (4 wheel steps)", lambda c: cc.zoom(c, 4)),
                            ("orbited 90 deg", lambda c: cc.orbit(c, 90.0, 0.0, viewer.controller.up))):

@@ -52,7 +52,7 @@ from common import RESULTS, label, machine_description, markdown_table, write_ta
 
 from surfsplat import (Camera, FilterOptions, Lights, RenderOptions, SplatCloud, VisibilityOptions,  # noqa: E402
                        metrics, phong_splats, preprocess)
-from surfsplat.api import auto_camera  # noqa: E402
+from surfsplat.pipeline import auto_camera  # noqa: E402
 from surfsplat.geometry.closed import is_closed_surface, outward_splats  # noqa: E402
 from surfsplat.geometry.sampling import sample_mesh, surface_splats  # noqa: E402
 from surfsplat.io import load_mesh  # noqa: E402

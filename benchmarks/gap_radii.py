@@ -42,11 +42,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import RESULTS, machine_description, markdown_table  # noqa: E402
 
 import surfsplat  # noqa: E402
-from surfsplat import api, scenes_faulty  # noqa: E402
+from surfsplat import scenes_faulty  # noqa: E402
 from surfsplat.camera import Camera  # noqa: E402
 from surfsplat.geometry import knn, preprocess  # noqa: E402
 from surfsplat.geometry.splats import GAP_BASE, cover_cells, elliptical_splats  # noqa: E402
 from surfsplat.lighting import Lights  # noqa: E402
+from surfsplat.pipeline import View, local_camera  # noqa: E402
 from surfsplat.rendering.options import RenderOptions, VisibilityOptions  # noqa: E402
 from surfsplat.rendering.renderer import Renderer  # noqa: E402
 
@@ -149,9 +150,11 @@ def peers(frames: int = 5) -> list[list]:
             camera = Camera(eye=view["eye"], target=view["target"], up=view["up"], fov=view["fov"],
                             width=1024, height=1024)
             camera = camera.with_clip_from_bounds(lo, hi, margin=float(cloud.radii.max()))
-            model, cull = api.cull_automatically(cloud, camera, closed=False)
+            plan = View(cloud)   # back faces culled where a closed cloud is seen from outside, normals outward
+            cull = plan.culls(camera)
+            model = plan.sample(camera).data
             options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=cull))
-            drawn[tag] = (renderer.upload(model), api.local_camera(model, camera), options, f"{wall:.2f} / {cpu:.2f}",
+            drawn[tag] = (renderer.upload(model), local_camera(model, camera), options, f"{wall:.2f} / {cpu:.2f}",
                           area)
         for technique in ("ewa", "flat"):
             images, times = {}, {tag: [] for tag in drawn}
@@ -202,7 +205,7 @@ def border(size: int = 800) -> list[list]:
         inner = binary_erosion(square, iterations=2)
         for name, coverage, tag in (("coverage 1.5 (old default)", 1.5, "old"), ("cells (default)", None, "cells")):
             cloud = preprocess(faulty.cloud, coverage=coverage)
-            frame = api.render(cloud, camera, technique="flat", width=size, height=size, background=(0, 0, 0))
+            frame = surfsplat.render(cloud, camera, technique="flat", width=size, height=size, background=(0, 0, 0))
             drawn = np.any(frame.color > 0, axis=2)
             png = np.round(np.clip(frame.color, 0, 1) * 255).astype(np.uint8)
             Image.fromarray(png).save(PICTURES / f"border_{scene.split()[0]}_{tag}_{size}.png")

@@ -21,7 +21,7 @@ import numpy as np
 from PIL import Image
 
 import surfsplat
-from surfsplat.api import CameraSpec, SourceOptions
+from surfsplat.pipeline import CameraSpec, SourceOptions
 from surfsplat.colors import ColorOptions
 from surfsplat.rendering.options import EdlOptions, RenderOptions
 from surfsplat.scenes_faulty import aerial
@@ -44,10 +44,11 @@ def write_las(cloud, path: Path) -> None:
     las.write(str(path))
 
 
-def draw(source, width, height, camera=None, color=None, **kw) -> np.ndarray:
+def draw(source, width, height, camera=None, color=None, hybrid=None, **kw) -> np.ndarray:
     start = time.perf_counter()
-    frame = surfsplat.render(str(source), camera, width=width, height=height,
-                             source_options=SourceOptions(color=ColorOptions(color) if color else None), **kw)
+    options = SourceOptions(color=ColorOptions(color) if color else None, hybrid=hybrid)   # hybrid None: on for LAS
+    frame = surfsplat.render(str(source), camera, width=width, height=height, source_options=options, **kw)
+    kw = kw if hybrid is None else kw | {"hybrid": hybrid}
     print(f"  {Path(source).name} {color or 'own colours'} {kw}: {time.perf_counter() - start:.1f} s")
     return frame.image()
 

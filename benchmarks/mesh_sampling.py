@@ -48,7 +48,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import RESULTS, fmt, machine_description, markdown_table  # noqa: E402
 
 from surfsplat import SplatCloud, metrics  # noqa: E402
-from surfsplat.api import as_splats, auto_camera  # noqa: E402
+from surfsplat.pipeline import as_splats, auto_camera  # noqa: E402
 from surfsplat.geometry.sampling import (DEFAULT_SPACING_PX, MAX_SAMPLES, samples_for_pixels,  # noqa: E402
                                          surface_splats, view_spacing)
 from surfsplat.io import load, load_input, load_mesh  # noqa: E402

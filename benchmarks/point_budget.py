@@ -10,7 +10,7 @@ view with the eye moved to 0.7 of its distance (the bunny fills the frame) is dr
   (:func:`surfsplat.hierarchy.select` with ``point_budget``, Potree's priority).
 
 Columns: splats drawn; selection time (cut + gather, ms, best of ``--repeats``); frame time (the
-whole ``api.render_model``: selection, upload, drawing, read-back; ms, best of ``--repeats``);
+whole ``View.render`` of a prepared view: selection, upload, drawing, read-back; ms, best of ``--repeats``);
 PSNR (dB) and SSIM against the full cloud over the pixels either image covers.
 
     python benchmarks/point_budget.py [--size 1024 768] [--samples 1000000] [--repeats 2]
@@ -30,11 +30,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import machine_description, write_table  # noqa: E402
 
-from surfsplat import api, metrics  # noqa: E402
+from surfsplat import metrics  # noqa: E402
 from surfsplat.camera import Camera  # noqa: E402
 from surfsplat.geometry.sampling import surface_splats  # noqa: E402
 from surfsplat.hierarchy import build_hierarchy, select  # noqa: E402
 from surfsplat.io import load_mesh  # noqa: E402
+from surfsplat.pipeline import LodOptions, View, auto_camera  # noqa: E402
 from surfsplat.rendering.renderer import default_renderer  # noqa: E402
 
 BUNNY = Path(__file__).resolve().parents[2] / "shared" / "data" / "bunny.ply"
@@ -64,22 +65,25 @@ def main() -> None:
     start = time.perf_counter()
     h = build_hierarchy(cloud)
     print(f"{len(cloud):,} samples, hierarchy of {len(h):,} nodes in {time.perf_counter() - start:.1f} s")
-    home = api.auto_camera(cloud, width, height)
+    home = auto_camera(cloud, width, height)
     eye, target = np.asarray(home.eye), np.asarray(home.target)
     camera = Camera(eye=tuple(target + 0.7 * (eye - target)), target=home.target, up=home.up, fov=home.fov,
                     width=width, height=height)
 
-    def frame(**kw):
-        return api.render_model(h if kw else cloud, camera, **kw)
+    def prepared(**lod) -> View:
+        """The view of every splat of the cloud (no LOD options), else of the hierarchy cut as ``lod`` says."""
+        return View(h, lod=LodOptions(**lod)) if lod else View(cloud)
 
-    frame(lod_tolerance=1.0, point_budget=1000)   # warm-up: shaders compiled, renderer created
-    ref_s, ref = best_of(args.repeats, frame)
+    prepared(tolerance=1.0, point_budget=1000).render(camera)   # warm-up: shaders compiled, renderer created
+    full = prepared()
+    ref_s, ref = best_of(args.repeats, lambda: full.render(camera))
     reference = ref.frame
     rows = [["full (every splat)", len(cloud), "-", round(1000 * ref_s), "ref", "ref"]]
     cases = [("LOD 1 px", None)] + [(f"budget {n:,}", n) for n in BUDGETS]
     for label, budget in cases:
         sel_s, selection = best_of(args.repeats, lambda: h.splats(select(h, camera, 1.0, point_budget=budget)))
-        t, result = best_of(args.repeats, lambda: frame(lod_tolerance=1.0, point_budget=budget))
+        view = prepared(tolerance=1.0, point_budget=budget)
+        t, result = best_of(args.repeats, lambda: view.render(camera))
         mask = result.frame.mask | reference.mask
         rows.append([label, result.splats, round(1000 * sel_s), round(1000 * t),
                      round(metrics.psnr(result.frame.color, reference.color, mask), 2),

@@ -10,8 +10,9 @@ version, e.g. ``git worktree add /tmp/old 0228d24``), in that one, each in its o
   version's automatic one, passed as flags) and are compared with this version's
   ``render --mesh`` (4 x 4 supersampled) of the same camera: PSNR inside the mesh's
   silhouette eroded by 2 px, hole pixels there, leak pixels outside it grown by 2 px;
-* splat sizes: the splats drawn (each version's ``api.load_model`` of the file; a mesh's surface
-  sampled for the view in this version), their largest and 99th-percentile radius over the
+* splat sizes: the splats drawn (each version's model of the file: this version's prepared view,
+  ``surfsplat.prepare``, its surface sampled for the automatic view where it is a mesh; an older
+  version's ``api.load_model``), their largest and 99th-percentile radius over the
   median distance between neighbouring splat centers (distinct ones: coincident points skipped).
 
 Inputs: featuretype.ply (CAD mesh), a triangle soup of it (PLY, every triangle its own vertices,
@@ -53,11 +54,15 @@ from scipy.spatial import cKDTree
 warnings.simplefilter("ignore")
 import surfsplat.api as api
 path, flags = sys.argv[1], sys.argv[2:]
-model = api.load_model(path)
-if hasattr(api, "surface_model"):
-    camera = api.resolve_camera(model, None, {size}, {size}, default_up=api.natural_up(path))
-    model = api.surface_model(model, camera)
-cloud = api.model_points(model)
+if hasattr(api, "prepare"):   # the view plan: the splats drawn for the automatic view (a mesh sampled for it)
+    view = api.prepare(path)
+    cloud = view.sample(view.camera(None, {size}, {size})).points()
+else:
+    model = api.load_model(path)
+    if hasattr(api, "surface_model"):
+        camera = api.resolve_camera(model, None, {size}, {size}, default_up=api.natural_up(path))
+        model = api.surface_model(model, camera)
+    cloud = api.model_points(model)
 d, _ = cKDTree(cloud.positions).query(cloud.positions, k=2)
 spacing = float(np.median(d[:, 1][d[:, 1] > 0]))   # duplicated points (split vertices) have none
 r = cloud.radii

@@ -2,8 +2,8 @@
 
 The input is the peers' scenes (../shared/peers: ``bench.py`` writes ``bunny_1000000.ply`` and
 ``torus_1000000.ply`` into its ``--work`` folder, 1M points sampled from the meshes with normals),
-preprocessed as ``bench_peers.py`` does, back faces culled where ``api.cull_automatically`` culls
-them, uploaded once, drawn at 1024x1024 with the peers' cameras. Every draw call is wrapped in
+preprocessed as ``bench_peers.py`` does, back faces culled where ``surfsplat.pipeline.View.culls``
+culls them, uploaded once, drawn at 1024x1024 with the peers' cameras. Every draw call is wrapped in
 glFinish and timed in process CPU time (llvmpipe's threads included), which a busy machine disturbs
 less than wall time, and so are the compute passes of the small splats (``render/compute_visibility.py``,
 where the context has OpenGL 4.3; ``--raster-only`` draws every splat instead); the frame is also timed whole
@@ -31,11 +31,11 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 from common import machine_description, write_table  # noqa: E402
 
-from surfsplat import api  # noqa: E402
 from surfsplat.camera import Camera  # noqa: E402
 from surfsplat.geometry.preprocess import preprocess  # noqa: E402
 from surfsplat.io import load  # noqa: E402
 from surfsplat.lighting import Lights  # noqa: E402
+from surfsplat.pipeline import View, local_camera  # noqa: E402
 from surfsplat.rendering import compute_visibility  # noqa: E402
 from surfsplat.rendering.options import RenderOptions, VisibilityOptions  # noqa: E402
 from surfsplat.rendering.renderer import Renderer  # noqa: E402
@@ -62,14 +62,17 @@ def pass_name(key: tuple) -> str:
 
 def scene_setup(scene: str, path: Path, size: int):
     """``(cloud, camera, lights, options)`` of a peers' scene: its points preprocessed, back faces culled
-    where ``api.cull_automatically`` culls them, its camera at ``size`` x ``size`` and its light."""
+    where ``View.culls`` culls them (normals turned outward where they point in), its camera at ``size`` x
+    ``size`` and its light."""
     spec = SCENES[scene]
     cloud = preprocess(load(path))
     camera = Camera(eye=spec["eye"], target=spec["target"], up=spec["up"], fov=spec["fov"], width=size, height=size)
     camera = camera.with_clip_from_bounds(*cloud.bounds(), margin=float(cloud.radii.max()))
     light = np.asarray(spec["light"], float) / np.linalg.norm(spec["light"])
     lights = Lights(directions=[tuple(light)], ambient=0.2, diffuse=0.8, specular=0.3, shininess=32)
-    cloud, cull = api.cull_automatically(cloud, camera, closed=False)
+    view = View(cloud)
+    cull = view.culls(camera)
+    cloud = view.sample(camera).data
     return cloud, camera, lights, RenderOptions(visibility=VisibilityOptions(cull_backfaces=cull))
 
 
@@ -79,7 +82,7 @@ def measure(scene: str, path: Path, techniques: list[str], repeat: int, size: in
     options = replace(options, compute=compute)
     renderer = Renderer()
     gpu = renderer.upload(cloud)
-    local = api.local_camera(cloud, camera)
+    local = local_camera(cloud, camera)
     ctx, rows = renderer.ctx, []
     for technique in techniques:
         renderer.render(gpu, local, technique, lights, options, background=(0, 0, 0))   # compile, warm up
@@ -139,7 +142,7 @@ def interleaved(scene: str, path: Path, techniques: list[str], repeat: int, size
     modes = {"compute": replace(options, compute=True), "raster": replace(options, compute=False)}
     renderer = Renderer()
     gpu = renderer.upload(cloud)
-    local = api.local_camera(cloud, camera)
+    local = local_camera(cloud, camera)
     rows = []
     for technique in techniques:
         frames = {name: renderer.render(gpu, local, technique, lights, mode, background=(0, 0, 0))

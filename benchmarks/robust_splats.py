@@ -55,7 +55,7 @@ from common import RESULTS, machine_description, markdown_table  # noqa: E402
 import surfsplat  # noqa: E402
 from surfsplat import SplatCloud, metrics, scenes  # noqa: E402
 from surfsplat import scenes_faulty as sf  # noqa: E402
-from surfsplat.api import auto_camera  # noqa: E402
+from surfsplat.pipeline import auto_camera  # noqa: E402
 from surfsplat.camera import Camera  # noqa: E402
 from surfsplat.geometry import knn, preprocess, sample_mesh  # noqa: E402
 from surfsplat.io import load_mesh  # noqa: E402
