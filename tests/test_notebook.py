@@ -74,7 +74,7 @@ def test_starting_view_is_the_given_camera(view):
     assert view.azimuth.value == 0 and view.zoom.value == 1 and view.elevation.value == 0
     image = pixels(view.image.value)
     assert image.shape == (64, 96, 3)
-    expected = surfsplat.render(view.model, view.camera(), technique="flat").image()
+    expected = surfsplat.render(view.view.sample().data, view.camera(), technique="flat").image()
     np.testing.assert_array_equal(image, expected)
     red, blue = masks(image)
     assert red.sum() > 100 and blue.sum() > 100
@@ -88,7 +88,7 @@ def test_sliders_stream_new_views(view):
     assert view.image.value != before
     red, blue = masks(after)
     assert center_x(red) < 48 < center_x(blue)
-    np.testing.assert_array_equal(after, surfsplat.render(view.model, view.camera(), technique="flat").image())
+    np.testing.assert_array_equal(after, surfsplat.render(view.view.sample().data, view.camera(), technique="flat").image())
 
     view.azimuth.value = 90.0    # from +x: the red sphere in front hides the blue one, both centered
     red, blue = masks(pixels(view.image.value))
@@ -103,7 +103,7 @@ def test_sliders_stream_new_views(view):
     view.technique.value = "ewa"
     assert view.status.value.startswith("ewa: 6,000 splats")
     np.testing.assert_array_equal(pixels(view.image.value),
-                                  surfsplat.render(view.model, view.camera(), technique="ewa").image())
+                                  surfsplat.render(view.view.sample().data, view.camera(), technique="ewa").image())
     view.elevation.value = 80.0  # from above, the red sphere still in the middle
     red, blue = masks(pixels(view.image.value))
     assert abs(center_x(red) - 47.5) < 1.5

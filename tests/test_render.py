@@ -495,7 +495,7 @@ def test_transparent_and_16_bit_output(renderer, torus_view, tmp_path):
     with pytest.raises(InputError, match="no alpha channel"):
         frame.save(tmp_path / "t.jpg", transparent=True)
     with pytest.raises(InputError, match="supersample"):
-        renderer.render(cloud, cam, "ewa", Lights(), supersample=9)
+        renderer.render(cloud, cam, "ewa", Lights(), supersample=17)
 
 
 def test_clip_fringe_ends_footprints_at_the_surface(renderer):
