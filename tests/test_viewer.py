@@ -593,7 +593,8 @@ def test_window_keeps_drawing_while_cells_stream(xvfb_display, chunked_model):
         from surfsplat.rendering.options import RenderOptions
         from surfsplat.viewer import app
         from surfsplat.hierarchy.chunked import ChunkedHierarchy
-        model = r"{chunked_model}"
+        from surfsplat.hierarchy.chunked import open_chunked
+        model = open_chunked(r"{chunked_model}")
         cut = ChunkedHierarchy.view_splats
         def slow(self, *args, **kw):   # on the class: recoloured copies are slow too
             time.sleep(1.0)
