@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 from PIL import Image
 
 from surfsplat.camera import Camera
@@ -14,6 +15,8 @@ from surfsplat.io.camera_formats import opencv_from_camera
 from surfsplat.io.depth_image import NEAR_KEY, load_depth_png, save_depth_png
 
 from test_cli import noisy_sphere, run
+
+pytestmark = pytest.mark.gl   # tiers (tests/conftest.py): the tests render through the command line
 
 
 def write_rig(path, cameras):
