@@ -166,6 +166,7 @@ def test_bad_color_range_and_api_threading(tmp_path):
     np.testing.assert_allclose(model.colors[ground][0], np.array(ASPRS_CLASSES[2][1]) / 255, atol=1e-6)
 
 
+@pytest.mark.gl
 def test_cli_render_las_colored_by_intensity(tmp_path, capsys):
     pytest.importorskip("matplotlib")
     write_las(tmp_path / "scan.las", grid(16))

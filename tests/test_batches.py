@@ -17,6 +17,8 @@ from surfsplat.rendering import renderer as renderer_module
 from surfsplat.rendering.options import RenderOptions
 from surfsplat.rendering.renderer import Renderer
 
+pytestmark = pytest.mark.gl   # tiers (tests/conftest.py): renderers of their own on the headless context
+
 
 @pytest.fixture
 def finishes(monkeypatch):

@@ -18,6 +18,8 @@ from surfsplat.errors import EmptyFrameWarning, InputError
 from surfsplat.io import save_ply
 from surfsplat.io.camera_file import load_camera, save_camera
 
+pytestmark = pytest.mark.gl   # tiers (tests/conftest.py): most tests render through the API and the command line
+
 
 def projected(cam: Camera, points: np.ndarray) -> np.ndarray:
     return reference.project(cam, reference.to_camera(cam, points))

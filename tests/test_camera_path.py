@@ -106,6 +106,7 @@ def test_camera_files_hold_a_list(tmp_path):
         load_camera_list(path)
 
 
+@pytest.mark.gl
 def test_cli_turntable_along_a_path(tmp_path, capsys):
     cloud = save_ply(sphere(4000, radius=0.8), tmp_path / "sphere.ply")
     keys = save_cameras(VIEWS, tmp_path / "keys.json")

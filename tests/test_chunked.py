@@ -113,6 +113,7 @@ def test_splats_equal_the_in_memory_build_at_cell_borders(torus):
     assert border.sum() > 3_000 and same[border].all()
 
 
+@pytest.mark.gl
 def test_rendered_picture_matches_the_in_memory_build(torus):
     _, _, _, model, ref, _ = torus
     memory = build_hierarchy(ref.replace(origin=model.origin))
@@ -265,6 +266,7 @@ def test_a_folder_of_las_tiles_streams_as_one_cloud(tmp_path):
     assert np.allclose(model.cell(0).points.colors, [1, 0, 0])
 
 
+@pytest.mark.gl
 def test_cli_builds_and_renders(tmp_path, capsys):
     source = write_ply(tmp_path / "t.ply", torus_points(6_000, seed=9))
     out = tmp_path / "cli.ssh"
@@ -331,6 +333,7 @@ def test_coarse_views_read_only_the_coarse_levels(tmp_path, monkeypatch):
     assert selection.cells_coarse < selection.cells_loaded and len(lazy.complete) > 0
 
 
+@pytest.mark.slow   # 9 s on 2 idle cores, 25 s on busy ones: builds traced by tracemalloc
 def test_memory_stays_bounded_as_the_cloud_grows(tmp_path):
     """Traced peak allocations (NumPy's included) for 15k and 45k points: the chunked build's with
     the same cells and chunks does not grow (measured 17.2 -> 15.8 MiB, the voxel counts being

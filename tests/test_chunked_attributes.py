@@ -21,13 +21,13 @@ from surfsplat.colors import class_colors
 from surfsplat.errors import InputError
 from surfsplat.hierarchy.chunked import build_chunked, open_chunked
 
-laspy = pytest.importorskip("laspy")
-
 
 @pytest.fixture(scope="module")
 def lidar(tmp_path_factory):
     """Two LAS tiles of a torus: classification 2 (ground) on the half x < 0 (relative to the
-    center), 6 (building) on the other; intensity 115..3885 from the angle around the axis."""
+    center), 6 (building) on the other; intensity 115..3885 from the angle around the axis.
+    Writing them needs laspy: the tests using them skip without it."""
+    laspy = pytest.importorskip("laspy")
     folder = tmp_path_factory.mktemp("attributes")
     points = torus_points(12_000, seed=31)
     rel = points - OFFSET
@@ -87,6 +87,7 @@ def test_views_carry_attributes_and_colour_by_classification(lidar):
         model.colorized("no_such_attribute")
 
 
+@pytest.mark.gl
 def test_cli_renders_a_chunked_model_by_classification(lidar, tmp_path):
     path, _, _ = lidar
     png = tmp_path / "c.png"

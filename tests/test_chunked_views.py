@@ -24,6 +24,8 @@ from surfsplat.hierarchy.lod import refinements, select
 from surfsplat.hierarchy.model import Hierarchy
 from surfsplat.metrics import psnr
 
+pytestmark = pytest.mark.gl   # tiers (tests/conftest.py): views rendered through the API and the command line
+
 
 @pytest.fixture(scope="module")
 def model(tmp_path_factory):

@@ -10,6 +10,8 @@ from surfsplat import SplatCloud
 from surfsplat.cli import main
 from surfsplat.io import load, save_ply
 
+pytestmark = pytest.mark.gl   # tiers (tests/conftest.py): most commands render
+
 
 def run(capsys, *argv) -> tuple[int, str, str]:
     status = main(["-q", *map(str, argv)])

@@ -13,6 +13,8 @@ from surfsplat.geometry.sampling import surface_splats
 from surfsplat.io.mesh import Mesh
 from surfsplat.io.surface import weld
 
+pytestmark = pytest.mark.gl   # tiers (tests/conftest.py): most tests render through the API
+
 
 def sphere(inward: bool = False, subdivisions: int = 3) -> Mesh:
     s = trimesh.creation.icosphere(subdivisions=subdivisions)

@@ -29,6 +29,8 @@ from surfsplat.rendering.options import RenderOptions, VisibilityOptions
 from surfsplat.rendering.renderer import Renderer
 from surfsplat.rendering.sequential import render_sequential
 
+pytestmark = pytest.mark.gl   # tiers (tests/conftest.py): renderers of their own on the headless context
+
 BLENDED = ("ewa", "blend", "phong", "perspective")
 TECHNIQUES = BLENDED + ("flat",)
 

@@ -225,6 +225,7 @@ def test_incomplete_gaussian_properties_read_as_plain_points(tmp_path):
     assert load(path).u is None
 
 
+@pytest.mark.gl
 def test_gaussian_disc_renders_its_colour_in_the_middle(tmp_path):
     path = tmp_path / "point_cloud.ply"
     disc_of_gaussians(path, three_d=True, colour=(0.9, 0.2, 0.1))

@@ -286,6 +286,8 @@ def run_case(argv: list[str]) -> tuple[str, str]:
 OUTCOMES = ("clear error", "correct", "crash", "hang", "wrong output")
 
 
+@pytest.mark.gl
+@pytest.mark.slow   # 18 s on 2 idle cores
 def test_cli_fuzz(inputs, tmp_path):
     """Random command lines: each one a clear error or a correct result; a table in the long mode."""
     rng = np.random.default_rng(SEED)

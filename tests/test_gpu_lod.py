@@ -24,6 +24,8 @@ from surfsplat.rendering.shaders import compose
 from surfsplat.scenes import checkerboard, demo_scene, sphere
 from surfsplat.viewer.detail import LevelOfDetail, recolor
 
+pytestmark = pytest.mark.gl   # tiers (tests/conftest.py): every test renders
+
 TEST_GLSL = Path(__file__).resolve().parent / "glsl"
 SIZE = 160
 

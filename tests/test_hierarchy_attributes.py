@@ -164,6 +164,7 @@ def palette_fraction(png, classes) -> float:
     return float((distance <= 2).mean())
 
 
+@pytest.mark.gl
 def test_cli_build_then_render_colored_by_classification(tmp_path, capsys):
     classes = write_blocks_las(tmp_path / "scan.las")
     model = tmp_path / "model.npz"

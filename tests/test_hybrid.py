@@ -14,6 +14,8 @@ from surfsplat.hierarchy import build_hierarchy
 from surfsplat.rendering.hybrid import facing_points
 from surfsplat.scenes_faulty import AERIAL_COLORS, BUILDING, GROUND, HIGH_VEGETATION, aerial, tree
 
+pytestmark = pytest.mark.gl   # tiers (tests/conftest.py): most tests render
+
 
 @pytest.fixture(scope="module")
 def block():

@@ -14,10 +14,12 @@ from PIL import Image
 import surfsplat
 from surfsplat.api import orbit_cameras
 from surfsplat.errors import InputError
+from surfsplat.notebook import Orbit, orbit_camera
 from surfsplat.scenes import sphere
 
-pytest.importorskip("ipywidgets", reason="the notebook widget needs ipywidgets (the notebook extra)")
-from surfsplat.notebook import Orbit, orbit_camera  # noqa: E402
+#: Why the tests that open the widget skip without ipywidgets (the camera math and the committed
+#: notebook's check run without it).
+IPYWIDGETS_NEEDED = "the notebook widget needs ipywidgets (the notebook extra)"
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "docs" / "examples" / "quickstart.ipynb"
 RED, BLUE = (0.9, 0.1, 0.1), (0.1, 0.1, 0.9)
@@ -37,6 +39,7 @@ def two_spheres() -> surfsplat.SplatCloud:
 
 @pytest.fixture(scope="module")
 def view(two_spheres):
+    pytest.importorskip("ipywidgets", reason=IPYWIDGETS_NEEDED)
     return Orbit(two_spheres, START, technique="flat", width=96, height=64)
 
 
@@ -70,6 +73,7 @@ def test_orbit_camera_matches_the_turntable_cameras():
         orbit_camera(base, 0.0, 90.0, 1.0)
 
 
+@pytest.mark.gl
 def test_starting_view_is_the_given_camera(view):
     assert view.azimuth.value == 0 and view.zoom.value == 1 and view.elevation.value == 0
     image = pixels(view.image.value)
@@ -81,6 +85,7 @@ def test_starting_view_is_the_given_camera(view):
     assert center_x(red) > 48 > center_x(blue)   # red at +x on the right
 
 
+@pytest.mark.gl
 def test_sliders_stream_new_views(view):
     before = view.image.value
     view.azimuth.value = 180.0   # from behind: the spheres swap sides
@@ -123,10 +128,12 @@ def test_example_notebook_is_committed_without_outputs():
     assert code and all(cell["outputs"] == [] and cell["execution_count"] is None for cell in code)
 
 
+@pytest.mark.gl
 def test_example_notebook_runs(tmp_path):
     nbformat = pytest.importorskip("nbformat", reason="running the example notebook needs nbformat")
     nbclient = pytest.importorskip("nbclient", reason="running the example notebook needs nbclient")
     pytest.importorskip("ipykernel", reason="running the example notebook needs ipykernel")
+    pytest.importorskip("ipywidgets", reason=IPYWIDGETS_NEEDED)
     notebook = nbformat.read(EXAMPLE, as_version=4)
     client = nbclient.NotebookClient(notebook, timeout=120, kernel_name="python3",
                                      resources={"metadata": {"path": str(EXAMPLE.parent)}})

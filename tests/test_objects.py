@@ -166,6 +166,7 @@ def test_to_open3d_without_open3d_is_a_clear_error():
         assert len(np.asarray(out.points)) == 2
 
 
+@pytest.mark.gl
 def test_render_takes_arrays_tables_and_trimesh_objects():
     """The front door: surfsplat.render of an ndarray, a dict of columns and a trimesh mesh."""
     import trimesh

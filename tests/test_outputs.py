@@ -20,10 +20,14 @@ from surfsplat.io.image_maps import (check_map_path, normals_from_depth, pixel_p
                                      save_normals)
 from surfsplat.scenes import sphere
 
-pytest.importorskip("OpenEXR")
-
 CAMERA = Camera(eye=(0.3, 0.2, 3.0), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov=40.0, width=160, height=120)
 RADIUS = 0.8
+
+
+@pytest.fixture
+def openexr():
+    """The OpenEXR package (the exr extra): the tests writing or reading .exr files skip without it."""
+    return pytest.importorskip("OpenEXR")
 
 
 def analytic_sphere(camera: Camera, radius: float = RADIUS, center=(0.0, 0.0, 0.0)):
@@ -49,7 +53,7 @@ def interior(depth: np.ndarray) -> np.ndarray:
     return drawn[1:-1, 1:-1] & drawn[:-2, 1:-1] & drawn[2:, 1:-1] & drawn[1:-1, :-2] & drawn[1:-1, 2:]
 
 
-def test_depth_exr_round_trip_is_exact(tmp_path):
+def test_depth_exr_round_trip_is_exact(tmp_path, openexr):
     rng = np.random.default_rng(0)
     depth = rng.uniform(0.5, 7.0, size=(30, 41)).astype(np.float32)
     depth[:3, :5] = np.inf
@@ -99,7 +103,7 @@ def test_normals_of_a_tilted_plane_are_exact_up_to_its_edges():
     assert np.abs(normals[drawn] - n).max() < 1e-4
 
 
-def test_map_files(tmp_path):
+def test_map_files(tmp_path, openexr):
     depth, truth = analytic_sphere(CAMERA)
     normals = normals_from_depth(depth, CAMERA)
     png = np.asarray(Image.open(save_normals(normals, tmp_path / "n.png")), dtype=np.float64)
@@ -133,7 +137,8 @@ def sphere_file(tmp_path_factory):
     return save_ply(sphere(20_000, radius=RADIUS), tmp_path_factory.mktemp("outputs") / "sphere.ply")
 
 
-def test_rendered_sphere_maps_match_the_frame_and_the_analytic_sphere(tmp_path, sphere_file):
+@pytest.mark.gl
+def test_rendered_sphere_maps_match_the_frame_and_the_analytic_sphere(tmp_path, sphere_file, openexr):
     model = api.load_model(sphere_file)
     result = surfsplat.prepare(model).render(CAMERA, supersample=2)
     frame = result.frame
@@ -150,7 +155,8 @@ def test_rendered_sphere_maps_match_the_frame_and_the_analytic_sphere(tmp_path, 
     assert ((frame.alpha > 0) & (frame.alpha < 1)).sum() > 50
 
 
-def test_cli_writes_the_maps_it_prints(tmp_path, sphere_file, capsys):
+@pytest.mark.gl
+def test_cli_writes_the_maps_it_prints(tmp_path, sphere_file, capsys, openexr):
     d, n, c = tmp_path / "d.exr", tmp_path / "n.png", tmp_path / "c.npy"
     status = main(["render", str(sphere_file), "-o", str(tmp_path / "out.png"), "--width", "80", "--height", "60",
                    "--eye", "0.3", "0.2", "3", "--target", "0", "0", "0", "--fov", "40",

@@ -114,6 +114,7 @@ def test_bad_budgets_are_clear_errors(torus):
             select(h, camera, 1.0, point_budget=bad)
 
 
+@pytest.mark.gl
 def test_cli_point_budget(tmp_path):
     from surfsplat.cli import main
 

@@ -26,6 +26,8 @@ from surfsplat.hierarchy.storage import save_hierarchy
 from surfsplat.io import load, save_ply
 from surfsplat.scenes import torus
 
+pytestmark = pytest.mark.gl   # tiers (tests/conftest.py): most tests render through the API and the command line
+
 SIZE = 128
 EYE = np.array([0.9, -1.3, 1.0])
 DIRECTION = np.array([1.0, 0.8, 0.1])

@@ -128,6 +128,7 @@ def test_quiet_prints_nothing():
         assert stream.getvalue() == ""
 
 
+@pytest.mark.gl
 def test_cli_quiet_and_batch_progress(tmp_path, capsys):
     outputs = str(tmp_path / "{stem}.png")
     assert main(["-q", "render", "demo:sphere", "demo:cube", "-o", outputs, "--width", "24", "--height", "24"]) == 0

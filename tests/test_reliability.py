@@ -20,8 +20,6 @@ from surfsplat.hierarchy import Hierarchy, build_hierarchy, load_hierarchy, save
 from surfsplat.hierarchy import storage
 from surfsplat.io import Mesh, load, load_input, load_mesh, save_ply
 
-laspy = pytest.importorskip("laspy")
-
 
 # -- helpers ---------------------------------------------------------------------------------------
 
@@ -39,6 +37,8 @@ def binary_ply(n: int = 20, declared: int | None = None, seed: int = 0) -> bytes
 
 
 def small_las(path, n: int = 50, rgb: np.ndarray | None = None, version: str = "1.2"):
+    """A small LAS file of ``n`` random points (laspy: the test skips without it)."""
+    laspy = pytest.importorskip("laspy")
     header = laspy.LasHeader(point_format=2, version=version)
     header.scales = np.array([0.001, 0.001, 0.001])
     las = laspy.LasData(header)

@@ -6,6 +6,7 @@ import json
 import os
 
 import numpy as np
+import pytest
 from PIL import Image
 
 from surfsplat.camera import Camera
@@ -15,6 +16,8 @@ from surfsplat.io.camera_formats import opencv_from_camera
 from surfsplat.io.depth_image import NEAR_KEY, load_depth_png, save_depth_png
 
 from test_cli import noisy_sphere, run
+
+pytestmark = pytest.mark.gl   # tiers (tests/conftest.py): the tests render through the command line
 
 
 def write_rig(path, cameras):

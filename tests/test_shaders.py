@@ -296,6 +296,7 @@ def test_options_by_concern():
 # -- the default renderer ------------------------------------------------------------
 
 
+@pytest.mark.gl
 def test_default_renderer_and_reset_in_a_fresh_process():
     script = """
 from surfsplat import scenes

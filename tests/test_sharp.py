@@ -308,6 +308,7 @@ def test_cad_part_with_sharp_edges(renderer, shared_data):
                 assert leaks[True][0] * 5 < leaks[False][0], (view, leaks)
 
 
+@pytest.mark.slow   # 12 s on 2 idle cores: 200,000 samples preprocessed twice
 def test_cad_part_from_raw_points(renderer, shared_data):
     """The CAD part's samples as raw points (positions only) -> preprocess with sharp_angle 30,
     rendered two-sided with ewa (the MST orientation fails inside the small countersunk holes,

@@ -23,6 +23,8 @@ from surfsplat.rendering.gpu_splats import CLASSES_PER_OCTAVE, radius_classes
 from surfsplat.rendering.renderer import Renderer, point_radius
 from surfsplat.rendering.techniques import get_technique
 
+pytestmark = pytest.mark.gl   # tiers (tests/conftest.py): renderers of their own on the headless context
+
 
 @pytest.fixture(scope="module")
 def renderers(gl_renderer):
