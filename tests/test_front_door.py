@@ -37,6 +37,7 @@ def leftovers(folder) -> list[str]:
 
 # -- outputs replaced, inputs refused ----------------------------------------------------------
 
+@pytest.mark.gl   # renders through the command line
 def test_demo_twice_replaces_its_output(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     assert run(capsys, "demo", "-o", "demo.png", "--width", 32, "--height", 24)[0] == 0
@@ -105,6 +106,7 @@ def test_an_interrupted_write_leaves_the_old_file(tmp_path):
     assert path.read_bytes() == b"new" and leftovers(tmp_path) == []
 
 
+@pytest.mark.gl   # renders through the command line
 def test_a_failing_image_writer_in_the_cli_leaves_the_old_image(tmp_path, capsys, monkeypatch):
     out = tmp_path / "demo.png"
     assert run(capsys, "demo", "-o", out, "--width", 16, "--height", 16)[0] == 0
