@@ -33,5 +33,10 @@ POINTS = Technique(
     blended=False,
     attributes=("position", "normal", "color", "u", "v"),
     uniforms=lambda options: {"u_point_size": POINT_SIZE_RANGE},
+    point_footprint="adaptive",   # points.vert: diameter 2 r f / z, clamped
+    min_point_px=POINT_SIZE_RANGE[0],
+    compute_opaque=False,   # round points facing the eye, not flat.frag's disks
+    edge_coverage=False,   # opaque: no accumulation pass writes coverage
+    edge_fringe=False,
     description="screen-aligned round points, size from the splat radius (LiDAR; Potree's adaptive size)",
 )
