@@ -128,7 +128,8 @@ class FrameInputs:
         splats: the GPU splats drawn.
         technique: the technique drawing them.
         targets: the renderer's targets of the tile's size (``Renderer._ensure_targets``).
-        frame: the frame-wide uniforms (``Renderer.frame_uniforms`` and ``u_tile``).
+        frame: the frame-wide uniforms (``Renderer.frame_uniforms``) set per program: those not in the
+            frame's uniform blocks (``Renderer.bind_frame_uniforms``, bound before the passes run).
         uniforms: ``frame``, the technique's and the splats' own uniforms: those of the splat programs.
         optional: uniform names the splat programs may lack.
         defines: the splat programs' defines (the splats' and ``EDGE_COVERAGE``).
@@ -284,8 +285,7 @@ class CracksPass:
         ctx.disable(moderngl.BLEND)
         targets["fbo_cracks"].use()
         targets["side"].use(location=SIDE_TEXTURE_UNIT)
-        uniforms = {"u_viewport": frame.frame["u_viewport"], "u_tile": frame.frame["u_tile"],
-                    "u_side": SIDE_TEXTURE_UNIT}
+        uniforms = {"u_side": SIDE_TEXTURE_UNIT}   # viewport and tile: the Camera block
         if self.computed:
             units = compute_visibility.bind_images(ctx, targets)
             uniforms |= {"u_front_depth": units[0], "u_back_depth": units[1]}

@@ -54,6 +54,7 @@ from .shaders import (GLSL_VERSION, PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBIL
 from .technique import Technique
 from .tiles import MAX_SUPERSAMPLE, MAX_TILE, SubPixels, box_reduce, tile_rects, tile_side
 from .techniques import get_technique
+from .uniform_blocks import FrameBlocks
 
 __all__ = ["GpuSplats", "Renderer", "default_renderer", "reset_default_renderer", "OPTIONAL_FRAME_UNIFORMS",
            "PASS_OPAQUE", "PASS_VISIBILITY", "PASS_ACCUMULATION", "POINT_SPLAT_PX", "point_radius", "point_scale"]
@@ -146,6 +147,7 @@ class Renderer:
         self._uploaded: GpuSplats | None = None   # the last SplatCloud render() drew, and its checksums
         self._upload_key: tuple | None = None
         self.search_path = tuple(Path(p) for p in search_path)
+        self._blocks = FrameBlocks(self.ctx, self.search_path)   # the frame's uniform blocks (camera, lights)
         self._programs: dict[tuple, BuiltProgram] = {}
         self._built: dict[int, BuiltProgram] = {}   # id(program) -> its BuiltProgram
         self._quad = self.ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], dtype="f4"))
@@ -182,6 +184,7 @@ class Renderer:
         built = self._programs.get(key)
         if built is None:
             built = build()
+            self._blocks.attach(built.program)
             self._programs[key] = built
             self._built[id(built.program)] = built
         return built.program
@@ -218,6 +221,7 @@ class Renderer:
         self._programs.clear()
         self._built.clear()
         self._quad.release()
+        self._blocks.release()
         # leave the default framebuffer bound (see park): the parking framebuffer goes too
         (self.ctx.screen or self.ctx.detect_framebuffer(0)).use()
         self._parking.release()
@@ -389,11 +393,21 @@ class Renderer:
             if name in program:
                 program[name].value = value
 
+    def bind_frame_uniforms(self, values: dict) -> dict:
+        """Write the frame's uniform blocks (``Camera``, ``Lighting``, ``Options``:
+        :mod:`~surfsplat.rendering.uniform_blocks`)
+        from ``values`` (e.g. :meth:`frame_uniforms` and ``u_tile``) and bind them for every program this
+        renderer built; a block none of whose members is given is left as it is. Returns the other
+        values: the uniforms each program still sets itself."""
+        self._blocks.bind(values)
+        return {name: value for name, value in values.items() if name not in self._blocks.members}
+
     def frame_uniforms(self, camera: Camera, lights: Lights, options: RenderOptions = RenderOptions(),
                        supersample: int = 1) -> dict:
         """The uniforms every splat program reads, for one frame: camera (``camera.glsl``), lights
         (``lighting.glsl``) and the visibility and deferred options; those of
-        :data:`OPTIONAL_FRAME_UNIFORMS` are optional where set. ``camera`` needs near/far."""
+        :data:`OPTIONAL_FRAME_UNIFORMS` are optional where set. ``camera`` needs near/far. All but
+        ``u_side`` are members of the frame's uniform blocks (:meth:`bind_frame_uniforms`)."""
         view = camera.view_matrix
         dirs = lights.world_directions(camera) @ view[:3, :3].T
         padded = np.zeros((MAX_LIGHTS, 3))
@@ -457,7 +471,9 @@ class Renderer:
         camera = splats.local_camera(_with_clip_planes(camera, splats))   # world camera in, GPU frame out
         tile = tile or (0, 0, camera.width, camera.height)
         targets = self._ensure_targets(tile[2], tile[3])
-        frame = self.frame_uniforms(camera, lights, options, supersample) | {"u_tile": tuple(map(float, tile))}
+        # the camera, the lights and the options: one buffer for every program of the frame
+        frame = self.bind_frame_uniforms(self.frame_uniforms(camera, lights, options, supersample)
+                                         | {"u_tile": tuple(map(float, tile))})
         plan = self._plan(splats, camera, technique, options, tile, supersample)
         edges = plan.edge_coverage
         inputs = FrameInputs(
