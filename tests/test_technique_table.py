@@ -167,7 +167,8 @@ def test_toy_technique_gets_every_declared_path(toy_renderer, scene, paths):
 
     on_frame, on_paths = render(toy_renderer, scene, BOX, drawn=paths)
     off_frame, off_paths = render(toy_renderer, scene, BOX_OFF, drawn=paths)
-    assert on_paths["points"] == count(vis.points) + count(accumulated.points) and on_paths["computed"] == count(computed)
+    assert on_paths["points"] == count(vis.points) + count(accumulated.points)
+    assert on_paths["computed"] == count(computed)
     assert off_paths == {"points": 0, "computed": 0}
     assert on_frame.mask.mean() > 0.1
     for name in ("color", "depth", "weight", "alpha"):

@@ -11,8 +11,9 @@ bit for bit.
 
 Opaque techniques declaring ``Technique.compute_opaque`` ("flat"): one compute pass keeps each pixel's
 nearest disk depth, a second one the smallest index of the splats at that depth (the one a depth test in
-draw order keeps: the splats are drawn in index order), and a full-screen pass (``glsl/opaque_resolve.frag``) writes that splat's fragment with the depth
-test against the large splats drawn before. The picture equals the raster one except where two disks
+draw order keeps: the splats are drawn in index order), and a full-screen pass
+(``glsl/opaque_resolve.frag``) writes that splat's fragment with the depth test against the large splats
+drawn before. The picture equals the raster one except where two disks
 tie in depth (``tests/test_compute_visibility.py``).
 
 Why: llvmpipe spends most of a GL_POINTS pass per primitive (vertex pipeline, setup, binning, and a

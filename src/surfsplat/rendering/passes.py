@@ -17,7 +17,9 @@ order. A blended technique (Guennebaud 2003: visibility, accumulation, normaliza
 An opaque one: ``clear``, ``opaque`` (a plain z-buffer), ``compute_opaque`` (where declared, asked for
 and available: the small splats' nearest disks computed, then written by ``opaque_resolve.frag``) and
 ``normalization``. Each pass is a small frozen object: its ``name``, the ``(first, count)`` ranges it
-draws as instanced ``quads`` and as GL_POINTS ``points`` (or ``computed``), and ``run(renderer, frame)``.
+draws as instanced ``quads`` and as GL_POINTS ``points`` (or ``computed``), and ``run(renderer, frame)``
+(``renderer``: the :class:`~surfsplat.rendering.renderer.Renderer` drawing the frame, whose programs,
+vertex arrays and draw batches the passes use; ``frame``: :class:`FrameInputs`).
 """
 
 from __future__ import annotations

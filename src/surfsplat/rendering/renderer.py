@@ -14,9 +14,10 @@ from the technique's declared capabilities (``technique.py``) and the options, t
 
 Speed and memory (benchmarks/bench_render.py): splats are uploaded ordered by radius class, so each
 frame draws the large ones as instanced quads (tight boxes) and the small ones as GL_POINTS (where the
-technique declares a ``point_footprint``), one vertex per splat (``point_radius``, ``splat_primitive.glsl``), in draw calls of ``draw_batch`` splats; the
-read-back is the normalization pass's color, weight, depth sum and alpha only (24 bytes per sub-pixel), read
-into reused buffers and written straight into the Frame's top-down rows. What llvmpipe pays for is
+technique declares a ``point_footprint``), one vertex per splat (``point_radius``, ``splat_primitive.glsl``),
+in draw calls of ``draw_batch`` splats; the read-back is the normalization pass's color, weight, depth sum
+and alpha only (24 bytes per sub-pixel), read into reused buffers and written straight into the Frame's
+top-down rows. What llvmpipe pays for is
 fragments (``benchmarks/results/render_passes.md``): a disk's window box is its ellipse's exact box
 (``disk_vertex.glsl``), options that add work to every fragment are defines (``EDGE_COVERAGE``:
 llvmpipe runs a branch on a false uniform), a fragment reads one texel of the visibility record, and
