@@ -21,6 +21,7 @@ from surfsplat.rendering.options import RenderOptions, VisibilityOptions
 from surfsplat.rendering.renderer import _with_clip_planes
 from surfsplat.rendering.sequential import GpuSequential, upload_sequential
 from surfsplat.rendering.shaders import compose
+from surfsplat.rendering.uniform_blocks import FrameBlocks
 from surfsplat.scenes import checkerboard, demo_scene, sphere
 from surfsplat.viewer.detail import LevelOfDetail, recolor
 
@@ -78,22 +79,23 @@ def test_the_shader_keeps_exactly_the_entries_of_the_numpy_rule(renderer, torus)
     radius = np.maximum(*(np.linalg.norm(np.frombuffer(gpu.buffers[name].read(), "f4").reshape(-1, 3), axis=1)
                           for name in ("u", "v")))
     out = ctx.buffer(reserve=4 * gpu.count)
+    blocks = FrameBlocks(ctx)
+    blocks.attach(program)
     positions = np.frombuffer(gpu.buffers["position"].read(), "f4").reshape(-1, 3).astype(np.float64)
     lod = np.frombuffer(gpu.buffers["lod"].read(), "f4").reshape(-1, 4)
     try:
         for factor, tolerance in ((0.5, 1.0), (1.0, 0.5), (2.0, 2.0), (6.0, 1.0)):
             camera = gpu.local_camera(_with_clip_planes(view(torus[0].points, factor), gpu))
             m = camera.view_matrix
-            program["u_view"].value = tuple(m.T.astype("f4").ravel())
-            program["u_near_far"].value = (camera.near, camera.far)
+            block = {"u_view": tuple(m.T.astype("f4").ravel()), "u_near_far": (camera.near, camera.far),
+                     "u_focal": camera.focal_px, "u_viewport": (camera.width, camera.height)}
             program["u_lod_scale"].value = camera.focal_px / tolerance
-            program["u_focal"].value = camera.focal_px
-            program["u_viewport"].value = (camera.width, camera.height)
             renderer.park()   # a complete framebuffer bound (the headless context has none of its own)
-            program["u_tile"].value = (0.0, 0.0, camera.width, camera.height)
+            blocks.bind(block | {"u_tile": (0.0, 0.0, camera.width, camera.height)})   # camera.glsl's block
             vao.transform(out, moderngl.POINTS, vertices=gpu.count)
             in_view = np.frombuffer(out.read(), "f4") > 0.5
-            program["u_tile"].value = (-1e6, -1e6, 2e6, 2e6)   # no frustum culling: the interval alone
+            # no frustum culling: the interval alone
+            blocks.bind(block | {"u_tile": (-1e6, -1e6, 2e6, 2e6)})
             vao.transform(out, moderngl.POINTS, vertices=gpu.count)
             kept = np.frombuffer(out.read(), "f4") > 0.5
             q = positions @ m[:3, :3].T + m[:3, 3]
@@ -120,6 +122,7 @@ def test_the_shader_keeps_exactly_the_entries_of_the_numpy_rule(renderer, torus)
         vao.release()
         program.release()
         out.release()
+        blocks.release()
 
 
 @pytest.mark.parametrize("technique", ["flat", "ewa"])

@@ -24,5 +24,9 @@ BLEND = Technique(
     fragment="object_space.frag",
     blended=True,
     uniforms=_uniforms,
+    point_footprint="disk",   # disk.vert
+    compute_visibility=True,   # the shared ray-cast disk visibility (splat_fragment.glsl)
+    edge_coverage=True,
+    edge_fringe=False,   # kernels end at the disk's rim
     description="object-space blending kernels psi_E, epsilon-z-buffer, normalization (Pajarola et al. 2003)",
 )

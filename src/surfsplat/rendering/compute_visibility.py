@@ -9,10 +9,11 @@ minima by atomic minima of the depths' bits in two r32ui images; the cracks pass
 both records (``glsl/cracks.frag``, ``COMPUTE_VISIBILITY``). The record, and so the picture, is the same
 bit for bit.
 
-Opaque "flat": one compute pass keeps each pixel's nearest disk depth, a second one the smallest index of
-the splats at that depth (the one a depth test in draw order keeps: the splats are drawn in index
-order), and a full-screen pass (``glsl/opaque_resolve.frag``) writes that splat's fragment with the depth
-test against the large splats drawn before. The picture equals the raster one except where two disks
+Opaque techniques declaring ``Technique.compute_opaque`` ("flat"): one compute pass keeps each pixel's
+nearest disk depth, a second one the smallest index of the splats at that depth (the one a depth test in
+draw order keeps: the splats are drawn in index order), and a full-screen pass
+(``glsl/opaque_resolve.frag``) writes that splat's fragment with the depth test against the large splats
+drawn before. The picture equals the raster one except where two disks
 tie in depth (``tests/test_compute_visibility.py``).
 
 Why: llvmpipe spends most of a GL_POINTS pass per primitive (vertex pipeline, setup, binning, and a
@@ -54,11 +55,6 @@ COMPUTE_VISIBILITY_DEFINE = "COMPUTE_VISIBILITY"
 #: ``visibility.comp``'s ``COMPUTE_PASS``: the blended techniques' visibility pass; the opaque technique's
 #: nearest depth, then the splat drawn there.
 COMPUTE_VISIBILITY_PASS, COMPUTE_OPAQUE_DEPTH, COMPUTE_OPAQUE_INDEX = 1, 2, 3
-
-#: Opaque techniques (their fragment shader) whose small splats are computed too: the nearest disk per
-#: pixel, then ``opaque_resolve.frag`` writes what the fragment shader would have.
-OPAQUE_FRAGMENTS = frozenset({"flat.frag"})
-
 
 def has_compute(ctx: moderngl.Context) -> bool:
     """Whether the context runs compute shaders with image atomics (OpenGL 4.3)."""

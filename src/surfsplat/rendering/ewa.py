@@ -14,5 +14,9 @@ EWA = Technique(
     fragment="ewa.frag",
     blended=True,
     uniforms=filter_uniforms,
+    point_footprint="filtered_disk",   # ewa.vert: the disk's box grown by the prefilter
+    compute_visibility=True,   # the shared ray-cast disk visibility (splat_fragment.glsl)
+    edge_coverage=True,
+    edge_fringe=True,   # the prefilter reaches beyond the disk
     description="screen-space EWA splatting, three passes (Guennebaud & Paulin 2003)",
 )

@@ -11,5 +11,9 @@ FLAT = Technique(
     vertex="disk.vert",
     fragment="flat.frag",
     blended=False,
+    point_footprint="disk",   # disk.vert
+    compute_opaque=True,   # opaque_resolve.frag writes flat.frag's fragment
+    edge_coverage=False,   # opaque: no accumulation pass writes coverage
+    edge_fringe=False,
     description="opaque elliptical disks, one pass (baseline)",
 )

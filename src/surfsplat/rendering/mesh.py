@@ -160,8 +160,8 @@ def render_mesh(mesh: Mesh, camera: Camera, lights: Lights = Lights(), *, backgr
             fbo.viewport = (0, 0, tw, th)
             fbo.use()
             fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-            renderer.set_uniforms(program, uniforms | {"u_tile": (float(x0), float(y0), float(tw), float(th))},
-                                  OPTIONAL_FRAME_UNIFORMS)
+            own = renderer.bind_frame_uniforms(uniforms | {"u_tile": (float(x0), float(y0), float(tw), float(th))})
+            renderer.set_uniforms(program, own, OPTIONAL_FRAME_UNIFORMS)
             vao.render(moderngl.TRIANGLES)
             rgba = np.frombuffer(fbo.read(viewport=(0, 0, tw, th), components=4, attachment=0, dtype="f4"),
                                  dtype="f4").reshape(th // s, s, tw // s, s, 4)

@@ -27,5 +27,9 @@ PERSPECTIVE = Technique(
     fragment="perspective.frag",
     blended=True,
     uniforms=filter_uniforms,
+    point_footprint=None,   # perspective.vert bounds the exact image conic: quads only
+    compute_visibility=True,   # the shared ray-cast disk visibility (splat_fragment.glsl)
+    edge_coverage=True,
+    edge_fringe=True,   # the prefilter reaches beyond the disk
     description="perspective accurate EWA splatting, three passes (Zwicker et al. 2004)",
 )

@@ -24,5 +24,9 @@ PHONG = Technique(
     fragment="object_space.frag",
     blended=True,
     uniforms=_uniforms,
+    point_footprint="disk",   # disk.vert
+    compute_visibility=True,   # the shared ray-cast disk visibility (splat_fragment.glsl)
+    edge_coverage=True,
+    edge_fringe=False,   # kernels end at the disk's rim
     description="Phong splats: per-pixel ray cast, linear normal fields, per-pixel lighting (Botsch et al. 2004)",
 )

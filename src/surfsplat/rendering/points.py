@@ -12,8 +12,8 @@ with a plain z-buffer at the point's center depth, like ``flat``; lit by the poi
 it has one (a zero normal: unlit color); ``deferred`` lights in the normalization pass.
 With ``supersample`` K the clamp is in output pixels (K sub-pixels per output pixel).
 
-Primitive: like every technique, small points (a window box of at most 64 sub-pixels) are drawn
-as ``GL_POINTS`` and the others as instanced quads (``renderer.point_radius``,
+Primitive (``point_footprint="adaptive"``): small points (a window box of at most 64 sub-pixels) are
+drawn as ``GL_POINTS`` and the others as instanced quads (``renderer.point_radius``,
 ``glsl/splat_primitive.glsl``). A point sits at the centre of its window box clipped to the tile,
 so a wide point whose centre lies in the next tile is not lost (OpenGL clips a point by its
 centre) and ``GL_POINT_SIZE_RANGE`` never binds; every fragment runs the same full-image test
@@ -33,5 +33,10 @@ POINTS = Technique(
     blended=False,
     attributes=("position", "normal", "color", "u", "v"),
     uniforms=lambda options: {"u_point_size": POINT_SIZE_RANGE},
+    point_footprint="adaptive",   # points.vert: diameter 2 r f / z, clamped
+    min_point_px=POINT_SIZE_RANGE[0],
+    compute_opaque=False,   # round points facing the eye, not flat.frag's disks
+    edge_coverage=False,   # opaque: no accumulation pass writes coverage
+    edge_fringe=False,
     description="screen-aligned round points, size from the splat radius (LiDAR; Potree's adaptive size)",
 )

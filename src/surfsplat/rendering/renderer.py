@@ -8,13 +8,16 @@
    blending of ``(w * color, w)`` and ``(w * depth, w * normal)`` into float targets;
 3. normalization: a full-screen pass dividing by the accumulated weight (eq. 18).
 
-Opaque techniques draw once with a plain z-buffer and share pass 3.
+Opaque techniques draw once with a plain z-buffer and share pass 3. Each frame's passes are planned
+from the technique's declared capabilities (``technique.py``) and the options, then run in order
+(:mod:`~surfsplat.rendering.passes`, :meth:`Renderer.plan`).
 
 Speed and memory (benchmarks/bench_render.py): splats are uploaded ordered by radius class, so each
-frame draws the large ones as instanced quads (tight boxes) and the small ones as GL_POINTS, one vertex
-per splat (``point_radius``, ``splat_primitive.glsl``), in draw calls of ``draw_batch`` splats; the
-read-back is the normalization pass's color, weight, depth sum and alpha only (24 bytes per sub-pixel), read
-into reused buffers and written straight into the Frame's top-down rows. What llvmpipe pays for is
+frame draws the large ones as instanced quads (tight boxes) and the small ones as GL_POINTS (where the
+technique declares a ``point_footprint``), one vertex per splat (``point_radius``, ``splat_primitive.glsl``),
+in draw calls of ``draw_batch`` splats; the read-back is the normalization pass's color, weight, depth sum
+and alpha only (24 bytes per sub-pixel), read into reused buffers and written straight into the Frame's
+top-down rows. What llvmpipe pays for is
 fragments (``benchmarks/results/render_passes.md``): a disk's window box is its ellipse's exact box
 (``disk_vertex.glsl``), options that add work to every fragment are defines (``EDGE_COVERAGE``:
 llvmpipe runs a branch on a false uniform), a fragment reads one texel of the visibility record, and
@@ -26,7 +29,6 @@ The process-wide renderer of the headless context is :func:`default_renderer`
 
 from __future__ import annotations
 
-import itertools
 import warnings
 import zlib
 from pathlib import Path
@@ -42,41 +44,25 @@ from ..io.atomic import memory_limit
 from ..lighting import MAX_LIGHTS, Lights
 from .context import gl_flush, headless_context, reset_headless_context
 from . import compute_visibility
+from .passes import (EDGE_COVERAGE_DEFINE, OPTIONAL_FRAME_UNIFORMS, POINT_SPLAT_PX, SIDE_TEXTURE_UNIT, FrameInputs,
+                     FramePlan, computes_first_pass, plan_frame, point_radius, point_scale)
 from .edl import apply_edl
 from .frame import Frame
-from ..reference import prefilter_variance
 from .gpu_splats import GpuSplats, merge_ranges, ordered_buffers, radius_classes, splat_arrays
 from .options import RenderOptions
-from .points import POINT_SIZE_RANGE
-from .shaders import (COMPUTE_GLSL_VERSION, GLSL_VERSION, NO_DEPTH, PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBILITY,
+from .shaders import (GLSL_VERSION, PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBILITY,
                       BuiltProgram, build_compute, build_program, undeclared)
 from .technique import Technique
 from .tiles import MAX_SUPERSAMPLE, MAX_TILE, SubPixels, box_reduce, tile_rects, tile_side
 from .techniques import get_technique
+from .uniform_blocks import FrameBlocks
 
 __all__ = ["GpuSplats", "Renderer", "default_renderer", "reset_default_renderer", "OPTIONAL_FRAME_UNIFORMS",
-           "PASS_OPAQUE", "PASS_VISIBILITY", "PASS_ACCUMULATION"]
+           "PASS_OPAQUE", "PASS_VISIBILITY", "PASS_ACCUMULATION", "POINT_SPLAT_PX", "point_radius", "point_scale"]
 
-#: The frame-wide uniforms (:meth:`Renderer.frame_uniforms`) that only the splat programs
-#: declare: the normalization pass and the ground-truth mesh program lack them, so setting
-#: them there is no error. This is the one documented optional set of frame-wide uniforms;
-#: a technique lists its own optional ones in ``Technique.optional_uniforms``.
-OPTIONAL_FRAME_UNIFORMS = frozenset({"u_depth_epsilon", "u_cull_backfaces", "u_deferred", "u_separate_sides",
-                                     "u_side", "u_supersample", "u_clip_fringe"})
-#: The define compiling edge coverage into the accumulation and normalization passes
-#: (``VisibilityOptions.edge_coverage``): a define, since llvmpipe pays for a branch on a false uniform
-#: (20% of the accumulation pass on the bunny).
-EDGE_COVERAGE_DEFINE = "EDGE_COVERAGE"
 #: Pixels drawn around each tile and cropped (fringe clipping looks at each pixel's neighbours; the
 #: edge coverage of normalize.frag at the neighbours, up to 4 sub-pixels away at K = 8, of its neighbours).
 TILE_MARGIN = 5
-#: Texture unit of the side target during the accumulation pass (units 0 and 1 serve pass 3).
-SIDE_TEXTURE_UNIT = 2
-#: Texture unit of the coverage target during pass 3.
-COVER_TEXTURE_UNIT = 3
-#: Vertex shaders whose footprints reach beyond the splat's disk (the EWA prefilter's fringe): with
-#: edge coverage, pixels beyond a silhouette get the disks' distances there (normalize.frag).
-FRINGE_SHADERS = frozenset({"ewa.vert", "perspective.vert"})
 #: Memory a render holds per splat (the upload's sorting and copies, the driver's buffers and one draw
 #: call's primitives; measured on llvmpipe by benchmarks/bench_render.py --memory: 31-83 B per splat,
 #: 1M and 5M splats; these add margin), per output pixel (the Frame, the image a caller writes) and per
@@ -104,14 +90,6 @@ def check_render_memory(splats: int, width: int, height: int, supersample: int =
                          f"image, fewer splats (a hierarchy with --lod-tolerance) or free memory")
 
 
-#: Splats whose window box is at most this many sub-pixels wide (estimated per frame from their radius
-#: class and the nearest depth of the cloud's bounds) are drawn as one GL_POINTS point each, the
-#: others as instanced quads (tight bounds for large or slanted splats). A point runs the vertex
-#: shader once per splat instead of four times; its square covers the box, so a slanted splat costs
-#: at most this squared in fragments. Measured on llvmpipe (random spheres at 1024x1024, CPU time per
-#: frame, all quads against this limit): 12 px splats 338 -> 263 ms (ewa), 38 px splats 163 -> 158 ms;
-#: a limit of 128 made the 38 px ones slower (186 ms).
-POINT_SPLAT_PX = 64.0
 #: Pixels (of the drawn camera's, per sub-pixel factor) by which the view is grown before blocks of
 #: splats outside it are skipped (``Renderer._drawn_ranges``): a filter's footprint reaches beyond
 #: its disk by about its prefilter radius (sqrt(2 c h), 1.4 px by default) and a point is drawn at
@@ -128,49 +106,6 @@ DRAW_BATCH = 1 << 17
 #: alternated: a glFinish after every batch 528 ms, every 4th 482 ms, none 446 ms; peak memory of 5M
 #: and 10M splats at 256x256: unchanged every 4th, +0.86 GB with glFlush alone.
 FINISH_EVERY = 4
-#: Vertex shaders that emit GL_POINTS for the small splats (``splat_primitive.glsl``, POINT_PRIMITIVE).
-POINT_SHADERS = frozenset({"ewa.vert", "disk.vert", "points.vert"})
-def point_scale(camera: Camera, technique: Technique, options: RenderOptions, supersample: int = 1,
-                point_px: float = POINT_SPLAT_PX) -> float:
-    """The largest splat radius drawn as a GL_POINTS point, per unit of depth (both in the units of
-    ``camera``, the GPU frame's): a splat of radius r nearer than z is a point where ``r <= scale * z``,
-    its window box at most ``point_px`` sub-pixels wide anywhere in the view (0: every splat is a quad).
-
-    The box of a splat of radius r at depth z is at most ``2 sqrt(2) r f / (z cos phi)`` wide (the
-    parallelogram's corners; phi the largest angle off the axis in the image) plus a pixel of rounding;
-    EWA adds its prefilter (Guennebaud 2003, eq. 6: ``+ 2 sqrt(2 c h)``). The estimate only selects the
-    primitive: a point's fragments are tested as exactly as a quad's.
-    """
-    if technique.vertex not in POINT_SHADERS or point_px <= 0:
-        return 0.0
-    f = float(camera.focal_px)
-    stretch = float(np.hypot(1.0, np.hypot(camera.width, camera.height) / (2.0 * f)))   # 1 / cos(phi)
-    side = point_px - 1.0
-    if technique.vertex == "ewa.vert":
-        side -= 2.0 * np.sqrt(2.0 * options.filter.cutoff * prefilter_variance(options.filter.prefilter))
-    if technique.vertex == "points.vert":
-        side = point_px - 1.0   # the diameter 2 r f / z, clamped from below by the smallest size
-        if POINT_SIZE_RANGE[0] * supersample > side:
-            return 0.0
-        return side / (2.0 * f * stretch)
-    return max(side, 0.0) / (2.0 * np.sqrt(2.0) * f * stretch)
-
-
-def point_radius(camera: Camera, splats: GpuSplats, technique: Technique, options: RenderOptions,
-                 supersample: int = 1, point_px: float = POINT_SPLAT_PX) -> float:
-    """Largest splat radius (GPU units) drawn as a GL_POINTS point anywhere in this frame
-    (:func:`point_scale` at the nearest depth of the splats' bounds, at least the near plane's;
-    ``camera``: the GPU frame's; 0: every splat is a quad). Blocks farther away may be points with
-    larger splats (``Renderer._drawn_ranges``)."""
-    scale = point_scale(camera, technique, options, supersample, point_px)
-    if scale <= 0:
-        return 0.0
-    lo, hi = splats.gpu_bounds
-    lo, hi = lo - splats.max_radius * splats.scale, hi + splats.max_radius * splats.scale
-    corners = np.array(list(itertools.product(*zip(lo, hi))))
-    view = camera.view_matrix
-    depth = -(corners @ view[:3, :3].T + view[:3, 3])[:, 2]
-    return scale * max(float(camera.near), float(depth.min()))
 
 
 def _components(splats: GpuSplats, name: str) -> int:
@@ -213,6 +148,7 @@ class Renderer:
         self._uploaded: GpuSplats | None = None   # the last SplatCloud render() drew, and its checksums
         self._upload_key: tuple | None = None
         self.search_path = tuple(Path(p) for p in search_path)
+        self._blocks = FrameBlocks(self.ctx, self.search_path)   # the frame's uniform blocks (camera, lights)
         self._programs: dict[tuple, BuiltProgram] = {}
         self._built: dict[int, BuiltProgram] = {}   # id(program) -> its BuiltProgram
         self._quad = self.ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], dtype="f4"))
@@ -249,6 +185,7 @@ class Renderer:
         built = self._programs.get(key)
         if built is None:
             built = build()
+            self._blocks.attach(built.program)
             self._programs[key] = built
             self._built[id(built.program)] = built
         return built.program
@@ -285,6 +222,7 @@ class Renderer:
         self._programs.clear()
         self._built.clear()
         self._quad.release()
+        self._blocks.release()
         # leave the default framebuffer bound (see park): the parking framebuffer goes too
         (self.ctx.screen or self.ctx.detect_framebuffer(0)).use()
         self._parking.release()
@@ -385,6 +323,15 @@ class Renderer:
             self._batch_drawn()
         bind(0)
 
+    def _draw_points(self, splats: GpuSplats, program: moderngl.Program, technique: Technique,
+                     ranges: Iterable[tuple[int, int]]) -> None:
+        """The splats of ``ranges`` (``(first, count)``) as GL_POINTS, ``draw_batch`` per draw call."""
+        vao = self._vao(splats, program, technique, points=True)
+        for start, count in ranges:
+            for first in range(start, start + count, self.draw_batch):
+                vao.render(moderngl.POINTS, vertices=min(self.draw_batch, start + count - first), first=first)
+                self._batch_drawn()
+
     def _batch_drawn(self) -> None:
         """After a batch of splats: a glFlush, and every :data:`FINISH_EVERY`-th batch (or where no glFlush
         is found) a glFinish."""
@@ -447,11 +394,21 @@ class Renderer:
             if name in program:
                 program[name].value = value
 
+    def bind_frame_uniforms(self, values: dict) -> dict:
+        """Write the frame's uniform blocks (``Camera``, ``Lighting``, ``Options``:
+        :mod:`~surfsplat.rendering.uniform_blocks`)
+        from ``values`` (e.g. :meth:`frame_uniforms` and ``u_tile``) and bind them for every program this
+        renderer built; a block none of whose members is given is left as it is. Returns the other
+        values: the uniforms each program still sets itself."""
+        self._blocks.bind(values)
+        return {name: value for name, value in values.items() if name not in self._blocks.members}
+
     def frame_uniforms(self, camera: Camera, lights: Lights, options: RenderOptions = RenderOptions(),
                        supersample: int = 1) -> dict:
         """The uniforms every splat program reads, for one frame: camera (``camera.glsl``), lights
         (``lighting.glsl``) and the visibility and deferred options; those of
-        :data:`OPTIONAL_FRAME_UNIFORMS` are optional where set. ``camera`` needs near/far."""
+        :data:`OPTIONAL_FRAME_UNIFORMS` are optional where set. ``camera`` needs near/far. All but
+        ``u_side`` are members of the frame's uniform blocks (:meth:`bind_frame_uniforms`)."""
         view = camera.view_matrix
         dirs = lights.world_directions(camera) @ view[:3, :3].T
         padded = np.zeros((MAX_LIGHTS, 3))
@@ -474,12 +431,37 @@ class Renderer:
             "u_supersample": float(supersample),   # sub-pixels per output pixel of ``camera``, per axis
         }
 
+    def plan(self, splats: GpuSplats, camera: Camera, technique: Technique | str = "ewa",
+             options: RenderOptions = RenderOptions(), tile: tuple[int, int, int, int] | None = None,
+             supersample: int = 1) -> FramePlan:
+        """The passes :meth:`draw` runs for this frame (``camera``: a world camera, as :meth:`draw`
+        takes), with the splat ranges each draws (:mod:`~surfsplat.rendering.passes`)."""
+        technique = get_technique(technique) if isinstance(technique, str) else technique
+        camera = splats.local_camera(_with_clip_planes(camera, splats))
+        return self._plan(splats, camera, technique, options, tile or (0, 0, camera.width, camera.height),
+                          supersample)
+
+    def _plan(self, splats: GpuSplats, camera: Camera, technique: Technique, options: RenderOptions,
+              tile: tuple, supersample: int) -> FramePlan:
+        """:meth:`plan` with ``camera`` the GPU frame's: the drawn ranges (:meth:`_drawn_ranges`) and,
+        where the first pass runs as compute shaders, the blocks of small splats split off for it."""
+        quads, points = self._drawn_ranges(splats, camera, technique, options, supersample, tile)
+        if not computes_first_pass(technique, options, self.has_compute):
+            return plan_frame(technique, options, quads, points)
+        small = splats.small_blocks(camera, compute_visibility.COMPUTE_SPLAT_PX)
+        (raster_quads, computed_quads), (raster_points, computed_points) = (splats.split_blocks(quads, small),
+                                                                            splats.split_blocks(points, small))
+        return plan_frame(technique, options, quads, points, computed_quads + computed_points,
+                          (raster_quads, raster_points))
+
     def draw(self, splats: GpuSplats, camera: Camera, technique: Technique | str = "ewa",
              lights: Lights = Lights(), options: RenderOptions = RenderOptions(),
              background=(1.0, 1.0, 1.0), output: moderngl.Framebuffer | None = None,
              tile: tuple[int, int, int, int] | None = None, supersample: int = 1) -> None:
         """Run the passes of ``technique`` and write the normalized image to ``output``.
 
+        The passes are planned from the technique's declarations and ``options`` (:meth:`plan`,
+        :func:`~surfsplat.rendering.passes.plan_frame`), then run in order.
         ``output`` defaults to the renderer's float color target (read by
         :meth:`render`); a window passes its own framebuffer. ``tile`` ``(x0, y0, w, h)``
         (window pixels of the camera's image, y up) draws only that rectangle, into
@@ -488,99 +470,23 @@ class Renderer:
         """
         technique = get_technique(technique) if isinstance(technique, str) else technique
         camera = splats.local_camera(_with_clip_planes(camera, splats))   # world camera in, GPU frame out
-        ctx = self.ctx
         tile = tile or (0, 0, camera.width, camera.height)
         targets = self._ensure_targets(tile[2], tile[3])
-        frame = self.frame_uniforms(camera, lights, options, supersample) | {"u_tile": tuple(map(float, tile))}
-        uniforms = frame | technique.uniforms(options)
-        optional = OPTIONAL_FRAME_UNIFORMS | technique.optional_uniforms
-        passes = [PASS_VISIBILITY, PASS_ACCUMULATION] if technique.blended else [PASS_OPAQUE]
-        edges = bool(technique.blended and options.visibility.edge_coverage)
-        defines = splats.defines | ({EDGE_COVERAGE_DEFINE: 1} if edges else {})
-
-        # the cover target only where edge coverage writes it: a target is cleared and written per pixel
-        accumulation = targets["fbo_accum_cover" if edges else "fbo_accum"]
-        accumulation.use()
-        accumulation.depth_mask = True
-        accumulation.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-        if technique.blended:   # no disk (glsl/visibility.glsl)
-            targets["fbo_visibility"].clear(NO_DEPTH, NO_DEPTH, 0.0, 0.0)
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.disable(moderngl.CULL_FACE)
-        quads, points = self._drawn_ranges(splats, camera, technique, options, supersample, tile)
-        uniforms |= splats.extra_uniforms(camera)
-        raster, computed = (quads, points), []   # the first pass's ranges: drawn, and computed
-        if (options.compute and self.has_compute
-                and (technique.blended or technique.fragment in compute_visibility.OPAQUE_FRAGMENTS)):
-            small = splats.small_blocks(camera, compute_visibility.COMPUTE_SPLAT_PX)
-            (vis_quads, computed_quads), (vis_points, computed_points) = (splats.split_blocks(quads, small),
-                                                                         splats.split_blocks(points, small))
-            raster, computed = (vis_quads, vis_points), computed_quads + computed_points
-        for pass_id in passes:
-            pass_quads, pass_points = (quads, points) if pass_id == PASS_ACCUMULATION else raster
-            if pass_id == PASS_VISIBILITY and computed:
-                compute_visibility.begin(targets)
-                self._compute(splats, computed, uniforms, defines, compute_visibility.COMPUTE_VISIBILITY_PASS)
-            if pass_id == PASS_ACCUMULATION:
-                self._mark_cracks(targets, frame, bool(computed))
-                targets["cracks"].use(location=SIDE_TEXTURE_UNIT)
-                fbo = accumulation
-                fbo.use()
-                fbo.depth_mask = False
-                ctx.disable(moderngl.DEPTH_TEST)   # the shaders' test (behind_nearest, splat_fragment.glsl)
-                ctx.enable(moderngl.BLEND)
-                ctx.blend_equation = moderngl.FUNC_ADD
-                ctx.blend_func = moderngl.ONE, moderngl.ONE
-            elif pass_id == PASS_VISIBILITY:   # the nearest depths by MIN blending (visibility.glsl)
-                targets["fbo_visibility"].use()
-                ctx.disable(moderngl.DEPTH_TEST)
-                ctx.enable(moderngl.BLEND)
-                ctx.blend_equation = moderngl.MIN
-            else:
-                accumulation.use()
-                accumulation.depth_mask = True
-                ctx.enable(moderngl.DEPTH_TEST)
-                ctx.depth_func = "<"
-                ctx.disable(moderngl.BLEND)
-            # the large splats (first in the buffers) as instanced quads, the small ones as points
-            if pass_quads:
-                program = self.program(technique.vertex, technique.fragment, {"PASS": pass_id} | defines)
-                self.set_uniforms(program, uniforms, optional)
-                for start, count in pass_quads:
-                    self._draw_quads(splats, program, technique, count, start)
-            if pass_points:
-                program = self.program(technique.vertex, technique.fragment,
-                                       {"PASS": pass_id, "POINT_PRIMITIVE": 1} | defines)
-                self.set_uniforms(program, uniforms | {"u_max_point": self._max_point}, optional)
-                ctx.enable(moderngl.PROGRAM_POINT_SIZE)
-                vao = self._vao(splats, program, technique, points=True)
-                for start, count in pass_points:
-                    for first in range(start, start + count, self.draw_batch):
-                        vao.render(moderngl.POINTS, vertices=min(self.draw_batch, start + count - first), first=first)
-                        self._batch_drawn()
-                ctx.disable(moderngl.PROGRAM_POINT_SIZE)
-            if pass_id == PASS_OPAQUE and computed:   # after the large splats: they win ties
-                self._opaque_compute(splats, computed, uniforms, defines, targets)
-        accumulation.depth_mask = True
-        ctx.blend_equation = moderngl.FUNC_ADD
-        ctx.disable(moderngl.BLEND)
-        ctx.disable(moderngl.DEPTH_TEST)
-
-        # Pass 3: normalization (Guennebaud 2003, eq. 18).
-        out = output or targets["fbo_out"]
-        out.use()
-        normalization = self._fullscreen_pass("normalize.frag", {EDGE_COVERAGE_DEFINE: 1} if edges else {})
-        normalize = normalization.program
-        targets["accum"].use(location=0)
-        targets["aux"].use(location=1)
-        targets["cracks" if technique.blended else "side"].use(location=SIDE_TEXTURE_UNIT)
-        targets["cover"].use(location=COVER_TEXTURE_UNIT)
-        self.set_uniforms(normalize, frame | {"u_accum": 0, "u_aux": 1, "u_side": SIDE_TEXTURE_UNIT,
-                                              "u_cover": COVER_TEXTURE_UNIT,
-                                              "u_edge_fringe": technique.vertex in FRINGE_SHADERS,
-                                              "u_background": tuple(map(float, background))},
-                          OPTIONAL_FRAME_UNIFORMS)
-        normalization.render(moderngl.TRIANGLES, vertices=3)
+        # the camera, the lights and the options: one buffer for every program of the frame
+        frame = self.bind_frame_uniforms(self.frame_uniforms(camera, lights, options, supersample)
+                                         | {"u_tile": tuple(map(float, tile))})
+        plan = self._plan(splats, camera, technique, options, tile, supersample)
+        edges = plan.edge_coverage
+        inputs = FrameInputs(
+            splats=splats, technique=technique, targets=targets, frame=frame,
+            uniforms=frame | technique.uniforms(options) | splats.extra_uniforms(camera),
+            optional=OPTIONAL_FRAME_UNIFORMS | technique.optional_uniforms,
+            defines=splats.defines | ({EDGE_COVERAGE_DEFINE: 1} if edges else {}),
+            # the cover target only where edge coverage writes it: a target is cleared and written per pixel
+            accumulation=targets["fbo_accum_cover" if edges else "fbo_accum"],
+            output=output, background=background)
+        for step in plan.passes:
+            step.run(self, inputs)
 
     def _fullscreen_pass(self, fragment: str, defines: dict | None = None,
                          version: str = GLSL_VERSION) -> moderngl.VertexArray:
@@ -591,46 +497,6 @@ class Renderer:
             self._fullscreen[key] = self.ctx.vertex_array(self.program("fullscreen.vert", fragment, defines, version),
                                                           [])
         return self._fullscreen[key]
-
-    def _compute(self, splats: GpuSplats, ranges: list, uniforms: dict, defines: dict, compute_pass: int) -> None:
-        """One pass of ``visibility.comp`` (``compute_pass``) over the splats of ``ranges``."""
-        program = self.compute_program("visibility.comp",
-                                       compute_visibility.shader_defines(splats.buffers, defines, compute_pass))
-        self.set_uniforms(program, uniforms, optional=uniforms)   # the frame's, where declared
-        compute_visibility.dispatch(program, splats.buffers, ranges)
-
-    def _opaque_compute(self, splats: GpuSplats, ranges: list, uniforms: dict, defines: dict, targets: dict) -> None:
-        """The small splats of an opaque technique (``compute_visibility.OPAQUE_FRAGMENTS``) into the bound
-        targets, with the depth test on: per pixel the nearest disk's depth, then the first splat at
-        that depth (two compute passes), then ``opaque_resolve.frag`` writes its fragment."""
-        compute_visibility.begin(targets)
-        self._compute(splats, ranges, uniforms, defines, compute_visibility.COMPUTE_OPAQUE_DEPTH)
-        self.ctx.memory_barrier()
-        self._compute(splats, ranges, uniforms, defines, compute_visibility.COMPUTE_OPAQUE_INDEX)
-        units = compute_visibility.bind_images(self.ctx, targets)
-        vao = self._fullscreen_pass("opaque_resolve.frag", compute_visibility.shader_defines(splats.buffers, defines)
-                                    | {"READ_COLOR": 1}, COMPUTE_GLSL_VERSION)
-        self.set_uniforms(vao.program, uniforms | {"u_opaque_depth": units[0], "u_opaque_index": units[1]},
-                          optional=uniforms)
-        compute_visibility.bind_buffers(splats.buffers)
-        vao.render(moderngl.TRIANGLES, vertices=3)
-
-    def _mark_cracks(self, targets: dict, frame: dict, computed: bool = False) -> None:
-        """Between the visibility and the accumulation pass: the visibility record copied into the
-        ``cracks`` target with the uncovered pixels between covered ones marked (``cracks.frag``);
-        ``computed``: with the compute visibility pass's depths (:meth:`_compute`)."""
-        defines = {compute_visibility.COMPUTE_VISIBILITY_DEFINE: 1} if computed else {}
-        vao = self._fullscreen_pass("cracks.frag", defines)
-        self.ctx.disable(moderngl.DEPTH_TEST)
-        self.ctx.disable(moderngl.BLEND)
-        targets["fbo_cracks"].use()
-        targets["side"].use(location=SIDE_TEXTURE_UNIT)
-        uniforms = {"u_viewport": frame["u_viewport"], "u_tile": frame["u_tile"], "u_side": SIDE_TEXTURE_UNIT}
-        if computed:
-            units = compute_visibility.bind_images(self.ctx, targets)
-            uniforms |= {"u_front_depth": units[0], "u_back_depth": units[1]}
-        self.set_uniforms(vao.program, uniforms)
-        vao.render(moderngl.TRIANGLES, vertices=3)
 
     def compute_program(self, name: str, defines: dict[str, object] | None = None) -> moderngl.ComputeShader:
         """The compute shader of a file with ``defines`` (built once, then cached; OpenGL 4.3)."""

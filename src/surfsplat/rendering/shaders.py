@@ -119,7 +119,8 @@ class ComposedSource:
             shared with the other stage of a program, so it may list files of both.
         origins: per line of ``text`` (index 0 is line 1): ``(file, line)`` in
             that file (1-based), or None for a ``#line`` directive added here.
-        uniforms: uniform names the source declares (:func:`declared_uniforms`).
+        uniforms: uniform names the source declares (:func:`declared_uniforms`), with the members
+            of its ``layout(std140)`` uniform blocks (:func:`block_members`).
     """
 
     name: str
@@ -210,7 +211,7 @@ def compose(name: str, defines: dict[str, object] | None = None, *, search_path:
 
     expand(name, (), "")
     text = "\n".join(lines) + "\n"
-    return ComposedSource(name, text, tuple(files), tuple(origins), declared_uniforms(text))
+    return ComposedSource(name, text, tuple(files), tuple(origins), declared_uniforms(text) | block_members(text))
 
 
 def build_source(name: str, defines: dict[str, object] | None = None, *, search_path: Sequence[Path] = ()) -> str:
@@ -220,6 +221,10 @@ def build_source(name: str, defines: dict[str, object] | None = None, *, search_
 
 _COMMENTS = re.compile(r"//[^\n]*|/\*.*?\*/", re.DOTALL)
 _UNIFORM = re.compile(r"\buniform\s+(?:(?:lowp|mediump|highp)\s+)?\w+\s+([^;{}()]+);")
+#: A std140 uniform block and its members' text (uniform_blocks.py lays it out).
+STD140_BLOCK = re.compile(r"layout\s*\(\s*std140\s*\)\s*uniform\s+(\w+)\s*\{([^}]*)\}\s*;")
+#: A member of a block: type, name, array length (a number or a macro).
+BLOCK_MEMBER = re.compile(r"^\s*(\w+)\s+(\w+)\s*(?:\[\s*(\w+)\s*\])?\s*$")
 
 
 def declared_uniforms(source: str) -> frozenset[str]:
@@ -236,6 +241,24 @@ def declared_uniforms(source: str) -> frozenset[str]:
             if name:
                 names.add(name.group(1))
     return frozenset(names)
+
+
+def block_members(source: str) -> frozenset[str]:
+    """Names of the members of the ``layout(std140)`` uniform blocks a GLSL source declares (set by
+    the blocks' buffer, :mod:`~surfsplat.rendering.uniform_blocks`, not per program)."""
+    names = set()
+    for match in STD140_BLOCK.finditer(_COMMENTS.sub(" ", source)):
+        for declaration in match.group(2).split(";"):
+            member = BLOCK_MEMBER.match(declaration)
+            if member:
+                names.add(member.group(2))
+    return frozenset(names)
+
+
+def read_source(name: str, search_path: Sequence[Path] = ()) -> str:
+    """The text of shader file ``name`` from the first folder of ``search_path`` holding it, else the
+    package's ``glsl/`` (as :func:`compose` reads it, without includes)."""
+    return _read(name, search_path, "")
 
 
 # Message positions: Mesa "S:L(C): error", glslang-style "ERROR: S:L: ...", NVIDIA "S(L) : error".

@@ -1,10 +1,14 @@
 // Camera uniforms and the projection helpers shared by every splat shader.
 // Mirrors surfsplat/reference.py: window pixels with y up, camera looks down -z.
-uniform mat4 u_view;        // world -> camera
-uniform vec2 u_viewport;    // width, height in pixels
-uniform float u_focal;      // focal length in pixels: (height / 2) / tan(fov / 2)
-uniform vec2 u_near_far;    // clip distances along -z, model units
-uniform vec4 u_tile;        // the window rectangle of the full image this draw covers: origin (x, y), size (w, h)
+// One std140 block of the frame's buffer, written once per frame and shared by every program
+// (rendering/uniform_blocks.py reads the members' layout from this declaration).
+layout(std140) uniform Camera {
+    mat4 u_view;        // world -> camera
+    vec4 u_tile;        // the window rectangle of the full image this draw covers: origin (x, y), size (w, h)
+    vec2 u_viewport;    // width, height in pixels
+    vec2 u_near_far;    // clip distances along -z, model units
+    float u_focal;      // focal length in pixels: (height / 2) / tan(fov / 2)
+};
 
 // The full image's window pixel of the fragment (fragment shaders only): tiles offset gl_FragCoord.
 #define FRAG_PX (gl_FragCoord.xy + u_tile.xy)

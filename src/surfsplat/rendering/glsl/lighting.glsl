@@ -1,8 +1,11 @@
 // Two-sided Blinn-Phong with up to MAX_LIGHTS directional lights (surfsplat/lighting.py).
-uniform bool u_lighting;
-uniform int u_num_lights;
-uniform vec3 u_light_dirs[MAX_LIGHTS];   // camera space, unit, toward the lights
-uniform vec4 u_material;        // ka, kd, ks, shininess
+// One std140 block of the frame's buffer, like camera.glsl's (rendering/uniform_blocks.py).
+layout(std140) uniform Lighting {
+    vec3 u_light_dirs[MAX_LIGHTS];   // camera space, unit, toward the lights
+    vec4 u_material;        // ka, kd, ks, shininess
+    int u_num_lights;
+    bool u_lighting;
+};
 
 vec3 shade(vec3 albedo, vec3 n, vec3 view) {
     if (!u_lighting) return albedo;

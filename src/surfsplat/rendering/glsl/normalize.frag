@@ -12,8 +12,8 @@ uniform sampler2D u_accum;     // (sum w rgb, sum w)
 uniform sampler2D u_aux;       // (sum w depth, sum w normal), camera space
 uniform sampler2D u_cover;     // soft maxima of the splats' coverages c and rim distances d (splat_fragment.glsl)
 uniform vec3 u_background;
-uniform bool u_deferred;
-uniform float u_supersample;
+// frame_options.glsl: u_deferred, u_supersample
+#include "frame_options.glsl"
 uniform bool u_edge_fringe;   // the technique's footprints reach beyond its disks (ewa, perspective)
 // What Renderer.render reads back (24 bytes per sub-pixel): the color and the accumulated weight
 // (-1: a non-finite accumulation), and the weighted depth sum (the depth is it over the weight)

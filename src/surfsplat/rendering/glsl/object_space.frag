@@ -10,7 +10,8 @@
 #include "splat_fragment.glsl"
 
 uniform vec2 u_kernel;     // (a, n)
-uniform bool u_deferred;
+// frame_options.glsl: u_deferred
+#include "frame_options.glsl"
 flat in vec3 v_albedo;
 flat in vec3 v_normal;
 flat in vec3 v_field_u;

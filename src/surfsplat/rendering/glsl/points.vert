@@ -8,8 +8,8 @@
 #include "splat_primitive.glsl"
 
 uniform vec2 u_point_size;   // min, max diameter in output pixels
-uniform float u_supersample; // sub-pixels per output pixel along x and y (K)
-uniform bool u_deferred;      // lighting after normalization: the point carries its albedo
+// frame_options.glsl: u_supersample; u_deferred: the point carries its albedo
+#include "frame_options.glsl"
 
 flat out vec2 v_center;      // full-image window pixels
 flat out float v_radius_px;  // half the diameter, window (sub-)pixels

@@ -8,9 +8,8 @@ layout(location = 1) out vec4 out_aux;     // (w * depth, w * normal), camera sp
 // COVER_SHARPNESS, S_d = DISTANCE_SHARPNESS, R = COVER_REACH; normalize.frag takes the ratios.
 layout(location = 2) out vec4 out_cover;
 
-uniform float u_depth_epsilon;   // visibility offset along the viewing ray, in splat radii
-uniform bool u_separate_sides;   // blend only splats seen from the same side as the nearest one
-uniform bool u_clip_fringe;      // drop filter fringes beyond a splat's disk over nothing or a farther surface
+// frame_options.glsl: u_depth_epsilon, u_separate_sides, u_clip_fringe
+#include "frame_options.glsl"
 // EDGE_COVERAGE (a define, not a uniform: llvmpipe runs a branch on a uniform that is false at a cost
 // of 20% of the accumulation pass): silhouette pixels get the disks' analytic area coverage as alpha
 // (normalize.frag).

@@ -22,9 +22,8 @@ SPLAT_OUT vec3 v_clip0;    // clip lines, passed through (Botsch 2004, sec. 4; Z
 SPLAT_OUT vec3 v_clip1;
 SPLAT_OUT float v_back;    // 1: the eye sees the back of the splat (its normal faces away), else 0
 
-uniform bool u_cull_backfaces;   // closed, outward-oriented models only
-
-uniform bool u_deferred;         // lighting after blending: splats carry their albedo
+// frame_options.glsl: u_cull_backfaces (closed, outward-oriented models only), u_deferred
+#include "frame_options.glsl"
 
 struct Splat {
     vec3 p;   // center, camera space

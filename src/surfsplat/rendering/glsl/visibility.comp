@@ -30,7 +30,8 @@ layout(local_size_x = COMPUTE_GROUP) in;
 layout(r32ui, binding = 0) uniform uimage2D u_image0;
 layout(r32ui, binding = 1) uniform uimage2D u_image1;
 
-uniform float u_depth_epsilon;   // visibility offset along the viewing ray, in splat radii
+// frame_options.glsl: u_depth_epsilon
+#include "frame_options.glsl"
 uniform int u_first;   // the first splat of this dispatch
 uniform int u_count;   // splats in it
 
