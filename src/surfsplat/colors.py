@@ -74,11 +74,11 @@ class ColorOptions:
 
     def __post_init__(self) -> None:
         if not isinstance(self.by, str) or not self.by:
-            raise InputError(f"color-by needs an attribute name, got {self.by!r}")
+            raise InputError(f"color-by needs an attribute name, got {self.by!r}", argument="by")
         if self.value_range is not None:
             lo, hi = (float(x) for x in self.value_range)
             if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
-                raise InputError(f"color range needs finite LO < HI, got {self.value_range!r}")
+                raise InputError(f"color range needs finite LO < HI, got {self.value_range!r}", argument="value_range")
             object.__setattr__(self, "value_range", (lo, hi))
 
 
@@ -90,7 +90,7 @@ def attribute_values(cloud: SplatCloud, by: str, up=(0.0, 0.0, 1.0)) -> tuple[st
         axis = np.asarray(up, dtype=np.float64).reshape(3)
         norm = float(np.linalg.norm(axis))
         if not (np.isfinite(norm) and norm > 0):
-            raise InputError(f"elevation needs a non-zero up axis, got {up!r}")
+            raise InputError(f"elevation needs a non-zero up axis, got {up!r}", argument="up")
         return ELEVATION, cloud.positions.astype(np.float64) @ (axis / norm)
     attributes = cloud.attributes or {}
     if by in attributes:
@@ -100,7 +100,7 @@ def attribute_values(cloud: SplatCloud, by: str, up=(0.0, 0.0, 1.0)) -> tuple[st
         name = folded[by.lower()]
         return name, attributes[name]
     available = ", ".join([ELEVATION] + list(attributes))
-    raise InputError(f"no attribute {by!r} to colour by; available: {available}")
+    raise InputError(f"no attribute {by!r} to colour by; available: {available}", argument="by", element=by)
 
 
 def robust_range(values: np.ndarray) -> tuple[float, float]:
@@ -121,12 +121,12 @@ def colormap_colors(colormap: str, t: np.ndarray) -> np.ndarray:
         import matplotlib
     except ImportError as exc:
         raise InputError(f"colormap {colormap!r} needs matplotlib: `pip install matplotlib` "
-                         "(or `pip install \".[color]\"` in the surfsplat checkout)") from exc
+                         "(or `pip install \".[color]\"` in the surfsplat checkout)", argument="colormap") from exc
     try:
         cmap = matplotlib.colormaps[colormap]
     except KeyError:
         raise InputError(f"unknown colormap {colormap!r}; e.g. viridis, turbo, magma, cividis, "
-                         f"or {ASPRS} for LAS classes") from None
+                         f"or {ASPRS} for LAS classes", argument="colormap") from None
     return np.asarray(cmap(np.clip(t, 0.0, 1.0)), dtype=np.float32)[:, :3]
 
 

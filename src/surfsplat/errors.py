@@ -14,6 +14,7 @@ file, the parser below it only the text)."""
 from __future__ import annotations
 
 import contextlib
+import functools
 
 #: The attributes an error or warning may carry, in the order of the constructors' keywords.
 CONTEXT = ("file", "element", "row", "argument")
@@ -74,3 +75,15 @@ def error_context(**context):
     except SurfsplatError as exc:
         fill_context(exc, **context)
         raise
+
+
+def file_reader(function):
+    """Decorator of a function whose first argument is a file's path: a SurfsplatError raised
+    while it runs gets ``file`` set to that path where the raise site left it unset."""
+
+    @functools.wraps(function)
+    def read(path, *args, **kwargs):
+        with error_context(file=path):
+            return function(path, *args, **kwargs)
+
+    return read

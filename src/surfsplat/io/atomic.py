@@ -15,9 +15,10 @@ import stat
 import tempfile
 from pathlib import Path
 
-from ..errors import InputError
+from ..errors import InputError, file_reader
 
 
+@file_reader
 def check_writable(path: str | os.PathLike, *, overwrite: bool = False) -> Path:
     """``path`` as a Path after checking, before any work, that it can be written: its folder exists,
     it is not a folder, and it does not exist unless ``overwrite`` (InputError naming it)."""
@@ -32,6 +33,7 @@ def check_writable(path: str | os.PathLike, *, overwrite: bool = False) -> Path:
     return path
 
 
+@file_reader
 def check_readable(path: str | os.PathLike) -> Path:
     """``path`` as a Path after checking, before opening it, that it is an existing regular file
     (symbolic links followed): InputError naming it for a missing file, a folder, a FIFO, a socket or

@@ -17,7 +17,7 @@ import os
 from pathlib import Path
 
 from ..camera import Camera
-from ..errors import InputError
+from ..errors import InputError, file_reader
 from .atomic import write_atomically
 
 CAMERA_FORMAT = "surfsplat-camera"
@@ -77,6 +77,7 @@ def _read(path: Path) -> dict:
     return data
 
 
+@file_reader
 def load_camera(path: str | os.PathLike) -> Camera:
     """Read a camera file of one camera (InputError naming the file and the problem when it is not one)."""
     path = Path(path)
@@ -86,6 +87,7 @@ def load_camera(path: str | os.PathLike) -> Camera:
     return _camera_from(data, path)
 
 
+@file_reader
 def load_camera_list(path: str | os.PathLike) -> list[tuple[str, Camera]]:
     """The ``(name, Camera)`` pairs of a camera file: its ``"cameras"`` list (names: the ``name``
     field, else the index), or its one camera named by the file's stem."""

@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from ..camera import Camera
-from ..errors import InputError
+from ..errors import InputError, file_reader
 from .camera_file import CAMERA_FORMAT, load_camera_list
 
 COLMAP_FILES = ("cameras.txt", "images.txt")
@@ -101,6 +101,7 @@ def _load_json(path: Path):
         raise InputError(f"{path}: not a camera file (JSON): {exc}") from None
 
 
+@file_reader
 def load_opencv(path: Path, data) -> list[tuple[str, Camera]]:
     """The cameras of an OpenCV JSON file (parsed ``data``)."""
     entries = data["cameras"] if isinstance(data, dict) and "cameras" in data else [data]
@@ -195,6 +196,7 @@ def load_colmap(folder: Path) -> list[tuple[str, Camera]]:
     return views
 
 
+@file_reader
 def load_nerf(path: Path, data, width: int | None = None, height: int | None = None) -> list[tuple[str, Camera]]:
     """The cameras of a NeRF ``transforms.json`` (parsed ``data``); ``width``, ``height`` where it has no w, h."""
     frames = data.get("frames")
@@ -236,6 +238,7 @@ def load_nerf(path: Path, data, width: int | None = None, height: int | None = N
     return views
 
 
+@file_reader
 def load_cameras(path: str | os.PathLike, *, width: int | None = None,
                  height: int | None = None) -> list[tuple[str, Camera]]:
     """The named cameras of ``path``: a COLMAP text model (``cameras.txt``, ``images.txt`` or their

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, file_reader
 from .atomic import memory_limit
 
 #: Most bytes an archive may inflate to per byte on disk. surfsplat writes its archives
@@ -38,6 +38,7 @@ def inflation_limit(path: str | os.PathLike) -> int:
     return min(max(MAX_INFLATION * os.stat(path).st_size, MIN_INFLATED_BYTES), memory_limit())
 
 
+@file_reader
 def npz_names(path: Path, source: str | None = None) -> list[str]:
     """The member names of the ``.npz`` archive at ``path`` (``.npy`` suffix removed), read
     from its zip directory only (nothing inflated); InputError naming the file if it is no zip."""
@@ -49,6 +50,7 @@ def npz_names(path: Path, source: str | None = None) -> list[str]:
         raise InputError(f"{source}: not a readable .npz archive ({exc})", file=path) from None
 
 
+@file_reader
 def read_npz(path: str | os.PathLike, names=None, source: str | None = None) -> dict[str, np.ndarray]:
     """The members of the ``.npz`` archive at ``path`` as ``{name: array}`` (``names``: only
     these, when present; None: all), checked before anything is inflated (module docstring).
