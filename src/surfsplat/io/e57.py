@@ -219,17 +219,17 @@ def _scan(data: dict, i: int, source: str) -> tuple[np.ndarray, np.ndarray | Non
         state = fields.get("sphericalInvalidState")
     else:
         raise InputError(f"{source}: cannot read E57 file: scan {i} has neither cartesianX/Y/Z nor "
-                         "sphericalRange/Azimuth/Elevation coordinates")
+                         "sphericalRange/Azimuth/Elevation coordinates", element="scan", row=i)
     keep = np.ones(len(local), bool) if state is None else state == 0
     pose = fields["pose"]
     try:
         rotation = quaternion_matrix(pose[:4])
     except InputError as exc:
-        raise InputError(f"{source}: cannot read E57 file: scan {i}'s pose: {exc}", **exc.context(),
-                         element="pose", row=i) from None
+        raise InputError(f"{source}: cannot read E57 file: scan {i}'s pose: {exc}",
+                         **{**exc.context(), "element": "pose", "row": i}) from None
     if not np.isfinite(pose[4:]).all():
         raise InputError(f"{source}: cannot read E57 file: scan {i}'s pose translation {pose[4:].tolist()} is "
-                         "not finite")
+                         "not finite", element="pose", row=i)
     positions = local[keep] @ rotation.T + pose[4:]
     colors = None
     if all(name in fields for name in ("colorRed", "colorGreen", "colorBlue")):

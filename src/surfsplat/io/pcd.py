@@ -154,7 +154,7 @@ def _cloud(data: np.ndarray, source: str) -> SplatCloud:
         if not all(n in names for n in names_):
             if any(n in names for n in names_):
                 raise InputError(f"{source}: PCD has {' '.join(n for n in names_ if n in names)} but not all of "
-                                 f"{' '.join(names_)}")
+                                 f"{' '.join(names_)}", element=next(n for n in names_ if n not in names))
             return None
         return np.column_stack([np.asarray(data[n], dtype=np.float64).reshape(len(data), -1)[:, 0]
                                 for n in names_])
