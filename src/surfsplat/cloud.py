@@ -33,12 +33,12 @@ NO_CLIP = np.array([0.0, 0.0, 1.0], dtype=np.float32)
 #: keep less than 1/16 of its precision relative to the data's own size.
 RECENTER_RATIO = 16.0
 
-#: Largest coordinate (relative to the origin) and splat radius the renderer accepts, model units.
-#: The GPU pipeline is float32: its products of coordinates (squared distances, view and
-#: projection matrices times positions, splat conics) overflow float32's 3.4e38 from about 1.8e19;
-#: 1e15 keeps a margin of 1e4 for those products. :meth:`SplatCloud.validated` drops rows beyond it,
-#: :meth:`Mesh.validated <surfsplat.io.mesh.Mesh.validated>` refuses such vertices.
-MAX_COORDINATE = 1e15
+#: Largest magnitude of a coordinate relative to the origin (model units) that the float32 mesh
+#: renderer draws: squares stay finite in float32 (3.4e38); beyond it a mesh comes out blank.
+#: :meth:`Mesh.validated <surfsplat.io.mesh.Mesh.validated>` refuses such vertices. (Splats are
+#: scaled to about unit size before they reach the GPU, which checks them against the same value,
+#: ``surfsplat.rendering.gpu_splats.MAX_COORDINATE``.)
+MAX_COORDINATE = 1e18
 
 
 @dataclass
@@ -301,9 +301,9 @@ class SplatCloud:
     def validated(self, source: str = "input", *, file=None) -> "SplatCloud":
         """Drop invalid rows and report how many, raising if nothing is left.
 
-        Dropped: non-finite positions or ones farther than :data:`MAX_COORDINATE` from the
-        origin (other non-finite arrays too), zero-length or non-finite normals, and zero,
-        negative, non-finite, degenerate or larger than :data:`MAX_COORDINATE` splat axes.
+        Dropped: non-finite positions (or other non-finite arrays; positions beyond float32's
+        3.4e38 from the origin are infinite), zero-length or non-finite normals, and zero,
+        negative, non-finite or degenerate splat axes.
         Normals are renormalized (in float64, scaled by their largest component first, so
         lengths far beyond float32's squares, 1e20, or below them, 1e-30, normalize exactly)
         and colors clipped to [0, 1]. ``source`` names the file or array in messages, ``file``
@@ -317,11 +317,9 @@ class SplatCloud:
         n = len(self)
         if n == 0:
             raise InputError(f"{source}: contains no points", file=file)
-        with np.errstate(invalid="ignore"):
-            keep = (np.abs(self.positions) <= MAX_COORDINATE).all(axis=1)   # False for NaN and inf
+        keep = np.isfinite(self.positions).all(axis=1)
         faults = [("positions", ~keep)]
-        reasons = {f"non-finite coordinates or ones farther than {MAX_COORDINATE:.0e} from the origin "
-                   "(the float32 renderer's limit)": int(n - keep.sum())}
+        reasons = {"non-finite coordinates or ones beyond float32's 3.4e38 from the origin": int(n - keep.sum())}
         if self.normals is not None:
             scale = np.abs(self.normals).max(axis=1)
             bad = ~(np.isfinite(self.normals).all(axis=1) & (scale > 0))
@@ -333,10 +331,8 @@ class SplatCloud:
             lu = np.linalg.norm(u, axis=1)
             lv = np.linalg.norm(v, axis=1)
             cross = np.linalg.norm(np.cross(u, v), axis=1)
-            bad = ~(np.isfinite(lu) & np.isfinite(lv)) | (lu <= 0) | (lv <= 0) | (cross <= 1e-12 * lu * lv) \
-                | (lu > MAX_COORDINATE) | (lv > MAX_COORDINATE)
-            reasons[f"zero, negative, degenerate or too large (over {MAX_COORDINATE:.0e}) splat radii"] = \
-                int((bad & keep).sum())
+            bad = ~(np.isfinite(lu) & np.isfinite(lv)) | (lu <= 0) | (lv <= 0) | (cross <= 1e-12 * lu * lv)
+            reasons["zero, negative or degenerate splat radii"] = int((bad & keep).sum())
             faults.append(("u, v", bad & keep))
             keep &= ~bad
         for name in ("colors", "normal_field", "clip_lines"):

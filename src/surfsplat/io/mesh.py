@@ -135,8 +135,8 @@ class Mesh:
         """Return ``self`` after checking its contents, or raise InputError.
 
         Checked: at least one face, all vertices finite and within
-        :data:`~surfsplat.cloud.MAX_COORDINATE` (1e15) of the origin (the float32 renderer's
-        limit: beyond it its products overflow and the picture comes out blank), every face index
+        :data:`~surfsplat.cloud.MAX_COORDINATE` (1e18) of the origin (the float32 renderer's
+        limit: beyond it its squares overflow and the picture comes out blank), every face index
         in ``[0, V)``. ``source`` names the file or array in messages.
 
         Raises:
