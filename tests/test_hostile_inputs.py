@@ -143,6 +143,16 @@ def test_npz_reader_limit_is_a_ratio_of_the_file_size(tmp_path):
     assert caught.value.file == str(bomb)
 
 
+def test_chunked_node_files_refuse_a_zip_bomb(tmp_path):
+    """A chunked hierarchy's per-cell ``nodes.npz`` is read through the same checks."""
+    from surfsplat.hierarchy.chunked.layout import read_nodes
+
+    bomb = zip_bomb(tmp_path / "nodes.npz", 256 << 20)
+    with pytest.raises(InputError, match=r"nodes\.npz: corrupt chunk file: the archive inflates to") as caught:
+        read_nodes(bomb)
+    assert caught.value.file == str(bomb)
+
+
 # -- 2. coordinates and radii near 1e30 --------------------------------------------------------------
 
 

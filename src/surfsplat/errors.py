@@ -4,7 +4,8 @@ Besides the message, an error carries what failed as attributes (None where unkn
 programs need not parse messages:
 
 - ``file``: the path (str) of the file that failed,
-- ``element``: the part of it: a PLY element or property, an array, column or member name,
+- ``element``: the part of it: a PLY element, or element and property as ``"vertex.x"``; an
+  array, column, archive member or camera-file field name,
 - ``row``: the first offending row (0-based index into that element or array),
 - ``argument``: the API argument, option field or CLI flag that was rejected.
 

@@ -623,14 +623,16 @@ def concatenate(parts: list[SplatCloud]) -> SplatCloud:
 
 def _read_preview(path: Path, origin: np.ndarray, attributes: list) -> SplatCloud:
     if not path.is_file():
-        raise InputError(f"{path}: missing preview file of the chunked hierarchy")
+        raise InputError(f"{path}: missing preview file of the chunked hierarchy", file=path)
+    # sizes checked before anything is inflated (no zip bomb); its errors name the file and member
+    arrays = read_npz(path, source=f"{path}: corrupt preview file")
     try:
-        arrays = read_npz(path)   # sizes checked before anything is inflated: no zip bomb
         values = {name: arrays.pop(f"attribute_{i}") for i, name in enumerate(attributes)}
         arrays = {name: value for name, value in arrays.items() if not name.startswith("attribute_")}
         return SplatCloud(**arrays, origin=origin, attributes=values or None)
     except (OSError, ValueError, EOFError, TypeError, KeyError) as exc:   # InputError is a ValueError
-        raise InputError(f"{path}: corrupt preview file ({exc})", file=path) from None
+        raise InputError(f"{path}: corrupt preview file ({exc})", file=path,
+                         element=getattr(exc, "element", None) or getattr(exc, "argument", None)) from None
 
 
 def open_chunked(path, cache_cells: int = CACHE_CELLS, cache_bytes: int | None = None) -> ChunkedHierarchy:
