@@ -58,13 +58,11 @@ def test_attributes_are_optional_keywords_and_leave_the_message_alone():
 
 
 def test_error_context_fills_only_what_the_raise_site_left_unset():
-    with pytest.raises(InputError) as caught:
-        with error_context(file="outer.ply", row=3):
-            raise InputError("inner.ply: bad", file="inner.ply")
+    with pytest.raises(InputError) as caught, error_context(file="outer.ply", row=3):
+        raise InputError("inner.ply: bad", file="inner.ply")
     assert caught.value.file == "inner.ply" and caught.value.row == 3 and str(caught.value) == "inner.ply: bad"
-    with pytest.raises(KeyError):   # other exceptions pass untouched
-        with error_context(file="x"):
-            raise KeyError("k")
+    with pytest.raises(KeyError), error_context(file="x"):   # other exceptions pass untouched
+        raise KeyError("k")
     error = fill_context(SurfsplatError("m"), element="e", row=None)
     assert error.element == "e" and error.row is None
     with pytest.raises(TypeError):

@@ -27,7 +27,7 @@ from plyfile import PlyData, PlyElement
 
 from surfsplat import InputError, SplatCloud
 from surfsplat.cloud import MAX_COORDINATE
-from surfsplat.io import load, save_ply
+from surfsplat.io import load
 from surfsplat.io.npz import MAX_INFLATION, read_npz
 
 #: Run the command line in a child and report its peak resident memory (bytes) on the last line
@@ -58,7 +58,7 @@ def cli(*argv, timeout: float = 300) -> tuple[int, str, str, int]:
     src = os.path.join(os.path.dirname(__file__), os.pardir, "src")
     env["PYTHONPATH"] = os.path.abspath(src) + os.pathsep + env.get("PYTHONPATH", "")
     done = subprocess.run([sys.executable, "-c", RUNNER, "-q", *map(str, argv)], capture_output=True, text=True,
-                          timeout=timeout, env=env, stdin=subprocess.DEVNULL)
+                          timeout=timeout, env=env, stdin=subprocess.DEVNULL, check=False)
     err, _, peak = done.stderr.rpartition("PEAK_RSS ")
     return done.returncode, done.stdout, err, int(peak)
 
@@ -77,13 +77,13 @@ def zip_bomb(path, inflated: int):
     rows = inflated // 12
     np.lib.format.write_array_header_1_0(header, {"descr": "<f4", "fortran_order": False, "shape": (rows, 3)})
     chunk = bytes(1 << 24)
-    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1) as archive:
-        with archive.open("point_positions.npy", "w", force_zip64=True) as member:
-            member.write(header.getvalue())
-            left = rows * 12
-            while left:
-                member.write(chunk[:min(left, len(chunk))])
-                left -= min(left, len(chunk))
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1) as archive, \
+            archive.open("point_positions.npy", "w", force_zip64=True) as member:
+        member.write(header.getvalue())
+        left = rows * 12
+        while left:
+            member.write(chunk[:min(left, len(chunk))])
+            left -= min(left, len(chunk))
     return path
 
 

@@ -91,7 +91,7 @@ def read_npz(path: str | os.PathLike, names=None, source: str | None = None) -> 
 
 
 def _name(info: zipfile.ZipInfo) -> str:
-    return info.filename[:-4] if info.filename.endswith(".npy") else info.filename
+    return info.filename.removesuffix(".npy")
 
 
 def _read_member(archive: zipfile.ZipFile, info: zipfile.ZipInfo, source: str, path: Path) -> np.ndarray:
