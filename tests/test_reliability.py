@@ -17,7 +17,7 @@ import pytest
 from surfsplat import InputError, SplatCloud, scenes
 from surfsplat.cli import main
 from surfsplat.hierarchy import Hierarchy, build_hierarchy, load_hierarchy, save_hierarchy
-from surfsplat.hierarchy import storage
+from surfsplat.io import npz as npz_reader
 from surfsplat.io import Mesh, load, load_input, load_mesh, save_ply
 
 
@@ -159,7 +159,7 @@ def test_npz_zip_bomb(tmp_path, monkeypatch):
     path = zip_with(tmp_path / "bomb.npz", {"order.npy": npy_bytes(np.zeros(8 << 20, np.int64))},
                     compress=zipfile.ZIP_DEFLATED)
     assert path.stat().st_size < 1 << 20
-    monkeypatch.setattr(storage, "memory_limit", lambda: 16 << 20)
+    monkeypatch.setattr(npz_reader, "memory_limit", lambda: 16 << 20)
     with pytest.raises(InputError, match=r"bomb\.npz: the archive inflates to 67,108,992 bytes"):
         load_hierarchy(path)
 

@@ -17,7 +17,7 @@ from .errors import InputError
 def _vec3(value, name: str) -> np.ndarray:
     arr = np.asarray(value, dtype=np.float64).reshape(-1)
     if arr.shape != (3,) or not np.isfinite(arr).all():
-        raise InputError(f"{name} must be 3 finite numbers, got {value!r}")
+        raise InputError(f"{name} must be 3 finite numbers, got {value!r}", argument=name)
     return arr
 
 
@@ -64,16 +64,18 @@ class Camera:
     def __post_init__(self) -> None:
         eye, target, up = _vec3(self.eye, "eye"), _vec3(self.target, "target"), direction_vector(self.up, "up")
         if np.linalg.norm(eye - target) <= 0:
-            raise InputError("camera eye and target must differ")
+            raise InputError("camera eye and target must differ", argument="target")
         forward = (target - eye) / np.linalg.norm(target - eye)
         if np.linalg.norm(np.cross(forward, up)) < 1e-9 * max(np.linalg.norm(up), 1e-30):
-            raise InputError("camera up vector must not be parallel to the viewing direction (or zero)")
+            raise InputError("camera up vector must not be parallel to the viewing direction (or zero)", argument="up")
         if not (MIN_FOV <= float(self.fov) < 180.0):
-            raise InputError(f"field of view must be in [{MIN_FOV:g}, 180) degrees, got {self.fov}")
+            raise InputError(f"field of view must be in [{MIN_FOV:g}, 180) degrees, got {self.fov}", argument="fov")
         if not (1 <= int(self.width) <= MAX_IMAGE_SIDE and 1 <= int(self.height) <= MAX_IMAGE_SIDE):
-            raise InputError(f"image size must be within 1..{MAX_IMAGE_SIDE} pixels, got {self.width}x{self.height}")
+            raise InputError(f"image size must be within 1..{MAX_IMAGE_SIDE} pixels, got {self.width}x{self.height}",
+                             argument="width" if not 1 <= int(self.width) <= MAX_IMAGE_SIDE else "height")
         if self.near is not None and self.far is not None and not (0 < self.near < self.far):
-            raise InputError(f"need 0 < near < far, got near={self.near}, far={self.far}")
+            raise InputError(f"need 0 < near < far, got near={self.near}, far={self.far}",
+                             argument="near" if not 0 < self.near else "far")
         object.__setattr__(self, "eye", tuple(map(float, eye)))
         object.__setattr__(self, "target", tuple(map(float, target)))
         object.__setattr__(self, "up", tuple(map(float, up)))
@@ -133,7 +135,7 @@ class Camera:
         """The same view of a model scaled by ``factor`` (> 0) about the origin: eye, target, near
         and far times ``factor`` (a power of two keeps every float32 computed from it exact)."""
         if not (np.isfinite(factor) and factor > 0):
-            raise InputError(f"camera scale factor must be a positive number, got {factor!r}")
+            raise InputError(f"camera scale factor must be a positive number, got {factor!r}", argument="factor")
         if factor == 1.0:
             return self
         scale = lambda x: None if x is None else float(x) * factor  # noqa: E731

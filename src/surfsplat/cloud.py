@@ -33,6 +33,13 @@ NO_CLIP = np.array([0.0, 0.0, 1.0], dtype=np.float32)
 #: keep less than 1/16 of its precision relative to the data's own size.
 RECENTER_RATIO = 16.0
 
+#: Largest magnitude of a coordinate relative to the origin (model units) that the float32 mesh
+#: renderer draws: squares stay finite in float32 (3.4e38); beyond it a mesh comes out blank.
+#: :meth:`Mesh.validated <surfsplat.io.mesh.Mesh.validated>` refuses such vertices. (Splats are
+#: scaled to about unit size before they reach the GPU, which checks them against the same value,
+#: ``surfsplat.rendering.gpu_splats.MAX_COORDINATE``.)
+MAX_COORDINATE = 1e18
+
 
 @dataclass
 class SplatCloud:
@@ -92,13 +99,13 @@ class SplatCloud:
         else:
             origin = np.array(self.origin, dtype=np.float64).reshape(-1)
             if origin.shape != (3,) or not np.isfinite(origin).all():
-                raise InputError(f"origin must be 3 finite numbers, got {self.origin!r}")
+                raise InputError(f"origin must be 3 finite numbers, got {self.origin!r}", argument="origin")
             self.origin = origin
         for name, tail in self._SHAPES.items():
             value = getattr(self, name)
             if value is None:
                 if name == "positions":
-                    raise InputError("positions are required")
+                    raise InputError("positions are required", argument="positions")
                 continue
             with np.errstate(over="ignore"):   # beyond float32's range: inf, dropped and counted by validation
                 arr = np.ascontiguousarray(value, dtype=np.float32)
@@ -106,13 +113,14 @@ class SplatCloud:
                 # one clip line per splat: pad the second with "keep all"
                 arr = np.concatenate([arr[:, None, :], np.broadcast_to(NO_CLIP, arr.shape)[:, None, :]], axis=1)
             if arr.ndim != 1 + len(tail) or arr.shape[1:] != tail:
-                raise InputError(f"{name} must have shape (N, {', '.join(map(str, tail))}), got {arr.shape}")
+                raise InputError(f"{name} must have shape (N, {', '.join(map(str, tail))}), got {arr.shape}",
+                                 argument=name, element=name)
             setattr(self, name, arr)
         n = len(self.positions)
         for name in self._OPTIONAL:
             value = getattr(self, name)
             if value is not None and len(value) != n:
-                raise InputError(f"{name} has {len(value)} rows but positions has {n}")
+                raise InputError(f"{name} has {len(value)} rows but positions has {n}", argument=name, element=name)
         if self.attributes is not None:
             self.attributes = checked_attributes(self.attributes, n)
 
@@ -138,7 +146,10 @@ class SplatCloud:
         """(N,) float32 largest semi-axis of each splat, model units (needs u, v)."""
         if self.u is None or self.v is None:
             raise InputError("this SplatCloud has no splat axes yet; preprocess it first")
-        return np.maximum(np.linalg.norm(self.u, axis=1), np.linalg.norm(self.v, axis=1))
+        # in float64: float32 squares overflow beyond 1.8e19 (a radius of 1e20 is not inf)
+        lengths = np.maximum(np.linalg.norm(self.u.astype(np.float64), axis=1),
+                             np.linalg.norm(self.v.astype(np.float64), axis=1))
+        return lengths.astype(np.float32)
 
     @property
     def albedo(self) -> np.ndarray:
@@ -187,7 +198,8 @@ class SplatCloud:
             colors = unit_colors(colors)
         if radius is not None and u is None and v is None:
             if normals is None:
-                raise InputError("radius needs normals (a circular splat needs a normal to orient it)")
+                raise InputError("radius needs normals (a circular splat needs a normal to orient it)",
+                                 argument="radius")
             u, v = circle_axes(normals, radius)
         return cls(positions=positions, normals=normals, colors=colors, u=u, v=v,
                    normal_field=normal_field, clip_lines=clip_lines, origin=origin)
@@ -228,7 +240,8 @@ class SplatCloud:
                 present = [key for key in names if key in table]
                 if present and len(present) < len(names):
                     missing = [key for key in names if key not in table]
-                    raise InputError(f"columns {' '.join(present)} present but {' '.join(missing)} missing")
+                    raise InputError(f"columns {' '.join(present)} present but {' '.join(missing)} missing",
+                                     element=table[present[0]][0])
                 if present:
                     return np.column_stack([take(key).reshape(-1) for key in names])
             return None
@@ -238,7 +251,7 @@ class SplatCloud:
             positions = take("points", "xyz", "vertices")
         if positions is None:
             raise InputError(f"no positions: expected a 'positions' column or x, y, z columns "
-                             f"(columns: {', '.join(str(table[k][0]) for k in table) or 'none'})")
+                             f"(columns: {', '.join(str(table[k][0]) for k in table) or 'none'})", element="x")
         normals = group("normals", ("nx", "ny", "nz"), ("normal_x", "normal_y", "normal_z"))
         colors = group("colors", ("red", "green", "blue"), ("r", "g", "b"))
         if colors is None:
@@ -285,23 +298,33 @@ class SplatCloud:
 
     # -- validation --------------------------------------------------------
 
-    def validated(self, source: str = "input") -> "SplatCloud":
+    def validated(self, source: str = "input", *, file=None) -> "SplatCloud":
         """Drop invalid rows and report how many, raising if nothing is left.
 
-        Dropped: non-finite positions (or other non-finite arrays), zero-length
-        normals, and zero, negative or non-finite splat axes. Normals are
-        renormalized and colors clipped to [0, 1]. ``source`` names the file or
-        array in messages.
+        Dropped: non-finite positions (or other non-finite arrays; positions beyond float32's
+        3.4e38 from the origin are infinite), zero-length or non-finite normals, and zero,
+        negative, non-finite or degenerate splat axes.
+        Normals are renormalized (in float64, scaled by their largest component first, so
+        lengths far beyond float32's squares, 1e20, or below them, 1e-30, normalize exactly)
+        and colors clipped to [0, 1]. ``source`` names the file or array in messages, ``file``
+        (a path, or None) is set on the error and the warning.
+
+        Raises:
+            InputError (``file``, ``row`` 0, ``element`` the first row's fault): no rows, or none
+                valid. A warning, :class:`InvalidPointsWarning`, counts dropped rows (its ``row``:
+                the first of them, ``element``: why it was dropped, ``count``: how many).
         """
         n = len(self)
         if n == 0:
-            raise InputError(f"{source}: contains no points")
+            raise InputError(f"{source}: contains no points", file=file)
         keep = np.isfinite(self.positions).all(axis=1)
+        faults = [("positions", ~keep)]
         reasons = {"non-finite coordinates or ones beyond float32's 3.4e38 from the origin": int(n - keep.sum())}
         if self.normals is not None:
-            length = np.linalg.norm(self.normals.astype(np.float64), axis=1)
-            bad = ~np.isfinite(length) | (length < 1e-12)
+            scale = np.abs(self.normals).max(axis=1)
+            bad = ~(np.isfinite(self.normals).all(axis=1) & (scale > 0))
             reasons["zero-length or non-finite normals"] = int((bad & keep).sum())
+            faults.append(("normals", bad & keep))
             keep &= ~bad
         if self.u is not None and self.v is not None:
             u, v = self.u.astype(np.float64), self.v.astype(np.float64)   # float32 squares overflow beyond 1e19
@@ -310,31 +333,51 @@ class SplatCloud:
             cross = np.linalg.norm(np.cross(u, v), axis=1)
             bad = ~(np.isfinite(lu) & np.isfinite(lv)) | (lu <= 0) | (lv <= 0) | (cross <= 1e-12 * lu * lv)
             reasons["zero, negative or degenerate splat radii"] = int((bad & keep).sum())
+            faults.append(("u, v", bad & keep))
             keep &= ~bad
         for name in ("colors", "normal_field", "clip_lines"):
             value = getattr(self, name)
             if value is not None:
                 bad = ~np.isfinite(value.reshape(n, -1)).all(axis=1)
                 reasons[f"non-finite {name.replace('_', ' ')}"] = int((bad & keep).sum())
+                faults.append((name, bad & keep))
                 keep &= ~bad
         dropped = n - int(keep.sum())
-        if dropped == n:
+        if dropped:
+            row = int(np.argmin(keep))
+            element = next(name for name, bad in faults if bad[row])
             detail = ", ".join(f"{count} with {why}" for why, count in reasons.items() if count)
-            raise InputError(f"{source}: no valid points left ({detail})")
+        if dropped == n:
+            raise InputError(f"{source}: no valid points left ({detail})", file=file, element=element, row=row)
         out = self.subset(keep) if dropped else self.replace()
         if dropped:
-            detail = ", ".join(f"{count} with {why}" for why, count in reasons.items() if count)
-            warnings.warn(f"{source}: dropped {dropped} of {n} points ({detail})", InvalidPointsWarning, stacklevel=2)
+            warnings.warn(InvalidPointsWarning(f"{source}: dropped {dropped} of {n} points ({detail})", file=file,
+                                               element=element, row=row, count=dropped), stacklevel=2)
         if out.normals is not None:
-            # renormalize only rows that are not unit already, so validation is idempotent
-            length = np.linalg.norm(out.normals, axis=1, keepdims=True)
-            off = np.abs(length[:, 0] - 1.0) > 1e-6
-            if off.any():
-                out.normals = out.normals.copy()
-                out.normals[off] /= length[off]
+            out.normals = unit_normals(out.normals)
         if out.colors is not None:
             out.colors = np.clip(out.colors, 0.0, 1.0)
         return out
+
+
+def unit_normals(normals: np.ndarray) -> np.ndarray:
+    """(N, 3) float32 ``normals`` at unit length: rows off unit length by more than 1e-6 are
+    divided by their length, computed in float64 after dividing by their largest component (no
+    overflow of the squares however long, no underflow however short); the others are kept as
+    they are (so validation is idempotent). Zero or non-finite rows become NaN (callers drop them
+    first). The input is not modified."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        length = np.linalg.norm(normals, axis=1)
+    off = ~(np.abs(length - 1.0) <= 1e-6)
+    if not off.any():
+        return normals
+    rows = normals[off].astype(np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rows /= np.abs(rows).max(axis=1, keepdims=True)
+        rows /= np.linalg.norm(rows, axis=1, keepdims=True)
+    out = normals.copy()
+    out[off] = rows
+    return out
 
 
 def split_origin(positions) -> tuple[np.ndarray, np.ndarray]:
@@ -369,22 +412,34 @@ def checked_attributes(attributes, n: int) -> dict[str, np.ndarray] | None:
     """``attributes`` as a new dict of contiguous 1-D numeric arrays of ``n`` rows (dtype kept;
     booleans become uint8), or None when empty; an InputError names a bad one."""
     if not hasattr(attributes, "items"):
-        raise InputError(f"attributes must be a mapping of name -> (N,) array, got {type(attributes).__name__}")
+        raise InputError(f"attributes must be a mapping of name -> (N,) array, got {type(attributes).__name__}",
+                         argument="attributes")
     out = {}
     for name, value in attributes.items():
         arr = np.ascontiguousarray(value)
         if arr.dtype.kind == "b":
             arr = arr.astype(np.uint8)
         if arr.dtype.kind not in "uif":
-            raise InputError(f"attribute {name!r} must be numeric, got dtype {arr.dtype}")
+            raise InputError(f"attribute {name!r} must be numeric, got dtype {arr.dtype}", element=str(name))
         if arr.ndim != 1 or len(arr) != n:
-            raise InputError(f"attribute {name!r} must have shape ({n},), got {arr.shape}")
+            raise InputError(f"attribute {name!r} must have shape ({n},), got {arr.shape}", element=str(name))
         out[str(name)] = arr
     return out or None
 
 
 class InvalidPointsWarning(UserWarning):
-    """Some input points were invalid and dropped; the message gives counts."""
+    """Some input points were invalid and dropped; the message gives counts.
+
+    Attributes (None where unknown): ``file`` (path, str), ``element`` (why the first dropped row
+    was dropped: the array at fault, "positions", "normals", "u, v", "colors", ...), ``row`` (the
+    first dropped row, index into the input), ``count`` (how many were dropped)."""
+
+    def __init__(self, *args, file=None, element=None, row=None, count=None):
+        super().__init__(*args)
+        self.file = None if file is None else str(file)
+        self.element = element
+        self.row = None if row is None else int(row)
+        self.count = None if count is None else int(count)
 
 
 def unit_colors(values) -> np.ndarray:

@@ -75,13 +75,13 @@ class ColorOptions:
 
     def __post_init__(self) -> None:
         if not isinstance(self.by, str) or not self.by:
-            raise InputError(f"color-by needs an attribute name, got {self.by!r}")
+            raise InputError(f"color-by needs an attribute name, got {self.by!r}", argument="by")
         if self.colormap is not None:
             check_colormap(self.colormap)   # a misspelt name fails here, before any file is read
         if self.value_range is not None:
             lo, hi = (float(x) for x in self.value_range)
             if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
-                raise InputError(f"color range needs finite LO < HI, got {self.value_range!r}")
+                raise InputError(f"color range needs finite LO < HI, got {self.value_range!r}", argument="value_range")
             object.__setattr__(self, "value_range", (lo, hi))
 
 
@@ -93,12 +93,12 @@ def attribute_values(cloud: SplatCloud, by: str, up=(0.0, 0.0, 1.0)) -> tuple[st
         axis = np.asarray(up, dtype=np.float64).reshape(3)
         norm = float(np.linalg.norm(axis))
         if not (np.isfinite(norm) and norm > 0):
-            raise InputError(f"elevation needs a non-zero up axis, got {up!r}")
+            raise InputError(f"elevation needs a non-zero up axis, got {up!r}", argument="up")
         return ELEVATION, cloud.positions.astype(np.float64) @ (axis / norm)
     attributes = cloud.attributes or {}
     name = attribute_name(by, attributes)
     if name is None:
-        raise InputError(unknown_attribute(by, attributes))
+        raise InputError(unknown_attribute(by, attributes), argument="by", element=by)
     return name, attributes[name]
 
 
@@ -146,7 +146,7 @@ def check_color_source(cloud, options, *, added=()) -> None:
         attributes = getattr(cloud.points, "attributes", None)
     names = list(attributes or {}) + [name for name in added if name not in (attributes or {})]
     if attribute_name(color.by, names) is None:
-        raise InputError(unknown_attribute(color.by, names))
+        raise InputError(unknown_attribute(color.by, names), argument="by", element=color.by)
 
 
 def colormap_names() -> list[str] | None:
@@ -163,14 +163,14 @@ def check_colormap(colormap: str) -> str:
     InputError otherwise, naming the closest one; without matplotlib (the ``color`` extra) every name
     but asprs is refused, saying so."""
     if not isinstance(colormap, str) or not colormap:
-        raise InputError(f"a colormap needs a name, got {colormap!r}")
+        raise InputError(f"a colormap needs a name, got {colormap!r}", argument="colormap")
     if colormap.lower() == ASPRS:
         return colormap
     names = colormap_names()
     if names is None:
         hint = f" (or use {ASPRS!r}, built in)" if difflib.get_close_matches(colormap.lower(), [ASPRS]) else ""
         raise InputError(f"colormap {colormap!r} needs matplotlib: `pip install matplotlib` (or `pip install "
-                         f"\".[color]\"` in the surfsplat checkout){hint}")
+                         f"\".[color]\"` in the surfsplat checkout){hint}", argument="colormap")
     if colormap in names:
         return colormap
     close = difflib.get_close_matches(colormap, names + [ASPRS], n=1, cutoff=0.6)
@@ -178,7 +178,7 @@ def check_colormap(colormap: str) -> str:
         close = [name for name in names if name.lower() == colormap.lower()][:1]
     hint = f"did you mean {close[0]!r}? " if close else ""
     raise InputError(f"unknown colormap {colormap!r}; {hint}e.g. viridis, turbo, magma, cividis, "
-                     f"or {ASPRS} for LAS classes")
+                     f"or {ASPRS} for LAS classes", argument="colormap")
 
 
 def robust_range(values: np.ndarray) -> tuple[float, float]:
@@ -196,7 +196,8 @@ def robust_range(values: np.ndarray) -> tuple[float, float]:
 def colormap_colors(colormap: str, t: np.ndarray) -> np.ndarray:
     """(N, 3) float32 RGB of ``t`` in [0, 1] through the matplotlib colormap ``colormap``."""
     if check_colormap(colormap).lower() == ASPRS:
-        raise InputError(f"{ASPRS} is the palette of class codes (class_colors), not a colormap of [0, 1]")
+        raise InputError(f"{ASPRS} is the palette of class codes (class_colors), not a colormap of [0, 1]",
+                         argument="colormap")
     import matplotlib   # there: check_colormap asks for it
 
     cmap = matplotlib.colormaps[colormap]

@@ -31,14 +31,14 @@ before attributes were kept have none and load without them; older readers ignor
 from __future__ import annotations
 
 import zipfile
-import zlib
 from pathlib import Path
 
 import numpy as np
 
 from ..cloud import SplatCloud
-from ..errors import InputError
-from ..io.atomic import atomic_path, check_readable, memory_limit
+from ..errors import InputError, error_context
+from ..io.atomic import atomic_path, check_readable
+from ..io.npz import read_npz
 from .model import FORMAT_VERSION, NODE_ATTRIBUTE, POINT_ATTRIBUTE, Hierarchy
 
 #: Value of the ``format`` member. The layout's version, :data:`FORMAT_VERSION`, is
@@ -120,74 +120,39 @@ def load_hierarchy(path) -> Hierarchy:
             structure (levels, child or point ranges out of bounds).
     """
     path = check_readable(path)  # a regular file: no FIFO, device or folder
-    # np.load guesses the format from the first bytes and reads anything else as a pickle, whose
-    # error ("load it unsafely ...") misleads: a hierarchy is a zip (.npz) archive, check that first.
-    if not zipfile.is_zipfile(path):
-        raise InputError(f"{path}: not a surfsplat hierarchy file (not an .npz archive, or truncated)")
-    try:
-        members = _read_members(path)
-    except InputError:
-        raise
-    except (zipfile.BadZipFile, zlib.error, ValueError, OSError, EOFError, KeyError, NotImplementedError,
-            RuntimeError) as exc:
-        raise InputError(f"{path}: not a readable surfsplat hierarchy file ({exc})") from None
-    return _from_members(members, str(path))
-
-
-def _read_members(path: Path) -> dict[str, np.ndarray]:
-    """The archive's ``.npy`` members, each checked before it is read: the total uncompressed size
-    (from the zip directory) at most :func:`~surfsplat.io.atomic.memory_limit` (the memory available
-    now), no object (pickled) arrays, and every member's declared shape times its item size equal to
-    the bytes it holds. Reading never inflates more than a member's declared size (zipfile stops
-    there and checks the CRC), so a zip bomb or a header declaring a terabyte shape is an InputError."""
-    members = {}
-    with zipfile.ZipFile(path) as archive:
-        infos = [info for info in archive.infolist() if not info.is_dir()]
-        total = sum(info.file_size for info in infos)
-        limit = memory_limit()
-        if total > limit:
-            raise InputError(f"{path}: the archive inflates to {total:,} bytes, more than the "
-                             f"{limit:,} bytes of memory available; refusing to read it")
-        for info in infos:
-            name = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
-            with archive.open(info) as stream:
-                version = np.lib.format.read_magic(stream)
-                if version == (1, 0):
-                    shape, fortran, dtype = np.lib.format.read_array_header_1_0(stream)
-                else:
-                    shape, fortran, dtype = np.lib.format.read_array_header_2_0(stream)
-                if dtype.hasobject:
-                    raise InputError(f"{path}: member '{name}' holds Python objects (pickle); refused")
-                count = int(np.prod(shape, dtype=object))
-                need = count * dtype.itemsize
-                if need != info.file_size - stream.tell():
-                    raise InputError(f"{path}: member '{name}' declares shape {shape} of {dtype} "
-                                     f"({need:,} bytes) but holds {info.file_size - stream.tell():,} bytes")
-                data = stream.read(need)
-                if len(data) != need:
-                    raise InputError(f"{path}: member '{name}' is truncated")
-                array = np.frombuffer(data, dtype=dtype, count=count)
-                members[name] = array.reshape(shape, order="F" if fortran else "C").copy()
-    return members
+    source = str(path)
+    with error_context(file=path):
+        # np.load guesses the format from the first bytes and reads anything else as a pickle, whose
+        # error ("load it unsafely ...") misleads: a hierarchy is a zip (.npz) archive, check that first.
+        if not zipfile.is_zipfile(path):
+            raise InputError(f"{path}: not a surfsplat hierarchy file (not an .npz archive, or truncated)")
+        # sizes checked before anything is inflated (a zip bomb, a header declaring a terabyte shape)
+        return _from_members(read_npz(path, None, source), source)
 
 
 def _scalar(members: dict, name: str, source: str, kind) -> object:
     if name not in members:
-        raise InputError(f"{source}: not a surfsplat hierarchy file (no '{name}' entry)")
+        raise InputError(f"{source}: not a surfsplat hierarchy file (no '{name}' entry)", element=name)
     value = members[name]
     if value.shape != () or not np.issubdtype(value.dtype, kind):
-        raise InputError(f"{source}: malformed '{name}' entry")
+        raise InputError(f"{source}: malformed '{name}' entry", element=name)
     return value.item()
+
+
+def _check_format(members: dict[str, np.ndarray], source: str) -> None:
+    """The ``format`` and ``format_version`` entries name this layout and version."""
+    if _scalar(members, "format", source, np.str_) != FORMAT:
+        raise InputError(f"{source}: not a surfsplat hierarchy file (format {members['format'].item()!r})",
+                         element="format")
+    version = _scalar(members, "format_version", source, np.integer)
+    if version != FORMAT_VERSION:
+        raise InputError(f"{source}: hierarchy format version {version} is not supported "
+                         f"(this surfsplat reads version {FORMAT_VERSION}); rebuild it", element="format_version")
 
 
 def _from_members(members: dict[str, np.ndarray], source: str) -> Hierarchy:
     """Validate the archive members and build the Hierarchy."""
-    if _scalar(members, "format", source, np.str_) != FORMAT:
-        raise InputError(f"{source}: not a surfsplat hierarchy file (format {members['format'].item()!r})")
-    version = _scalar(members, "format_version", source, np.integer)
-    if version != FORMAT_VERSION:
-        raise InputError(f"{source}: hierarchy format version {version} is not supported "
-                         f"(this surfsplat reads version {FORMAT_VERSION}); rebuild it")
+    _check_format(members, source)
     leaf_capacity = _scalar(members, "leaf_capacity", source, np.integer)
     max_depth = _scalar(members, "max_depth", source, np.integer)
     sizes = {"nodes": None, "points": None, "levels+1": None}
@@ -201,16 +166,18 @@ def _from_members(members: dict[str, np.ndarray], source: str) -> Hierarchy:
     for name, (dtype, tail, first, required) in _SPEC.items():
         if name not in members:
             if required:
-                raise InputError(f"{source}: missing array '{name}'")
+                raise InputError(f"{source}: missing array '{name}'", element=name)
             arrays[name] = None
             continue
         value = members[name]
         want = (first if isinstance(first, int) else sizes[first],) + tail
         if value.dtype != dtype or value.shape != want:
             raise InputError(f"{source}: array '{name}' has dtype {value.dtype} and shape {value.shape}, "
-                             f"expected {np.dtype(dtype)} {want}")
+                             f"expected {np.dtype(dtype)} {want}", element=name)
         if np.issubdtype(dtype, np.floating) and not np.isfinite(value).all():
-            raise InputError(f"{source}: array '{name}' has non-finite values")
+            finite = np.isfinite(value.reshape(len(value), -1) if value.ndim else value.reshape(1, 1)).all(axis=1)
+            raise InputError(f"{source}: array '{name}' has non-finite values", element=name,
+                             row=int(np.argmin(finite)))
         arrays[name] = value
     _check_structure(arrays, source)
     point_attributes, node_attributes = _attributes(members, sizes, source)
@@ -231,15 +198,16 @@ def _attributes(members: dict, sizes: dict, source: str) -> tuple[dict | None, d
     node = {k[len(NODE_ATTRIBUTE):]: v for k, v in members.items() if k.startswith(NODE_ATTRIBUTE)}
     if set(point) != set(node):
         missing = sorted(set(point) ^ set(node))
-        raise InputError(f"{source}: attribute(s) {', '.join(missing)} stored for the points or the nodes only")
+        raise InputError(f"{source}: attribute(s) {', '.join(missing)} stored for the points or the nodes only",
+                         element=POINT_ATTRIBUTE + missing[0])
     for name in point:
         for what, value, rows in (("point", point[name], sizes["points"]), ("node", node[name], sizes["nodes"])):
             if value.dtype.kind not in "uif" or value.shape != (rows,):
                 raise InputError(f"{source}: array '{what}_attribute:{name}' has dtype {value.dtype} and shape "
-                                 f"{value.shape}, expected a numeric ({rows},)")
+                                 f"{value.shape}, expected a numeric ({rows},)", element=f"{what}_attribute:{name}")
         if point[name].dtype != node[name].dtype:
             raise InputError(f"{source}: attribute {name!r} has dtype {point[name].dtype} for the points "
-                             f"but {node[name].dtype} for the nodes")
+                             f"but {node[name].dtype} for the nodes", element=POINT_ATTRIBUTE + name)
     return point or None, node or None
 
 

@@ -30,7 +30,7 @@ import os
 from pathlib import Path
 
 from ..cloud import SplatCloud
-from ..errors import InputError
+from ..errors import InputError, file_reader
 from .atomic import check_readable
 from .mesh import TRIMESH_TYPES, Mesh, area_weighted_normals, check_face_indices, read_trimesh
 from .e57 import read_e57
@@ -47,6 +47,7 @@ MESH_EXTENSIONS = (".ply", ".obj", ".stl", ".off", ".glb", ".gltf")
 CLOUD_EXTENSIONS = MESH_EXTENSIONS + (".las", ".laz", ".pcd", ".e57") + TEXT_EXTENSIONS
 
 
+@file_reader
 def load(path: str | os.PathLike) -> SplatCloud:
     """Read a point cloud or mesh file as a validated SplatCloud.
 
@@ -90,9 +91,10 @@ def load(path: str | os.PathLike) -> SplatCloud:
         cloud = _mesh_to_cloud(read_trimesh(path, TRIMESH_TYPES[suffix]), str(path))
     else:
         cloud = _read_points(path)
-    return cloud.validated(source=str(path))
+    return cloud.validated(source=str(path), file=path)
 
 
+@file_reader
 def load_mesh(path: str | os.PathLike, *, welded: bool = False) -> Mesh:
     """Read a triangle mesh: ``.ply`` with a face element, ``.obj``, ``.stl``, ``.off``, ``.glb``, ``.gltf``.
 
@@ -117,9 +119,10 @@ def load_mesh(path: str | os.PathLike, *, welded: bool = False) -> Mesh:
     suffix = path.suffix.lower()
     mesh = read_ply_mesh(path) if suffix == ".ply" else read_trimesh(path, TRIMESH_TYPES[suffix])
     mesh = mesh.validated(str(path))
-    return weld(mesh) if welded else mesh
+    return weld(mesh, source=str(path)) if welded else mesh
 
 
+@file_reader
 def load_input(path: str | os.PathLike) -> Mesh | SplatCloud:
     """Read any supported file as what it is: a surface (:class:`Mesh`) or points (SplatCloud).
 
@@ -148,8 +151,8 @@ def load_input(path: str | os.PathLike) -> Mesh | SplatCloud:
     else:
         data = _read_points(path)
     if isinstance(data, Mesh):
-        return weld(data.validated(str(path)))
-    return data.validated(source=str(path))
+        return weld(data.validated(str(path)), source=str(path))
+    return data.validated(source=str(path), file=path)
 
 
 def save_ply(cloud: SplatCloud, path: str | os.PathLike, *, binary: bool = True,

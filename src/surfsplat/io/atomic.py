@@ -18,9 +18,10 @@ import stat
 import tempfile
 from pathlib import Path
 
-from ..errors import InputError
+from ..errors import InputError, file_reader
 
 
+@file_reader
 def check_writable(path: str | os.PathLike, *, overwrite: bool = True, directory: bool = False) -> Path:
     """``path`` as a Path after checking, before any work, that it can be written: its folder exists,
     and it is not a folder (with ``directory``: not a file). An existing output is refused only with
@@ -47,6 +48,7 @@ def same_file(path: str | os.PathLike, other: str | os.PathLike) -> bool:
         return False
 
 
+@file_reader
 def check_readable(path: str | os.PathLike) -> Path:
     """``path`` as a Path after checking, before opening it, that it is an existing regular file
     (symbolic links followed): InputError naming it for a missing file, a folder, a FIFO, a socket or

@@ -17,7 +17,7 @@ import os
 from pathlib import Path
 
 from ..camera import Camera
-from ..errors import InputError
+from ..errors import InputError, file_reader
 from .atomic import write_atomically
 
 CAMERA_FORMAT = "surfsplat-camera"
@@ -77,6 +77,7 @@ def _read(path: Path) -> dict:
     return data
 
 
+@file_reader
 def load_camera(path: str | os.PathLike) -> Camera:
     """Read a camera file of one camera (InputError naming the file and the problem when it is not one)."""
     path = Path(path)
@@ -86,6 +87,7 @@ def load_camera(path: str | os.PathLike) -> Camera:
     return _camera_from(data, path)
 
 
+@file_reader
 def load_camera_list(path: str | os.PathLike) -> list[tuple[str, Camera]]:
     """The ``(name, Camera)`` pairs of a camera file: its ``"cameras"`` list (names: the ``name``
     field, else the index), or its one camera named by the file's stem."""
@@ -99,17 +101,21 @@ def load_camera_list(path: str | os.PathLike) -> list[tuple[str, Camera]]:
     views = []
     for i, entry in enumerate(entries):
         if not isinstance(entry, dict):
-            raise InputError(f"{path}: camera {i} is not an object")
-        views.append((str(entry.get("name", i)), _camera_from(entry, path, f" (camera {i})")))
+            raise InputError(f"{path}: camera {i} is not an object", element="cameras", row=i)
+        views.append((str(entry.get("name", i)), _camera_from(entry, path, f" (camera {i})", i)))
     return views
 
 
-def _camera_from(data: dict, path: Path, where: str = "") -> Camera:
+def _camera_from(data: dict, path: Path, where: str = "", row: int | None = None) -> Camera:
+    """The Camera of one entry; an InputError names the file, the field (``element``) and, in a
+    list, the entry (``row``)."""
     try:
         return Camera(eye=tuple(data["eye"]), target=tuple(data["target"]), up=tuple(data["up"]),
                       fov=float(data["fov"]), width=int(data["width"]), height=int(data["height"]),
                       near=data.get("near"), far=data.get("far"))
     except KeyError as exc:
-        raise InputError(f"{path}: camera file lacks {exc.args[0]!r}{where}") from None
-    except (TypeError, ValueError, InputError) as exc:
-        raise InputError(f"{path}: bad camera{where}: {exc}") from None
+        raise InputError(f"{path}: camera file lacks {exc.args[0]!r}{where}", element=exc.args[0], row=row) from None
+    except InputError as exc:   # the Camera's check names the field
+        raise InputError(f"{path}: bad camera{where}: {exc}", element=exc.argument, row=row) from None
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{path}: bad camera{where}: {exc}", row=row) from None

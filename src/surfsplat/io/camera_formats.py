@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from ..camera import Camera
-from ..errors import InputError
+from ..errors import InputError, file_reader
 from .camera_file import CAMERA_FORMAT, load_camera_list
 
 COLMAP_FILES = ("cameras.txt", "images.txt")
@@ -63,10 +63,10 @@ def camera_from_opencv(K, R, t, width: int, height: int, *, center_offset: float
     if not (np.isfinite(K).all() and np.isfinite(R).all() and np.isfinite(t).all()):
         raise InputError(f"{where}: non-finite camera values")
     if not np.allclose(R @ R.T, np.eye(3), atol=1e-4) or np.linalg.det(R) < 0:
-        raise InputError(f"{where}: R is not a rotation (orthonormal, determinant +1)")
+        raise InputError(f"{where}: R is not a rotation (orthonormal, determinant +1)", element="R")
     fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
     if not (fx > 0 and fy > 0):
-        raise InputError(f"{where}: focal lengths must be positive, got fx={fx}, fy={fy}")
+        raise InputError(f"{where}: focal lengths must be positive, got fx={fx}, fy={fy}", element="K")
     width, height = int(width), int(height)
     if abs(fx - fy) > 1e-3 * fy:
         warnings.warn(f"{where}: fx={fx:g} and fy={fy:g} differ; non-square pixels are not supported "
@@ -101,6 +101,7 @@ def _load_json(path: Path):
         raise InputError(f"{path}: not a camera file (JSON): {exc}") from None
 
 
+@file_reader
 def load_opencv(path: Path, data) -> list[tuple[str, Camera]]:
     """The cameras of an OpenCV JSON file (parsed ``data``)."""
     entries = data["cameras"] if isinstance(data, dict) and "cameras" in data else [data]
@@ -114,9 +115,9 @@ def load_opencv(path: Path, data) -> list[tuple[str, Camera]]:
             camera = camera_from_opencv(entry["K"], entry["R"], entry["t"], entry["width"], entry["height"],
                                         where=where)
         except KeyError as exc:
-            raise InputError(f"{where} lacks {exc.args[0]!r}") from None
+            raise InputError(f"{where} lacks {exc.args[0]!r}", element=exc.args[0], row=i) from None
         except (AttributeError, TypeError, ValueError) as exc:
-            raise InputError(f"{where}: bad camera: {exc}") from None
+            raise InputError(f"{where}: bad camera: {exc}", element=getattr(exc, "element", None), row=i) from None
         views.append((name, camera))
     return views
 
@@ -135,9 +136,10 @@ def _data_lines(path: Path) -> list[tuple[int, str]]:
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise InputError(f"{path}: no such file (a COLMAP model needs {' and '.join(COLMAP_FILES)})") from None
+        raise InputError(f"{path}: no such file (a COLMAP model needs {' and '.join(COLMAP_FILES)})",
+                         file=path) from None
     except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read: {exc}") from None
+        raise InputError(f"{path}: cannot read: {exc}", file=path) from None
     return [(n, line.strip()) for n, line in enumerate(text.splitlines(), 1) if not line.startswith("#")]
 
 
@@ -153,7 +155,7 @@ def load_colmap(folder: Path) -> list[tuple[str, Camera]]:
             model = fields[1]
             if model not in COLMAP_MODELS:
                 raise InputError(f"{cameras_txt}:{n}: camera model {model}; surfsplat reads "
-                                 f"{', '.join(COLMAP_MODELS)}")
+                                 f"{', '.join(COLMAP_MODELS)}", file=cameras_txt, row=n - 1)
             count, distorted = COLMAP_MODELS[model]
             params = [float(v) for v in fields[4:]]
             if len(params) != count:
@@ -166,7 +168,7 @@ def load_colmap(folder: Path) -> list[tuple[str, Camera]]:
             intrinsics[int(fields[0])] = (np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]]),
                                           int(fields[2]), int(fields[3]))
         except (IndexError, ValueError) as exc:
-            raise InputError(f"{cameras_txt}:{n}: bad camera line: {exc}") from None
+            raise InputError(f"{cameras_txt}:{n}: bad camera line: {exc}", file=cameras_txt, row=n - 1) from None
     lines = _data_lines(images_txt)
     views, i = [], 0
     while i < len(lines):
@@ -187,14 +189,15 @@ def load_colmap(folder: Path) -> list[tuple[str, Camera]]:
             camera = camera_from_opencv(K, _quaternion_matrix(*q), t, width, height, center_offset=0.0,
                                         where=f"{images_txt}:{n}")
         except ValueError as exc:
-            raise InputError(f"{images_txt}:{n}: bad image line: {exc}") from None
+            raise InputError(f"{images_txt}:{n}: bad image line: {exc}", file=images_txt, row=n - 1) from None
         views.append((Path(name).stem, camera))
         i += 1   # the image's 2-D points line (possibly empty)
     if not views:
-        raise InputError(f"{images_txt}: no images")
+        raise InputError(f"{images_txt}: no images", file=images_txt)
     return views
 
 
+@file_reader
 def load_nerf(path: Path, data, width: int | None = None, height: int | None = None) -> list[tuple[str, Camera]]:
     """The cameras of a NeRF ``transforms.json`` (parsed ``data``); ``width``, ``height`` where it has no w, h."""
     frames = data.get("frames")
@@ -228,14 +231,15 @@ def load_nerf(path: Path, data, width: int | None = None, height: int | None = N
             K = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]])
             camera = camera_from_opencv(K, R, t, w, h, center_offset=0.0, where=where)
         except KeyError as exc:
-            raise InputError(f"{where} lacks {exc.args[0]!r}") from None
+            raise InputError(f"{where} lacks {exc.args[0]!r}", element=exc.args[0], row=i) from None
         except (AttributeError, TypeError, ValueError) as exc:
-            raise InputError(f"{where}: bad camera: {exc}") from None
+            raise InputError(f"{where}: bad camera: {exc}", element=getattr(exc, "element", None), row=i) from None
         file_path = frame.get("file_path")
         views.append((Path(str(file_path)).stem if file_path else str(i), camera))
     return views
 
 
+@file_reader
 def load_cameras(path: str | os.PathLike, *, width: int | None = None,
                  height: int | None = None) -> list[tuple[str, Camera]]:
     """The named cameras of ``path``: a COLMAP text model (``cameras.txt``, ``images.txt`` or their

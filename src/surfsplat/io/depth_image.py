@@ -19,7 +19,7 @@ import numpy as np
 from PIL import Image
 from PIL.PngImagePlugin import PngInfo
 
-from ..errors import InputError
+from ..errors import InputError, file_reader
 from .atomic import atomic_path
 
 DEPTH_STEPS = 65534
@@ -49,6 +49,7 @@ def save_depth_png(depth: np.ndarray, near: float, far: float, path: str | os.Pa
     return path
 
 
+@file_reader
 def load_depth_png(path: str | os.PathLike) -> np.ndarray:
     """(H, W) float64 camera-space depth of a depth PNG (inf where empty)."""
     path = Path(path)

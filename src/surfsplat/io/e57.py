@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ..cloud import DEFAULT_ALBEDO, SplatCloud
-from ..errors import InputError
+from ..errors import InputError, file_reader
 from .atomic import memory_limit
 from .child import decoded_in_child
 
@@ -122,6 +122,7 @@ except BaseException as exc:
 """
 
 
+@file_reader
 def check_e57_header(path: Path, source: str) -> None:
     """InputError naming ``source`` when the fixed E57 header cannot describe the file: shorter than
     48 bytes, no ``ASTM-E57`` signature, a page size other than 1024, a physical length other than the
@@ -143,6 +144,7 @@ def check_e57_header(path: Path, source: str) -> None:
                          f"{xml_offset:,}) lies outside the file ({size:,} bytes)")
 
 
+@file_reader
 def read_e57(path: Path) -> SplatCloud:
     """Read every scan of an ``.e57`` file as one (unvalidated) SplatCloud in the file's coordinates.
 
@@ -217,16 +219,17 @@ def _scan(data: dict, i: int, source: str) -> tuple[np.ndarray, np.ndarray | Non
         state = fields.get("sphericalInvalidState")
     else:
         raise InputError(f"{source}: cannot read E57 file: scan {i} has neither cartesianX/Y/Z nor "
-                         "sphericalRange/Azimuth/Elevation coordinates")
+                         "sphericalRange/Azimuth/Elevation coordinates", element="scan", row=i)
     keep = np.ones(len(local), bool) if state is None else state == 0
     pose = fields["pose"]
     try:
         rotation = quaternion_matrix(pose[:4])
     except InputError as exc:
-        raise InputError(f"{source}: cannot read E57 file: scan {i}'s pose: {exc}") from None
+        raise InputError(f"{source}: cannot read E57 file: scan {i}'s pose: {exc}",
+                         **{**exc.context(), "element": "pose", "row": i}) from None
     if not np.isfinite(pose[4:]).all():
         raise InputError(f"{source}: cannot read E57 file: scan {i}'s pose translation {pose[4:].tolist()} is "
-                         "not finite")
+                         "not finite", element="pose", row=i)
     positions = local[keep] @ rotation.T + pose[4:]
     colors = None
     if all(name in fields for name in ("colorRed", "colorGreen", "colorBlue")):

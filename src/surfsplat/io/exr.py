@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, file_reader
 from .atomic import atomic_path, check_readable
 
 #: The header attribute stating what the depth channel holds.
@@ -26,6 +26,7 @@ DEPTH_CONVENTION = "camera-space depth along the view axis, scene units; +inf = 
 DEPTH_CHANNEL = "Z"
 
 
+@file_reader
 def check_exr(path: str | os.PathLike) -> Path:
     """``path`` as a Path; InputError naming the ``exr`` extra when the OpenEXR package is missing
     (checked before any rendering)."""
@@ -51,6 +52,7 @@ def save_exr(channels: dict[str, np.ndarray], path: str | os.PathLike, *, attrib
     return path
 
 
+@file_reader
 def load_exr(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dict]:
     """The channels (name -> array) and header of an EXR file (InputError naming the file when it is
     not one)."""
@@ -75,6 +77,7 @@ def save_depth_exr(depth: np.ndarray, path: str | os.PathLike, *, overwrite: boo
     return save_exr({DEPTH_CHANNEL: depth}, path, attributes={DEPTH_KEY: DEPTH_CONVENTION}, overwrite=overwrite)
 
 
+@file_reader
 def load_depth_exr(path: str | os.PathLike) -> np.ndarray:
     """(H, W) float32 depth of a depth EXR (channel ``Z``; +inf where empty)."""
     channels, _ = load_exr(path)

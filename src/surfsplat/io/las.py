@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..cloud import SplatCloud
-from ..errors import InputError
+from ..errors import InputError, file_reader
 from .atomic import memory_limit
 from .child import decoded_in_child
 
@@ -70,6 +70,7 @@ def rgb_scale(rgb: np.ndarray) -> float:
     return 65535.0 if int(np.count_nonzero(values > 255)) > 0.01 * nonzero else 255.0
 
 
+@file_reader
 def check_header(path: Path, source: str) -> None:
     """InputError naming ``source`` when the LAS header cannot describe the file: too short, no
     ``LASF`` signature, header or point offsets outside the file, more VLRs or EVLRs than the bytes
@@ -107,6 +108,7 @@ def check_header(path: Path, source: str) -> None:
                          f"({need:,} bytes), more than the {limit:,} bytes of memory available")
 
 
+@file_reader
 def read_las(path: Path) -> SplatCloud:
     """Read a .las or .laz file as an (unvalidated) SplatCloud.
 

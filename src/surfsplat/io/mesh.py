@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ..cloud import split_origin
-from ..errors import InputError
+from ..cloud import MAX_COORDINATE, split_origin
+from ..errors import InputError, file_reader
 
 
 @dataclass
@@ -134,16 +134,30 @@ class Mesh:
     def validated(self, source: str = "mesh") -> "Mesh":
         """Return ``self`` after checking its contents, or raise InputError.
 
-        Checked: at least one face, all vertices finite, every face index in
-        ``[0, V)``. ``source`` names the file or array in messages.
+        Checked: at least one face, all vertices finite and within
+        :data:`~surfsplat.cloud.MAX_COORDINATE` (1e18) of the origin (the float32 renderer's
+        limit: beyond it its squares overflow and the picture comes out blank), every face index
+        in ``[0, V)``. ``source`` names the file or array in messages.
+
+        Raises:
+            InputError with ``element`` ("vertex" or "face") and ``row`` (the first bad one).
         """
         n = len(self.vertices)
         if len(self.faces) == 0:
-            raise InputError(f"{source}: mesh has no faces")
+            raise InputError(f"{source}: mesh has no faces", element="face")
         finite = np.isfinite(self.vertices).all(axis=1)
         if not finite.all():
             raise InputError(f"{source}: {int((~finite).sum())} of {n} mesh vertices have "
-                             f"non-finite coordinates (first at vertex {int(np.argmin(finite))})")
+                             f"non-finite coordinates (first at vertex {int(np.argmin(finite))})",
+                             element="vertex", row=int(np.argmin(finite)))
+        near = (np.abs(self.vertices) <= MAX_COORDINATE).all(axis=1)
+        if not near.all():
+            first = int(np.argmin(near))
+            world = self.vertices[first].astype(np.float64) + self.origin
+            raise InputError(f"{source}: {int((~near).sum())} of {n} mesh vertices lie farther than "
+                             f"{MAX_COORDINATE:.0e} from the model's origin (first: vertex {first} at "
+                             f"{np.array2string(world, precision=4)}); the float32 renderer cannot draw "
+                             "them (remove them, or rescale the model)", element="vertex", row=first)
         check_face_indices(self.faces, n, source)
         return self
 
@@ -162,7 +176,7 @@ def check_face_indices(faces: np.ndarray, n_vertices: int, source: str) -> None:
         value = int(faces[row][bad[row]][0])
         raise InputError(f"{source}: face {row} refers to vertex {value}, but there are only "
                          f"{n_vertices} vertices (valid indices 0..{n_vertices - 1}); "
-                         f"{int(bad.any(axis=1).sum())} faces have out-of-range indices")
+                         f"{int(bad.any(axis=1).sum())} faces have out-of-range indices", element="face", row=row)
 
 
 def area_weighted_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -200,11 +214,13 @@ def area_weighted_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray
 TRIMESH_TYPES = {".obj": "obj", ".stl": "stl", ".off": "off", ".glb": "glb", ".gltf": "gltf"}
 
 
+@file_reader
 def read_obj(path: Path) -> Mesh:
     """Read a Wavefront OBJ file as a :class:`Mesh` (unvalidated); see :func:`read_trimesh`."""
     return read_trimesh(path, "obj")
 
 
+@file_reader
 def read_trimesh(path: Path, file_type: str | None = None) -> Mesh:
     """Read an OBJ, STL, OFF, GLB or glTF file as a :class:`Mesh` with trimesh (unvalidated).
 
@@ -255,6 +271,7 @@ def read_trimesh(path: Path, file_type: str | None = None) -> Mesh:
     return Mesh(vertices, faces, normals, colors)
 
 
+@file_reader
 def check_obj_indices(path: Path, source: str) -> None:
     """InputError naming ``source`` when a face of an OBJ file refers to a vertex that does not exist:
     index 0 (OBJ indices are 1-based; trimesh would wrap it to the last vertex), an index above the

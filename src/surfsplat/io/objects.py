@@ -90,8 +90,8 @@ def _convert(obj, what: str, extras: dict | None) -> SplatCloud | Mesh:
 def _table(columns, what: str, extras: dict | None) -> SplatCloud:
     try:
         return SplatCloud.from_dict(columns, extras=extras)
-    except InputError as exc:
-        raise InputError(f"{what}: {exc}") from exc
+    except InputError as exc:   # attributes kept
+        raise InputError(f"{what}: {exc}", **exc.context()) from exc
     except (TypeError, ValueError) as exc:
         raise InputError(f"{what}: columns are not numeric arrays of one length: {exc}") from exc
 

@@ -23,13 +23,14 @@ from pathlib import Path
 import numpy as np
 
 from ..cloud import SplatCloud
-from ..errors import InputError
+from ..errors import InputError, file_reader
 
 _TYPES = {("F", 4): "<f4", ("F", 8): "<f8", ("I", 1): "i1", ("I", 2): "<i2", ("I", 4): "<i4", ("I", 8): "<i8",
           ("U", 1): "u1", ("U", 2): "<u2", ("U", 4): "<u4", ("U", 8): "<u8"}
 _KEYS = ("VERSION", "FIELDS", "SIZE", "TYPE", "COUNT", "WIDTH", "HEIGHT", "VIEWPOINT", "POINTS", "DATA")
 
 
+@file_reader
 def read_pcd(path: Path) -> SplatCloud:
     """Read a PCD file (see the module docstring) as an unvalidated SplatCloud.
 
@@ -53,7 +54,7 @@ def read_pcd(path: Path) -> SplatCloud:
     for i, (name, size, kind, count) in enumerate(zip(fields, sizes, types, counts)):
         code = _TYPES.get((kind.upper(), size))
         if code is None:
-            raise InputError(f"{source}: PCD field {name!r} has unknown TYPE {kind} SIZE {size}")
+            raise InputError(f"{source}: PCD field {name!r} has unknown TYPE {kind} SIZE {size}", element=name)
         unique = name if name != "_" else f"_pad{i}"
         dtype_fields.append((unique, code, (count,)) if count > 1 else (unique, code))
     dtype = np.dtype(dtype_fields)
@@ -101,19 +102,21 @@ def _header(raw: bytes, source: str) -> tuple[dict[str, list[str]], int]:
         if key == "DATA":
             break
     if not header.get("FIELDS") or "x" not in header["FIELDS"]:
-        raise InputError(f"{source}: PCD file has no x y z fields (FIELDS: {' '.join(header.get('FIELDS', []))})")
+        raise InputError(f"{source}: PCD file has no x y z fields (FIELDS: {' '.join(header.get('FIELDS', []))})",
+                         element="x")
     return header, offset
 
 
 def _ints(words, n: int, key: str, source: str) -> list[int]:
     if words is None:
-        raise InputError(f"{source}: PCD header has no {key} line")
+        raise InputError(f"{source}: PCD header has no {key} line", element=key)
     try:
         values = [int(w) for w in words]
     except ValueError as exc:
-        raise InputError(f"{source}: PCD {key} must be integers, got {' '.join(words)}") from exc
+        raise InputError(f"{source}: PCD {key} must be integers, got {' '.join(words)}", element=key) from exc
     if len(values) != n or any(v < 0 for v in values):
-        raise InputError(f"{source}: PCD {key} must be {n} non-negative integers, got {' '.join(words)}")
+        raise InputError(f"{source}: PCD {key} must be {n} non-negative integers, got {' '.join(words)}",
+                         element=key)
     return values
 
 
@@ -151,7 +154,7 @@ def _cloud(data: np.ndarray, source: str) -> SplatCloud:
         if not all(n in names for n in names_):
             if any(n in names for n in names_):
                 raise InputError(f"{source}: PCD has {' '.join(n for n in names_ if n in names)} but not all of "
-                                 f"{' '.join(names_)}")
+                                 f"{' '.join(names_)}", element=next(n for n in names_ if n not in names))
             return None
         return np.column_stack([np.asarray(data[n], dtype=np.float64).reshape(len(data), -1)[:, 0]
                                 for n in names_])

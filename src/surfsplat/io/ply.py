@@ -40,7 +40,7 @@ import numpy as np
 from plyfile import PlyData, PlyElement, PlyElementParseError, PlyParseError
 
 from ..cloud import NO_CLIP, SplatCloud
-from ..errors import InputError
+from ..errors import InputError, file_reader
 from ..frames import tangent_frame
 from .gaussians import cloud_from_gaussians, is_gaussian_ply
 from .mesh import Mesh, area_weighted_normals, check_face_indices
@@ -56,6 +56,7 @@ _CLIP_NAMES = tuple(f"clip{k}_{c}" for k in (0, 1) for c in "abc")
 # -- reading ---------------------------------------------------------------
 
 
+@file_reader
 def read_elements(path: Path) -> dict[str, np.ndarray]:
     """Parse a PLY file into ``{element name: structured array}``, in file order.
 
@@ -88,7 +89,7 @@ def read_elements(path: Path) -> dict[str, np.ndarray]:
                 raise
             ply = PlyData.read(source)  # polygons: variable-length lists
     except PlyParseError as exc:
-        raise InputError(f"{source}: malformed PLY file: {exc}") from exc
+        raise InputError(f"{source}: malformed PLY file: {exc}", **_parse_context(exc)) from exc
     except MemoryError:
         raise
     except OSError as exc:
@@ -203,6 +204,7 @@ def _newline_offsets(raw: bytes, start: int) -> np.ndarray:
     return np.concatenate(parts)
 
 
+@file_reader
 def read_ply(path: Path) -> SplatCloud:
     """Read a PLY point cloud, surfel model or mesh as an (unvalidated) SplatCloud.
 
@@ -214,6 +216,7 @@ def read_ply(path: Path) -> SplatCloud:
     return cloud_from_elements(read_elements(path), str(path))
 
 
+@file_reader
 def read_ply_input(path: Path) -> Mesh | SplatCloud:
     """Read a PLY file, parsed once, as a :class:`Mesh` when it has a non-empty ``face``
     element, else as a SplatCloud (:func:`read_ply`); both unvalidated."""
@@ -245,7 +248,7 @@ def cloud_from_elements(elements: dict[str, np.ndarray], source: str) -> SplatCl
     if (u is None) != (v is None):
         missing = "vx vy vz" if v is None else "ux uy uz"
         raise InputError(f"{source}: vertex has {'ux uy uz' if v is None else 'vx vy vz'} "
-                         f"but not {missing}; splat axes need both")
+                         f"but not {missing}; splat axes need both", element="vertex." + missing.split()[0])
     if u is None and "radius" in names:
         if normals is None:
             warnings.warn(f"{source}: 'radius' ignored because the points have no normals "
@@ -283,6 +286,7 @@ def _extra_properties(data: np.ndarray) -> dict[str, np.ndarray]:
             and data.dtype[name].shape == ()}
 
 
+@file_reader
 def read_ply_mesh(path: Path) -> Mesh:
     """Read a PLY file with a ``face`` element as an (unvalidated) :class:`Mesh`.
 
@@ -300,7 +304,7 @@ def mesh_from_elements(elements: dict[str, np.ndarray], source: str) -> Mesh:
     vertices = _group(data, names, ("x", "y", "z"), source, required=True, dtype=np.float64)
     faces = read_faces(elements, len(data), source)
     if faces is None or len(faces) == 0:
-        raise InputError(f"{source}: PLY file has no faces; it is a point cloud, not a mesh")
+        raise InputError(f"{source}: PLY file has no faces; it is a point cloud, not a mesh", element="face")
     return Mesh(vertices=vertices, faces=faces,
                 vertex_normals=_group(data, names, ("nx", "ny", "nz"), source),
                 vertex_colors=read_colors(data, names, source))
@@ -320,7 +324,7 @@ def read_faces(elements: dict[str, np.ndarray], n_vertices: int, source: str) ->
     prop = next((name for name in FACE_LIST_NAMES if name in names), None)
     if prop is None:
         raise InputError(f"{source}: face element has no 'vertex_indices' (or 'vertex_index') "
-                         f"list property (it has: {', '.join(names) or 'none'})")
+                         f"list property (it has: {', '.join(names) or 'none'})", element="face")
     column = face[prop]
     if len(column) == 0:
         return np.zeros((0, 3), dtype=np.int64)
@@ -335,7 +339,7 @@ def read_faces(elements: dict[str, np.ndarray], n_vertices: int, source: str) ->
     if short.any():
         row = int(np.argmax(short))
         raise InputError(f"{source}: face {row} has {lengths[row]} vertices; faces need at least 3 "
-                         f"({int(short.sum())} such faces)")
+                         f"({int(short.sum())} such faces)", element="face." + prop, row=row)
     if flat is None:
         flat = np.concatenate(list(column)).astype(np.int64)
     triangles = fan_triangulate(flat, lengths)
@@ -430,10 +434,17 @@ def circular_axes(normals: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, 
     return (t1 * r).astype(np.float32), (t2 * r).astype(np.float32)
 
 
+def _parse_context(exc: PlyParseError) -> dict:
+    """``element`` ("vertex" or "vertex.x": element and property) and ``row`` of a plyfile parse error."""
+    element, prop = getattr(exc, "element", None), getattr(exc, "prop", None)
+    name = None if element is None else element.name + ("" if prop is None else "." + prop.name)
+    return {"element": name, "row": getattr(exc, "row", None)}
+
+
 def _vertex_element(elements: dict[str, np.ndarray], source: str) -> np.ndarray:
     if "vertex" not in elements:
         present = ", ".join(elements) or "none"
-        raise InputError(f"{source}: PLY file has no 'vertex' element (elements: {present})")
+        raise InputError(f"{source}: PLY file has no 'vertex' element (elements: {present})", element="vertex")
     return elements["vertex"]
 
 
@@ -446,7 +457,7 @@ def _require(names: set[str], group: tuple[str, ...], source: str) -> None:
     if missing:
         have = [name for name in group if name in names]
         raise InputError(f"{source}: vertex has {' '.join(have) or 'none of ' + ' '.join(group)} but is "
-                         f"missing {' '.join(missing)}")
+                         f"missing {' '.join(missing)}", element="vertex." + missing[0])
 
 
 def _group(data: np.ndarray, names: set[str], group: tuple[str, ...], source: str,
@@ -457,7 +468,8 @@ def _group(data: np.ndarray, names: set[str], group: tuple[str, ...], source: st
     _require(names, group, source)
     for name in group:
         if data.dtype[name].kind not in "uif":
-            raise InputError(f"{source}: vertex property {name!r} must be a number, not a list")
+            raise InputError(f"{source}: vertex property {name!r} must be a number, not a list",
+                             element="vertex." + name)
     return np.column_stack([_column(data, name) for name in group]).astype(dtype, copy=False)
 
 

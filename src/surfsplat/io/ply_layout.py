@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, file_reader
 
 #: PLY scalar type names -> size in bytes.
 TYPE_SIZES = {
@@ -47,6 +47,7 @@ class PlyLayout:
     elements: list[tuple[str, int, list[tuple[str, ...]]]]
 
 
+@file_reader
 def read_layout(path: Path) -> PlyLayout | None:
     """The header of ``path``, or None when it is not a PLY header this module understands."""
     with open(path, "rb") as stream:
@@ -86,6 +87,7 @@ def _declared(layout: PlyLayout) -> str:
     return ", ".join(f"{count} {name}" for name, count, _ in layout.elements) or "no elements"
 
 
+@file_reader
 def check_body(path: Path, source: str) -> PlyLayout | None:
     """Raise InputError naming ``source`` when the body cannot hold what the header declares (see the
     module docstring); return the layout (None for a header left to plyfile)."""

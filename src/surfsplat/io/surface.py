@@ -113,7 +113,7 @@ def weld_map(vertices: np.ndarray, tolerance: float | None = None) -> np.ndarray
     return rank[inverse.reshape(-1)].astype(np.int64)
 
 
-def weld(mesh: Mesh, tolerance: float | None = None) -> Mesh:
+def weld(mesh: Mesh, tolerance: float | None = None, *, source: str = "weld: mesh") -> Mesh:
     """Merge coincident vertices so that faces meeting there share them: a connected surface.
 
     Args:
@@ -121,6 +121,7 @@ def weld(mesh: Mesh, tolerance: float | None = None) -> Mesh:
         tolerance: merge distance in model units; None (default):
             :data:`WELD_TOLERANCE` (1e-6) times the diagonal of the vertices'
             bounding box. 0 merges exact duplicates only.
+        source: the mesh's name (its file) in messages.
 
     Returns:
         A new :class:`Mesh` (the input is returned unchanged when nothing
@@ -136,9 +137,9 @@ def weld(mesh: Mesh, tolerance: float | None = None) -> Mesh:
         corner normals follow their faces.
 
     Raises:
-        InputError: an invalid mesh or tolerance.
+        InputError: an invalid mesh or tolerance, or one whose every face collapses.
     """
-    mesh = mesh.validated("weld: mesh")
+    mesh = mesh.validated(source)
     ids = weld_map(mesh.vertices, tolerance)
     n_new = int(ids.max()) + 1 if len(ids) else 0
     if n_new == len(mesh.vertices):
@@ -147,6 +148,13 @@ def weld(mesh: Mesh, tolerance: float | None = None) -> Mesh:
     np.minimum.at(first, ids, np.arange(len(ids)))
     faces = ids[mesh.faces]
     keep = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])
+    if not keep.any():   # a few far-off vertices make the diagonal, and so the tolerance, huge
+        lo, hi = mesh.bounds()
+        raise InputError(f"{source}: welding merges vertices within {WELD_TOLERANCE if tolerance is None else tolerance:.3g}"
+                         f"{' of the bounding-box diagonal' if tolerance is None else ''} and collapses every face; "
+                         f"the model's bounds (min {np.array2string(lo, precision=4)} max "
+                         f"{np.array2string(hi, precision=4)}) are far larger than its faces: remove the stray "
+                         "far-off vertices", element="face")
     colors = None if mesh.vertex_colors is None else _group_mean(mesh.vertex_colors, ids, n_new)
     vertex_normals, corner_normals = None, mesh.corner_normals
     if mesh.vertex_normals is not None and corner_normals is None:

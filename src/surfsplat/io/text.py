@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..cloud import SplatCloud
-from ..errors import InputError
+from ..errors import InputError, file_reader
 
 #: Extensions read as point text (lower case).
 TEXT_EXTENSIONS = (".xyz", ".pts", ".csv", ".txt")
@@ -37,6 +37,7 @@ TEXT_EXTENSIONS = (".xyz", ".pts", ".csv", ".txt")
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^[+-]?(nan|inf)$", re.IGNORECASE)
 
 
+@file_reader
 def read_text(path: Path) -> SplatCloud:
     """Read a point text file (see the module docstring) as an unvalidated SplatCloud.
 
@@ -69,7 +70,7 @@ def read_text(path: Path) -> SplatCloud:
         words = _split(text)
         if not all(_NUMBER.match(w) for w in words):
             if header is not None or index > skip:
-                raise InputError(f"{source}: line {index + 1}: not numbers: {text[:80]!r}")
+                raise InputError(f"{source}: line {index + 1}: not numbers: {text[:80]!r}", row=index)
             header = words
             skip = index + 1
             continue
@@ -95,8 +96,8 @@ def read_text(path: Path) -> SplatCloud:
             raise InputError(f"{source}: the header names {len(header)} columns but rows have {table.shape[1]}")
         try:
             return SplatCloud.from_dict({name: table[:, i] for i, name in enumerate(header)})
-        except InputError as exc:
-            raise InputError(f"{source}: {exc}") from exc
+        except InputError as exc:   # from_dict's message, with the file named: attributes kept
+            raise InputError(f"{source}: {exc}", **exc.context()) from exc
     return _by_count(table, source)
 
 

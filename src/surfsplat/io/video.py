@@ -11,13 +11,14 @@ from typing import Iterable
 import numpy as np
 from PIL import Image
 
-from ..errors import InputError
+from ..errors import InputError, file_reader
 from .atomic import atomic_path
 
 #: Suffixes :func:`write_video` writes, and the encoder of each.
 VIDEO_SUFFIXES = {".gif": "pillow", ".mp4": "ffmpeg", ".webm": "ffmpeg"}
 
 
+@file_reader
 def check_video_path(path: str | os.PathLike) -> Path:
     """``path`` as a Path; InputError for a suffix :func:`write_video` does not write, or a missing
     ffmpeg for MP4/WebM (checked before any rendering)."""

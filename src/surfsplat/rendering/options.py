@@ -61,7 +61,7 @@ class FilterOptions:
         # the weight at the ellipse's rim is exp(-c): above MAX_KERNEL_EXPONENT it underflows float32
         if not (_is_number(self.cutoff) and MIN_CUTOFF <= self.cutoff <= MAX_KERNEL_EXPONENT):
             raise InputError(f"cutoff must be a number in [{MIN_CUTOFF:g}, {MAX_KERNEL_EXPONENT:g}], "
-                             f"got {self.cutoff!r}")
+                             f"got {self.cutoff!r}", argument="cutoff")
 
 
 @dataclass(frozen=True)
@@ -123,7 +123,7 @@ class VisibilityOptions:
     def __post_init__(self) -> None:
         if not (_is_number(self.depth_epsilon) and 0 <= self.depth_epsilon <= MAX_DEPTH_EPSILON):
             raise InputError(f"depth epsilon must be a number in [0, {MAX_DEPTH_EPSILON:g}] (splat radii), "
-                             f"got {self.depth_epsilon!r}")
+                             f"got {self.depth_epsilon!r}", argument="depth_epsilon")
 
 
 @dataclass(frozen=True)
@@ -148,19 +148,20 @@ class KernelOptions:
 
     def __post_init__(self) -> None:
         if self.name not in KERNELS:
-            raise InputError(f"unknown kernel {self.name!r}; choose one of {', '.join(KERNELS)}")
+            raise InputError(f"unknown kernel {self.name!r}; choose one of {', '.join(KERNELS)}", argument="name")
         for name in ("a", "b", "n", "sigma"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and 0 < value < float("inf")):
-                raise InputError(f"kernel {name} must be a positive number, got {value!r}")
+                raise InputError(f"kernel {name} must be a positive number, got {value!r}", argument=name)
         if self.n > MAX_KERNEL_N:
-            raise InputError(f"kernel n must be in (0, {MAX_KERNEL_N:g}], got {self.n!r}")
+            raise InputError(f"kernel n must be in (0, {MAX_KERNEL_N:g}], got {self.n!r}", argument="n")
         a, _ = self.exponent()
         if a > MAX_KERNEL_EXPONENT:
             # exp(-a) at the rim would underflow float32: pixels only that splat covers get no weight (holes)
             min_sigma = (2 * MAX_KERNEL_EXPONENT) ** 0.5
             raise InputError(f"blend kernel too narrow: exp(-{a:.4g}) at the splat's rim underflows; keep "
-                             f"a <= {MAX_KERNEL_EXPONENT:g} (gaussian: sigma >= b / {min_sigma:.3g})")
+                             f"a <= {MAX_KERNEL_EXPONENT:g} (gaussian: sigma >= b / {min_sigma:.3g})",
+                             argument="sigma" if self.name == "gaussian" else "a")
 
     def exponent(self) -> tuple[float, float]:
         """``(a', n')`` with the kernel weight ``exp(-a' rho^n')`` at normalized radius rho = r / b."""
@@ -187,9 +188,9 @@ class EdlOptions:
 
     def __post_init__(self) -> None:
         if not (isinstance(self.strength, (int, float)) and 0 < self.strength < float("inf")):
-            raise InputError(f"EDL strength must be a positive number, got {self.strength!r}")
+            raise InputError(f"EDL strength must be a positive number, got {self.strength!r}", argument="strength")
         if not (isinstance(self.radius_px, (int, float)) and 1 <= self.radius_px <= 64):
-            raise InputError(f"EDL radius must be in 1..64 pixels, got {self.radius_px!r}")
+            raise InputError(f"EDL radius must be in 1..64 pixels, got {self.radius_px!r}", argument="radius_px")
 
 
 @dataclass(frozen=True)
@@ -225,10 +226,12 @@ class RenderOptions:
 
     def __post_init__(self) -> None:
         if not isinstance(self.compute, bool):
-            raise InputError(f"render option compute must be True or False, got {self.compute!r}")
+            raise InputError(f"render option compute must be True or False, got {self.compute!r}", argument="compute")
         if self.edl is not None and not isinstance(self.edl, EdlOptions):
-            raise InputError(f"render option edl must be an EdlOptions or None, got {type(self.edl).__name__}")
+            raise InputError(f"render option edl must be an EdlOptions or None, got {type(self.edl).__name__}",
+                             argument="edl")
         for name, kind in (("filter", FilterOptions), ("visibility", VisibilityOptions), ("kernel", KernelOptions)):
             value = getattr(self, name)
             if not isinstance(value, kind):
-                raise InputError(f"render option {name} must be a {kind.__name__}, got {type(value).__name__}")
+                raise InputError(f"render option {name} must be a {kind.__name__}, got {type(value).__name__}",
+                                 argument=name)

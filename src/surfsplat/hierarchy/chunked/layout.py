@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import InputError
+from ...io.npz import npz_names, read_npz
 
 #: Value of the manifest's ``format``.
 FORMAT = "surfsplat-chunked-hierarchy"
@@ -170,11 +171,10 @@ def read_nodes(path: Path, names=tuple(NODE_FILES)) -> dict[str, np.ndarray]:
     if not zipfile.is_zipfile(path):
         raise InputError(f"{path}: corrupt chunk file (not an .npz archive, or truncated)")
     wanted = set(names) | {"level_offsets", "origin", "leaf_capacity", "max_depth"}
-    try:
-        with np.load(path, allow_pickle=False) as archive:
-            members = {name: archive[name] for name in archive.files if name in wanted or name not in NODE_FILES}
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as exc:
-        raise InputError(f"{path}: corrupt chunk file ({exc})") from None
+    # sizes checked before anything is inflated (read_npz): no zip bomb
+    source = f"{path}: corrupt chunk file"
+    members = read_npz(path, [name for name in npz_names(path, source) if name in wanted or name not in NODE_FILES],
+                       source)
     for name in ("level_offsets", "origin", "leaf_capacity", "max_depth"):
         if name not in members:
             raise InputError(f"{path}: corrupt chunk file (no '{name}')")

@@ -43,6 +43,7 @@ from ...cloud import SplatCloud
 from ...colors import attribute_values, colorize, is_class_palette, resolve_colormap, robust_range
 from ...errors import InputError
 from ...io.atomic import memory_limit
+from ...io.npz import read_npz
 from ..lod import Refinements, check_point_budget, refined_cut, refinements, select
 from ..model import Hierarchy, LodShading, Selection
 from ..storage import load_hierarchy
@@ -622,15 +623,16 @@ def concatenate(parts: list[SplatCloud]) -> SplatCloud:
 
 def _read_preview(path: Path, origin: np.ndarray, attributes: list) -> SplatCloud:
     if not path.is_file():
-        raise InputError(f"{path}: missing preview file of the chunked hierarchy")
+        raise InputError(f"{path}: missing preview file of the chunked hierarchy", file=path)
+    # sizes checked before anything is inflated (no zip bomb); its errors name the file and member
+    arrays = read_npz(path, source=f"{path}: corrupt preview file")
     try:
-        with np.load(path, allow_pickle=False) as archive:
-            arrays = {name: archive[name] for name in archive.files}
         values = {name: arrays.pop(f"attribute_{i}") for i, name in enumerate(attributes)}
         arrays = {name: value for name, value in arrays.items() if not name.startswith("attribute_")}
         return SplatCloud(**arrays, origin=origin, attributes=values or None)
-    except (OSError, ValueError, EOFError, TypeError, KeyError) as exc:
-        raise InputError(f"{path}: corrupt preview file ({exc})") from None
+    except (OSError, ValueError, EOFError, TypeError, KeyError) as exc:   # InputError is a ValueError
+        raise InputError(f"{path}: corrupt preview file ({exc})", file=path,
+                         element=getattr(exc, "element", None) or getattr(exc, "argument", None)) from None
 
 
 def open_chunked(path, cache_cells: int = CACHE_CELLS, cache_bytes: int | None = None) -> ChunkedHierarchy:
