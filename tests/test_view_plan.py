@@ -184,3 +184,13 @@ def test_a_misspelt_colour_attribute_fails_before_preprocessing(monkeypatch):
     points = np.random.default_rng(0).random((2000, 3)).astype(np.float32)
     with pytest.raises(InputError, match="no attribute 'intensty'"):
         surfsplat.render(points, source_options=SourceOptions(color=ColorOptions("intensty")))
+
+
+@pytest.mark.gl
+def test_the_mesh_ground_truth_warns_as_a_splat_render_does_when_it_shows_nothing(tmp_path):
+    mesh = tmp_path / "cube.ply"
+    trimesh.creation.box().export(mesh)
+    away = surfsplat.CameraSpec(eye=(0.0, 0.0, 10.0), target=(0.0, 0.0, 20.0))
+    for draw in (surfsplat.render, surfsplat.render_mesh):
+        with pytest.warns(surfsplat.EmptyFrameWarning, match="nothing was drawn"):
+            draw(str(mesh), away, width=32, height=32)

@@ -13,7 +13,7 @@ from .camera import Camera
 from .camera_path import orbit_cameras
 from .io import Mesh, load_mesh
 from .lighting import Lights
-from .pipeline import (CameraSpec, LodOptions, RenderResult, SourceOptions, View, check_image_size,
+from .pipeline import (CameraSpec, LodOptions, RenderResult, SourceOptions, View, check_coverage, check_image_size,
                        check_render_args, check_source, natural_up)
 from .pipeline.framing import resolve_camera
 from .pipeline.models import as_model
@@ -102,8 +102,10 @@ def render_mesh(source, camera: Camera | CameraSpec | None = None, *, width: int
         with progress.stage(f"loading {source}"):
             mesh = load_mesh(source)
     camera = resolve_camera(as_model(mesh), camera, width, height, default_up=natural_up(source))
-    return rasterize_mesh(mesh, camera, lights or Lights(), background=background, supersample=supersample,
-                          smooth=smooth, renderer=default_renderer())
+    frame = rasterize_mesh(mesh, camera, lights or Lights(), background=background, supersample=supersample,
+                           smooth=smooth, renderer=default_renderer())
+    check_coverage(frame, mesh, "the mesh")   # the same warning as a splat render that shows nothing
+    return frame
 
 
 def turntable_frames(view: View, cameras: list[Camera], **render_args):
