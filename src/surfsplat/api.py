@@ -24,7 +24,8 @@ from .camera_path import orbit_cameras  # noqa: F401 (part of the API: surfsplat
 from .cloud import SplatCloud
 from .colors import ELEVATION, ColorOptions, colorize
 from .errors import EmptyFrameWarning, InputError
-from .geometry.closed import closed_orientation, eye_outside, flipped_normals, is_closed_surface, outward_splats
+from .geometry.closed import (automatic_culling, closed_orientation, flipped_normals, is_closed_surface,
+                              outward_splats)
 from .geometry.preprocess import NONPLANAR, preprocess
 from .geometry.robust import OUTLIER_ACTIONS, OutlierAction
 from .geometry.sampling import DEFAULT_SPACING_PX, samples_for_pixels, surface_splats
@@ -581,12 +582,12 @@ def oriented_outward(drawn, closed: bool):
 
 
 def cull_automatically(drawn, camera: Camera, closed: bool):
-    """``(drawn, cull)``: whether back-face culling is safe for the splats ``drawn`` of a model seen
-    by ``camera`` (``VisibilityOptions.cull_backfaces=None``), with the splats to draw: where they are
-    :func:`oriented_outward` and the eye is outside their bounds. There the back side's splats, never
-    visible, are not drawn: a frame is faster and silhouettes lose the dark rim of mirrored back splats."""
+    """``(drawn, cull)``: whether back faces are culled for the splats ``drawn`` of a model seen by
+    ``camera`` (``VisibilityOptions.cull_backfaces=None``), with the splats to draw (:func:`oriented_outward`):
+    as :func:`~surfsplat.geometry.closed.automatic_culling` decides, which is never (a back-facing splat
+    may be the only one covering a pixel of the front)."""
     drawn, outward = oriented_outward(drawn, closed)
-    cull = outward and eye_outside(drawn.bounds(), camera.eye)
+    cull = automatic_culling(outward, drawn.bounds(), camera.eye)
     if cull and not closed:
         _tell_once("a closed surface seen from outside: back faces culled (--no-cull-backfaces draws them)")
     return drawn, cull
