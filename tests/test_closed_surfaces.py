@@ -65,10 +65,11 @@ def rim_psnr(frame, truth) -> float:
     return 10 * np.log10(1.0 / mse)
 
 
-def test_inward_closed_mesh_renders_culled_without_a_dark_rim():
-    """An inward-wound closed mesh (as the Stanford bunny) is drawn whole by default (its splats are
-    oriented outward, so automatic culling keeps the visible side) and its silhouette band matches the
-    mesh better than the two-sided drawing, whose back-side splats make a dark rim."""
+def test_inward_closed_mesh_renders_whole_and_culled_without_a_dark_rim():
+    """An inward-wound closed mesh (as the Stanford bunny) is drawn whole by default, two-sided (automatic
+    culling never culls: it opens holes, tests/test_culling_holes.py); culled on request (its splats are
+    oriented outward, so culling keeps the visible side) its silhouette band matches the mesh better than
+    the two-sided drawing, whose back-side splats make a dark rim."""
     mesh = sphere(inward=True, subdivisions=2)   # coarse: flat disks stick out past the polygon
     camera = CameraSpec(eye=(0.0, 0.4, 3.2), target=(0.0, 0.0, 0.0))
     kw = dict(width=160, height=160, supersample=2,
@@ -77,9 +78,12 @@ def test_inward_closed_mesh_renders_culled_without_a_dark_rim():
     auto = surfsplat.render(mesh, camera, **kw)
     two_sided = surfsplat.render(mesh, camera, options=RenderOptions(
         visibility=VisibilityOptions(cull_backfaces=False)), **kw)
+    culled = surfsplat.render(mesh, camera, options=RenderOptions(
+        visibility=VisibilityOptions(cull_backfaces=True)), **kw)
     covered = np.isfinite(truth.depth)
-    assert np.isfinite(auto.depth)[covered].mean() > 0.995   # the front is kept
-    assert rim_psnr(auto, truth) > rim_psnr(two_sided, truth) + 0.5
+    assert np.isfinite(culled.depth)[covered].mean() > 0.995   # the front is kept
+    assert np.array_equal(auto.mask, two_sided.mask)
+    assert rim_psnr(culled, truth) > rim_psnr(two_sided, truth) + 0.5
 
 
 def test_open_surface_is_drawn_two_sided():
@@ -112,13 +116,13 @@ def test_closed_orientation_of_point_clouds():
     assert eye_outside((lo, hi), hi + 0.1) and not eye_outside((lo, hi), 0.5 * (lo + hi))
 
 
-def test_closed_point_cloud_is_culled_automatically_only_from_outside():
-    """A closed cloud with inward normals is culled from outside (its normals turned: the visible side
-    kept, as two-sided drawing shows it) and drawn two-sided from inside; an open one never."""
+def test_closed_point_cloud_is_not_culled_automatically():
+    """A closed cloud with inward normals gets its normals turned outward and is drawn two-sided from
+    outside (automatic culling never culls: tests/test_culling_holes.py) and from inside; an open one too."""
     inward = flipped_normals(sphere_cloud())
     outside = CameraSpec(eye=(0.0, 0.5, 3.0), target=(0.0, 0.0, 0.0))
     view = surfsplat.prepare(inward)
-    assert view.culls(view.camera(outside, 96, 96)) and closed_orientation(view.sample().points()) == 1
+    assert not view.culls(view.camera(outside, 96, 96)) and closed_orientation(view.sample().points()) == 1
     inside = view.camera(CameraSpec(eye=(0.0, 0.0, 0.1), target=(0.0, 0.0, -1.0)), 96, 96)
     assert not view.culls(inside)
     opened = surfsplat.prepare(sphere_cloud(hole_above=0.6))

@@ -167,12 +167,12 @@ def test_the_doors_share_the_defaults():
 def test_automatic_culling_is_decided_by_the_view(torus):
     view = View(torus)
     outside = view.camera(None, 64, 64)
-    assert view.culls(outside)
+    assert not view.culls(outside)   # never automatically: a back-facing splat may fill a hole of the front
     lo, hi = view.model.bounds()
     inside = view.camera(surfsplat.CameraSpec(eye=tuple(0.5 * (lo + hi)), target=tuple(hi)), 64, 64)
     assert not view.culls(inside)
-    asked = surfsplat.RenderOptions(visibility=surfsplat.VisibilityOptions(cull_backfaces=False))
-    assert not view.culls(outside, asked)
+    asked = surfsplat.RenderOptions(visibility=surfsplat.VisibilityOptions(cull_backfaces=True))
+    assert view.culls(outside, asked) and view.culls(inside, asked)
 
 
 def test_a_misspelt_colour_attribute_fails_before_preprocessing(monkeypatch):

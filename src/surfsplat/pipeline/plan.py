@@ -22,7 +22,7 @@ import numpy as np
 from .. import defaults, progress
 from ..camera import Camera, camera_flags
 from ..errors import EmptyFrameWarning, InputError
-from ..geometry.closed import eye_outside
+from ..geometry.closed import automatic_culling
 from ..hierarchy import Selection
 from ..hierarchy.sequential import sequential_layout
 from ..lighting import Lights
@@ -184,13 +184,14 @@ class View:
 
     def culls(self, camera: Camera, options: RenderOptions | None = None) -> bool:
         """Whether back faces are culled for ``camera``: as ``options`` say, or where automatic
-        (``cull_backfaces`` None) when the splats sample closed surfaces with outward normals and
-        the eye is outside their bounds, so the back side is never seen."""
+        (``cull_backfaces`` None) as :func:`~surfsplat.geometry.closed.automatic_culling` decides for
+        the sampled splats: never, since a back-facing splat may be the only one covering a pixel of
+        the front (the splats are still oriented outward where they sample closed surfaces)."""
         asked = (options or RenderOptions()).visibility.cull_backfaces
         if asked is not None:
             return bool(asked)
         drawn = self.sample(camera)
-        cull = self._outward and eye_outside(drawn.bounds(), camera.eye)
+        cull = automatic_culling(self._outward, drawn.bounds(), camera.eye)
         if cull and not getattr(self.model, "closed", False):
             _tell_once("a closed surface seen from outside: back faces culled (--no-cull-backfaces draws them)")
         return cull

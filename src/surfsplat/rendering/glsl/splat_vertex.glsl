@@ -33,6 +33,25 @@ struct Splat {
     vec3 shading;   // unit center shading normal (in_normal), on the side of n
 };
 
+// Conservative back-face test of a splat whose plane the eye sees from behind (Botsch 2004, sec. 4.1):
+// false only when no point x(s, t) = p + s u + t v of the disk (s^2 + t^2 <= 1) has a field normal
+// N(s, t) = shading + s field_u + t field_v facing the eye from that point. In camera space (eye at
+// the origin) N . (-x) = a + b . (s, t) - (s, t) M (s, t)^T with a = shading . e (e = -p), b = (field_u . e
+// - shading . u, field_v . e - shading . v) (the field's turn and the centre normal's tilt off the plane)
+// and M the symmetric part of [field_u . u, field_u . v; field_v . u, field_v . v]; over the unit disk it
+// is at most a + |b| + max(0, -lambda_min(M)) (a concave field bulges toward the eye). Each direction to
+// the eye is the disk point's own, not the centre's. A flat splat (no field, shading normal on the
+// plane's normal) gives a = n . e < 0: culled, as the plane's test.
+bool field_faces_eye(Splat s, vec3 field_u, vec3 field_v) {
+    vec3 e = -s.p;
+    vec2 b = vec2(dot(field_u, e) - dot(s.shading, s.u), dot(field_v, e) - dot(s.shading, s.v));
+    float m11 = dot(field_u, s.u);
+    float m22 = dot(field_v, s.v);
+    float m12 = 0.5 * (dot(field_u, s.v) + dot(field_v, s.u));
+    float lambda_min = 0.5 * (m11 + m22) - length(vec2(0.5 * (m11 - m22), m12));
+    return dot(s.shading, e) + length(b) + max(0.0, -lambda_min) > 0.0;
+}
+
 // Fills s and the flat outputs; false when the splat lies outside [near, far]
 // or is seen exactly edge-on through the eye (it covers no area).
 bool camera_splat(out Splat s) {
@@ -51,12 +70,7 @@ bool camera_splat(out Splat s) {
     vec3 field_u = in_normal_field.x * normalize(s.u);
     vec3 field_v = in_normal_field.y * normalize(s.v);
     float np = dot(s.n, s.p);
-    if (u_cull_backfaces && np > 0.0) {
-        // The eye sees the back of the plane. Conservative test of the normal field
-        // (Botsch 2004, sec. 4.1): cull only when no normal of the disk faces the eye.
-        vec3 e = -s.p;
-        if (dot(s.shading, e) + length(vec2(dot(field_u, e), dot(field_v, e))) <= 0.0) return false;
-    }
+    if (u_cull_backfaces && np > 0.0 && !field_faces_eye(s, field_u, field_v)) return false;
     v_back = np > 0.0 ? 1.0 : 0.0;
     if (np > 0.0) { s.n = -s.n; s.shading = -s.shading; field_u = -field_u; field_v = -field_v; np = -np; }
     float z = -s.p.z;
