@@ -32,6 +32,9 @@ from .hierarchy import Hierarchy, LodShading, Selection, build_hierarchy, load_h
 from .hierarchy.lod import check_point_budget, selection_flags
 from .hierarchy.sequential import sequential_layout
 from .hierarchy.chunked import ChunkedHierarchy, chunked_up, is_chunked_hierarchy, open_chunked
+from .hierarchy.storage import hierarchy_up
+from .io.ply import ply_up
+from .orientation import model_up
 from .io import Mesh, load, load_input, load_mesh
 from .io.image_maps import normals_from_depth
 from .io.objects import from_object
@@ -294,15 +297,20 @@ Z_UP_SUFFIXES = (".las", ".laz", ".e57")
 FLAT_MODEL_RATIO = 0.2
 
 
-def natural_up(source) -> tuple[float, float, float]:
-    """The up axis a source's data assume: +z for LAS/LAZ (LiDAR) and E57 (scanner) files, else +y."""
-    if isinstance(source, (str, Path)) and Path(source).suffix.lower() in Z_UP_SUFFIXES:
-        return (0.0, 0.0, 1.0)
-    if isinstance(source, ChunkedHierarchy):  # the up of the file it was built from
-        return source.up
-    if is_chunked_hierarchy(source):
-        return chunked_up(source)
-    return (0.0, 1.0, 0.0)
+def natural_up(source, model=None) -> tuple[float, float, float]:
+    """The up axis to show a source with (:func:`surfsplat.orientation.model_up`): the up stored with
+    the model or in the file (a PLY's ``comment surfsplat up``, a hierarchy's ``point_up``, a chunked
+    hierarchy's manifest), else its kind's (+z for LAS/LAZ/E57 files, +y for ``demo:`` scenes), else
+    guessed from the shape of ``model`` (or of ``source`` itself when it is a model object), else +y."""
+    if isinstance(source, (str, Path)) and not is_demo_source(source):
+        path = Path(source)
+        stored = (chunked_up(path) if is_chunked_hierarchy(path) else hierarchy_up(path) if is_hierarchy_file(path)
+                  else ply_up(path) if path.suffix.lower() == ".ply" and path.is_file() else None)
+        if stored is not None:
+            return stored
+    elif model is None:
+        model = source
+    return model_up(model, source)[0]
 
 
 def default_direction(cloud: SplatCloud, up) -> np.ndarray:

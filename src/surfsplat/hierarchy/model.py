@@ -269,6 +269,7 @@ class Hierarchy:
             v=np.take(self.node_v, index, axis=0),
             normal_field=None if lod_shading == "flat" else self.node_normal_fields(index, lod_shading),
             origin=self.points.origin,   # node positions are relative to the points' origin
+            up=self.points.up,
         )
 
     def splats(self, selection: Selection) -> SplatCloud:
@@ -314,7 +315,7 @@ class Hierarchy:
             clip_lines[:m] = np.array([[0.0, 0.0, 1.0]], dtype=np.float32)
             np.take(pts.clip_lines, pidx, axis=0, out=clip_lines[m:], mode="clip")
         return SplatCloud(positions=positions, normals=normals, colors=colors, u=u, v=v,
-                          normal_field=normal_field, clip_lines=clip_lines, origin=pts.origin)
+                          normal_field=normal_field, clip_lines=clip_lines, origin=pts.origin, up=pts.up)
 
     # -- colours -----------------------------------------------------------------
 
