@@ -35,6 +35,7 @@ from .hierarchy.chunked import ChunkedHierarchy, chunked_up, is_chunked_hierarch
 from .hierarchy.storage import hierarchy_up
 from .io.ply import ply_up
 from .orientation import model_up
+from .viewpoint import choose_direction
 from .io import Mesh, load, load_input, load_mesh
 from .io.image_maps import normals_from_depth
 from .io.objects import from_object
@@ -315,7 +316,9 @@ def natural_up(source, model=None) -> tuple[float, float, float]:
 
 def default_direction(cloud: SplatCloud, up) -> np.ndarray:
     """The automatic viewing direction (toward the eye): front, a little right and above relative to
-    ``up``; from about 45 degrees above for flat models (:data:`FLAT_MODEL_RATIO`)."""
+    ``up``, unless that view looks at one face of the model head-on and another shows clearly more
+    (:func:`surfsplat.viewpoint.choose_direction`: viewpoint entropy); flat models
+    (:data:`FLAT_MODEL_RATIO`: terrain, whose ground is one face by nature) from about 45 degrees above."""
     up = direction_vector(up, "up")
     up = up / np.linalg.norm(up)
     lo, hi = cloud.bounds()
@@ -323,15 +326,18 @@ def default_direction(cloud: SplatCloud, up) -> np.ndarray:
     along = abs(float(extent @ up))
     across = float(np.linalg.norm(extent - (extent @ up) * up))
     x, y, z = DEFAULT_DIRECTION
-    if along < FLAT_MODEL_RATIO * across:
+    flat = along < FLAT_MODEL_RATIO * across
+    if flat:
         y = 1.2   # about 45 degrees above the horizon
     # the y-up direction turned so +y goes to up: about y x up, or half a turn about x for -y
     direction = np.array([x, y, z])
     axis = np.cross([0.0, 1.0, 0.0], up)
     if np.linalg.norm(axis) < 1e-12:
-        return direction if up[1] > 0 else rotate(direction, np.array([1.0, 0.0, 0.0]), 180.0)
-    angle = np.degrees(np.arctan2(np.linalg.norm(axis), up[1]))
-    return rotate(direction, axis / np.linalg.norm(axis), angle)
+        direction = direction if up[1] > 0 else rotate(direction, np.array([1.0, 0.0, 0.0]), 180.0)
+    else:
+        angle = np.degrees(np.arctan2(np.linalg.norm(axis), up[1]))
+        direction = rotate(direction, axis / np.linalg.norm(axis), angle)
+    return direction if flat else choose_direction(cloud, up, direction).direction
 
 
 def auto_camera(cloud: SplatCloud, width: int = DEFAULT_WIDTH, height: int = DEFAULT_HEIGHT, fov: float = 40.0,
