@@ -321,3 +321,17 @@ def test_framing_points_of_a_large_cloud_hold_every_point():
     for c in cam:
         xy = reference.project(c, reference.to_camera(c, points))
         assert ((xy >= 0) & (xy <= 128)).all()
+
+
+def test_chunked_builds_record_the_input_up(tmp_path):
+    from surfsplat.hierarchy.chunked import build_chunked, chunked_up, open_chunked
+    stored = save_ply(SplatCloud(terrain(3000), up=Z_UP), tmp_path / "stored.ply")
+    plain = save_ply(SplatCloud(terrain(3000)), tmp_path / "plain.ply")
+    build_chunked(stored, tmp_path / "stored.ssh", cell_points=2_000, scheduler="synchronous")
+    build_chunked(plain, tmp_path / "plain.ssh", cell_points=2_000, scheduler="synchronous")
+    assert chunked_up(tmp_path / "stored.ssh") == Z_UP and natural_up(tmp_path / "stored.ssh") == Z_UP
+    model = open_chunked(tmp_path / "stored.ssh")
+    assert model.up == Z_UP and model.points.up == Z_UP
+    assert chunked_up(tmp_path / "plain.ssh") is None
+    unknown = open_chunked(tmp_path / "plain.ssh")
+    assert unknown.up is None and model_up(unknown)[0] == Z_UP   # guessed from the preview: flat in z
