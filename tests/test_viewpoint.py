@@ -87,7 +87,10 @@ def test_model_up_prefers_stored_then_file_kind_then_guess():
     assert model_up(SplatCloud(blob()), "scan.laz")[0] == Z_UP         # the file kind beats the guess
     assert model_up(None, "x.E57")[0] == Z_UP and model_up(None, "x.ply")[0] == Y_UP
     assert model_up(flat, "demo:checkerboard")[0] == Y_UP              # built-in scenes are y-up
-    assert natural_up(flat) == Z_UP and natural_up(SplatCloud(blob())) == Y_UP
+    assert natural_up(surfsplat.demo_scene("checkerboard")) == Y_UP   # though flat in z: it says so
+    # api.natural_up: stored or kind; the guess only for an explicit model (it must not tilt a placed camera)
+    assert natural_up(flat) == Y_UP and natural_up(flat.replace(up=Z_UP)) == Z_UP
+    assert natural_up(flat, flat) == Z_UP and natural_up(SplatCloud(blob()), SplatCloud(blob())) == Y_UP
 
 
 def test_up_is_validated_and_normalized():

@@ -34,7 +34,7 @@ from .hierarchy.sequential import sequential_layout
 from .hierarchy.chunked import ChunkedHierarchy, chunked_up, is_chunked_hierarchy, open_chunked
 from .hierarchy.storage import hierarchy_up
 from .io.ply import ply_up
-from .orientation import model_up
+from .orientation import model_up, stored_up
 from .viewpoint import choose_direction
 from .io import Mesh, load, load_input, load_mesh
 from .io.image_maps import normals_from_depth
@@ -302,7 +302,8 @@ def natural_up(source, model=None) -> tuple[float, float, float]:
     """The up axis to show a source with (:func:`surfsplat.orientation.model_up`): the up stored with
     the model or in the file (a PLY's ``comment surfsplat up``, a hierarchy's ``point_up``, a chunked
     hierarchy's manifest), else its kind's (+z for LAS/LAZ/E57 files, +y for ``demo:`` scenes), else
-    guessed from the shape of ``model`` (or of ``source`` itself when it is a model object), else +y."""
+    guessed from the shape of ``model`` where one is given, else +y. (No guess without ``model``: a
+    guessed up must not tilt a camera the caller placed along it.)"""
     if isinstance(source, (str, Path)) and not is_demo_source(source):
         path = Path(source)
         stored = (chunked_up(path) if is_chunked_hierarchy(path) else hierarchy_up(path) if is_hierarchy_file(path)
@@ -310,7 +311,9 @@ def natural_up(source, model=None) -> tuple[float, float, float]:
         if stored is not None:
             return stored
     elif model is None:
-        model = source
+        stored = stored_up(source)   # a model object's own up
+        if stored is not None:
+            return stored
     return model_up(model, source)[0]
 
 
