@@ -101,7 +101,7 @@ def render_mesh(source, camera: Camera | CameraSpec | None = None, *, width: int
         check_source(source)
         with progress.stage(f"loading {source}"):
             mesh = load_mesh(source)
-    camera = resolve_camera(as_model(mesh), camera, width, height, default_up=natural_up(source))
+    camera = resolve_camera(as_model(mesh), camera, width, height, default_up=natural_up(source, mesh))
     frame = rasterize_mesh(mesh, camera, lights or Lights(), background=background, supersample=supersample,
                            smooth=smooth, renderer=default_renderer())
     check_coverage(frame, mesh, "the mesh")   # the same warning as a splat render that shows nothing

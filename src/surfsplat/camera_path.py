@@ -22,6 +22,10 @@ from .errors import InputError
 
 #: Samples per key interval used to measure the eye path's arc length (constant speed).
 ARC_SAMPLES = 256
+#: Larger point sets are framed by the corners of the grid cells they occupy (:func:`framing_points`).
+FRAME_POINTS = 200_000
+#: Cells along the longest side of that grid (the frame grows by at most a cell's diagonal).
+FRAME_CELLS = 64
 
 
 def _check_keys(keys) -> np.ndarray:
@@ -124,12 +128,20 @@ def interpolate_cameras(keys: list[Camera], frames: int, *, closed: bool = False
             for e, g, u, n, f in zip(eye, target, up, size, fov)]
 
 
-def orbit_cameras(camera: Camera, frames: int, degrees: float = 360.0, elevation: float | None = None) -> list[Camera]:
+def orbit_cameras(camera: Camera, frames: int, degrees: float = 360.0, elevation: float | None = None, *,
+                  points=None, margin: float = 0.0, fill: float = 0.9) -> list[Camera]:
     """``frames`` cameras turning the eye about the line through the target along ``camera.up``,
     ``degrees / frames`` apart (360: a loop whose last frame leads back to the first). With
     ``elevation`` (degrees above the plane normal to up) the eye is first moved to that height at
     the same distance. Image size, field of view and clip planes are kept (near/far widened to
-    hold the whole orbit)."""
+    hold the whole orbit).
+
+    With ``points`` ((N, 3) world positions, model units) the orbit is framed for them
+    (:func:`orbit_distance`; more than :data:`FRAME_POINTS` points through :func:`framing_points`): the
+    target moves to the center of their bounding box and the eye to the one distance at which every
+    frame shows every point, grown by ``margin`` (model units: the largest splat radius), within
+    ``fill`` of the image's half-extent; near/far then enclose the points in every frame.
+    """
     if not (isinstance(frames, (int, np.integer)) and frames >= 1):
         raise InputError(f"frames must be an integer >= 1, got {frames!r}")
     if not np.isfinite(degrees):
@@ -147,11 +159,89 @@ def orbit_cameras(camera: Camera, frames: int, degrees: float = 360.0, elevation
         flat /= np.linalg.norm(flat)
         angle = np.radians(elevation)
         offset = np.linalg.norm(offset) * (np.cos(angle) * flat + np.sin(angle) * up)
-    cameras = []
-    for i in range(int(frames)):
-        turned = rotate(offset, up, degrees * i / frames)
-        cameras.append(replace(camera, eye=tuple(target + turned)))
+    angles = degrees * np.arange(int(frames)) / frames
+    if points is not None:
+        p = framing_points(points)
+        lo, hi = p.min(axis=0), p.max(axis=0)
+        target = 0.5 * (lo + hi)
+        unit = offset / np.linalg.norm(offset)
+        directions = np.array([rotate(unit, up, a) for a in angles])
+        offset = unit * orbit_distance(p, target, directions, up, fov=camera.fov, aspect=camera.width / camera.height,
+                                       margin=margin, fill=fill)
+    cameras = [replace(camera, eye=tuple(target + rotate(offset, up, a)), target=tuple(target)) for a in angles]
+    if points is not None:
+        clipped = [replace(c, near=None, far=None).with_clip_from_bounds(lo, hi, margin) for c in cameras]
+        near, far = min(c.near for c in clipped), max(c.far for c in clipped)
+        return [replace(c, near=near, far=far) for c in cameras]
     if camera.near is not None and camera.far is not None:
         near, far = camera.near, camera.far
         cameras = [replace(c, near=near, far=far) for c in cameras]
     return cameras
+
+
+def orbit_distance(points, target, directions, up, *, fov: float, aspect: float = 1.0, margin: float = 0.0,
+                   fill: float = 0.9) -> float:
+    """The smallest eye distance from ``target`` at which cameras looking at it from every one of
+    ``directions`` ((F, 3) world vectors toward the eye, screen axes from ``up``) show all ``points``
+    ((N, 3) world, model units) grown by ``margin`` within ``fill`` of the image's half-extent.
+
+    A point at lateral offsets (x, y) from the view axis and depth z toward the eye is inside when
+    ``|x| + margin <= t_x (D - z)`` and ``|y| + margin <= t_y (D - z)``, t_y = fill tan(fov / 2),
+    t_x = t_y aspect (``aspect`` = width / height); D is the largest of ``z + (|x| + margin) / t_x``,
+    ``z + (|y| + margin) / t_y`` over points and directions, at least a little beyond the nearest
+    point. Model units.
+    """
+    p = _checked_points(points) - np.asarray(target, dtype=np.float64)
+    directions = np.atleast_2d(np.asarray(directions, dtype=np.float64))
+    directions = directions / np.linalg.norm(directions, axis=1, keepdims=True)
+    up = np.asarray(up, dtype=np.float64) / np.linalg.norm(up)
+    if not (0.0 < fov < 180.0 and aspect > 0 and 0.0 < fill and margin >= 0):
+        raise InputError(f"orbit_distance: needs 0 < fov < 180, aspect > 0, fill > 0, margin >= 0; got fov {fov}, "
+                         f"aspect {aspect}, fill {fill}, margin {margin}")
+    ty = fill * np.tan(np.radians(fov) / 2.0)
+    tx = ty * aspect
+    pt = np.ascontiguousarray(p.T)
+    extent = float(np.linalg.norm(p.max(axis=0) - p.min(axis=0))) or 1.0
+    distance = 0.0
+    for d in directions:   # one view per frame, vectorized over the points
+        right = np.cross(-d, up)
+        if np.linalg.norm(right) < 1e-9:
+            raise InputError("orbit_distance: a view direction is parallel to up")
+        right /= np.linalg.norm(right)
+        screen_up = np.cross(right, -d)
+        x, y, z = (a[0] * pt[0] + a[1] * pt[1] + a[2] * pt[2] for a in (right, screen_up, d))
+        need = max(float(np.max(z + (np.abs(x) + margin) / tx)), float(np.max(z + (np.abs(y) + margin) / ty)),
+                   float(z.max()) + margin + 1e-3 * extent)
+        distance = max(distance, need)
+    return distance
+
+
+def framing_points(points, limit: int = FRAME_POINTS, cells: int = FRAME_CELLS) -> np.ndarray:
+    """Points whose framing frames ``points`` ((N, 3) world, model units): the finite points
+    themselves up to ``limit``; beyond it the distinct corners of the cells of a grid (``cells`` along
+    the longest side of the bounding box) that hold a point. Every point lies in the convex hull of
+    its cell's corners and a view frustum is convex, so a frame that holds the corners holds the
+    points (at most a cell's diagonal looser)."""
+    p = _checked_points(points)
+    if len(p) <= limit:
+        return p
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    size = float((hi - lo).max()) / cells or 1.0
+    dims = np.maximum(np.ceil((hi - lo) / size).astype(np.int64), 1)
+    cell = np.minimum(((p - lo) / size).astype(np.int64), dims - 1)
+    occupied = np.unique((cell[:, 0] * (dims[1] + 1) + cell[:, 1]) * (dims[2] + 1) + cell[:, 2])
+    ijk = np.column_stack([occupied // ((dims[1] + 1) * (dims[2] + 1)), occupied // (dims[2] + 1) % (dims[1] + 1),
+                           occupied % (dims[2] + 1)])
+    offsets = np.array([[a, b, c] for a in (0, 1) for b in (0, 1) for c in (0, 1)])
+    corners = np.unique((ijk[:, None, :] + offsets[None]).reshape(-1, 3), axis=0)
+    return lo + corners * size
+
+
+def _checked_points(points) -> np.ndarray:
+    p = np.asarray(points, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 3 or not len(p):
+        raise InputError(f"points must have shape (N, 3) with N >= 1, got {p.shape}")
+    p = p[np.isfinite(p).all(axis=1)]
+    if not len(p):
+        raise InputError("points: none is finite")
+    return p

@@ -67,6 +67,10 @@ class SplatCloud:
             extent (:data:`RECENTER_RATIO`), their bounding-box centre (rounded to a multiple of
             a power of two below the extent), the positions being stored relative to it
             (:func:`split_origin`).
+        up: the model's up axis as 3 floats (a unit vector, world), or None where unknown. Set by
+            the loaders where the file says (LAS/LAZ/E57: +z; a PLY or hierarchy written by
+            surfsplat stores it) and carried by :meth:`subset`, :meth:`replace` and
+            :meth:`with_arrays`; :func:`surfsplat.orientation.model_up` decides where it is None.
     """
 
     positions: np.ndarray
@@ -78,6 +82,7 @@ class SplatCloud:
     clip_lines: np.ndarray | None = None
     attributes: dict[str, np.ndarray] | None = None
     origin: np.ndarray | None = None
+    up: tuple[float, float, float] | None = None
 
     _OPTIONAL = ("normals", "colors", "u", "v", "normal_field", "clip_lines")
     _SHAPES = {
@@ -101,6 +106,8 @@ class SplatCloud:
             if origin.shape != (3,) or not np.isfinite(origin).all():
                 raise InputError(f"origin must be 3 finite numbers, got {self.origin!r}", argument="origin")
             self.origin = origin
+        if self.up is not None:
+            self.up = checked_up(self.up)
         for name, tail in self._SHAPES.items():
             value = getattr(self, name)
             if value is None:
@@ -132,6 +139,8 @@ class SplatCloud:
         if self.attributes:
             present.append(f"attributes {', '.join(self.attributes)}")
         at = f", origin {np.array2string(self.origin, precision=10)}" if self.origin.any() else ""
+        if self.up is not None:
+            at += f", up {' '.join(f'{x:g}' for x in self.up)}"
         return f"SplatCloud({len(self)} splats, with {', '.join(present) or 'positions only'}{at})"
 
     # -- derived quantities -------------------------------------------------
@@ -173,11 +182,19 @@ class SplatCloud:
                   for name in ("positions",) + self._OPTIONAL}
         if self.attributes is not None:
             fields["attributes"] = {name: values[index] for name, values in self.attributes.items()}
-        return SplatCloud(**fields, origin=self.origin)
+        return SplatCloud(**fields, origin=self.origin, up=self.up)
 
     def replace(self, **changes) -> "SplatCloud":
-        """A copy with some arrays replaced (validated like the constructor)."""
+        """A copy with some arrays replaced (validated like the constructor); ``origin`` and ``up``
+        are kept unless changed."""
         return dataclasses.replace(self, **changes)
+
+    def with_arrays(self, positions, **arrays) -> "SplatCloud":
+        """A new SplatCloud of other rows with this one's metadata: ``positions`` (relative to this
+        cloud's ``origin``) and any other arrays by name (``normals``, ``colors``, ``u``, ``v``,
+        ``normal_field``, ``clip_lines``, ``attributes``; absent ones are None), with this cloud's
+        ``origin`` and ``up``. Validated like the constructor."""
+        return SplatCloud(positions=positions, **arrays, origin=self.origin, up=self.up)
 
     # -- conversions -------------------------------------------------------
 
@@ -406,6 +423,41 @@ def split_origin(positions) -> tuple[np.ndarray, np.ndarray]:
         step = 2.0 ** np.floor(np.log2(extent)) if extent > 0 else 0.0
         origin = np.round(center / step) * step if step > 0 and np.isfinite(center / step).all() else center
         return origin, world - origin
+
+
+def checked_up(up) -> tuple[float, float, float]:
+    """``up`` as a unit vector of 3 Python floats; an InputError unless it is 3 finite numbers, not
+    all zero."""
+    try:
+        vec = np.array(up, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise InputError(f"up must be 3 finite numbers, got {up!r}") from None
+    length = float(np.linalg.norm(vec)) if vec.shape == (3,) and np.isfinite(vec).all() else 0.0
+    if not length > 0:
+        raise InputError(f"up must be 3 finite numbers, not all zero, got {up!r}")
+    return tuple(float(x) for x in vec / length)
+
+
+def concatenate(clouds) -> SplatCloud:
+    """One SplatCloud of the rows of ``clouds`` in order, positions relative to the first one's
+    ``origin`` (others are moved there in float64), its ``up`` kept when every cloud that states
+    one states the same (else None). An array present in some clouds only is dropped; attributes
+    are kept where every cloud has them."""
+    clouds = list(clouds)
+    if not clouds or not all(isinstance(c, SplatCloud) for c in clouds):
+        raise InputError("concatenate needs one or more SplatClouds")
+    first = clouds[0]
+    positions = np.concatenate([(c.positions.astype(np.float64) + (c.origin - first.origin)).astype(np.float32)
+                                if (c.origin != first.origin).any() else c.positions for c in clouds])
+    arrays = {name: np.concatenate([getattr(c, name) for c in clouds]) for name in SplatCloud._OPTIONAL
+              if all(getattr(c, name) is not None for c in clouds)}
+    common = set.intersection(*(set(c.attributes or ()) for c in clouds))
+    if common:
+        arrays["attributes"] = {name: np.concatenate([c.attributes[name] for c in clouds])
+                                for name in first.attributes if name in common}
+    ups = [c.up for c in clouds if c.up is not None]
+    up = ups[0] if ups and all(np.allclose(u, ups[0], atol=1e-6) for u in ups) else None
+    return SplatCloud(positions=positions, **arrays, origin=first.origin, up=up)
 
 
 def checked_attributes(attributes, n: int) -> dict[str, np.ndarray] | None:

@@ -235,8 +235,8 @@ SCENES = {
 
 
 def demo_scene(name: str = "torus") -> SplatCloud:
-    """A built-in procedural scene by name: one of :data:`SCENES`."""
+    """A built-in procedural scene by name: one of :data:`SCENES` (modelled y-up: ``up`` +y)."""
     try:
-        return SCENES[name]()
+        return SCENES[name]().replace(up=(0.0, 1.0, 0.0))
     except KeyError:
         raise InputError(f"unknown demo scene {name!r}; choose one of {', '.join(sorted(SCENES))}") from None

@@ -241,8 +241,7 @@ def cmd_turntable(args) -> None:
     cameras = path_cameras(args)
     plan = prepared(args.input, args)
     if cameras is None:
-        start = plan.camera(camera, width, height)
-        cameras = api.orbit_cameras(start, args.frames, args.degrees, args.elevation)
+        cameras = plan.orbit(camera, args.frames, args.degrees, args.elevation, width=width, height=height)
         progress.message(f"{args.frames} frames over {args.degrees:g} degrees, {seconds:g} s; first camera: "
                          f"{camera_flags(cameras[0])}")
     width, height = cameras[0].width, cameras[0].height

@@ -261,14 +261,13 @@ class Hierarchy:
         """The representative splats of nodes (all nodes when ``index`` is None) as a SplatCloud (with the
         points' origin)."""
         index = np.arange(len(self)) if index is None else np.asarray(index, dtype=np.int64)
-        return SplatCloud(
+        return self.points.with_arrays(   # node positions are relative to the points' origin
             positions=np.take(self.node_positions, index, axis=0),
             normals=np.take(self.node_normals, index, axis=0),
             colors=None if self.node_colors is None else np.take(self.node_colors, index, axis=0),
             u=np.take(self.node_u, index, axis=0),
             v=np.take(self.node_v, index, axis=0),
             normal_field=None if lod_shading == "flat" else self.node_normal_fields(index, lod_shading),
-            origin=self.points.origin,   # node positions are relative to the points' origin
         )
 
     def splats(self, selection: Selection) -> SplatCloud:
@@ -313,8 +312,8 @@ class Hierarchy:
             clip_lines = np.empty((m + k, 2, 3), dtype=np.float32)
             clip_lines[:m] = np.array([[0.0, 0.0, 1.0]], dtype=np.float32)
             np.take(pts.clip_lines, pidx, axis=0, out=clip_lines[m:], mode="clip")
-        return SplatCloud(positions=positions, normals=normals, colors=colors, u=u, v=v,
-                          normal_field=normal_field, clip_lines=clip_lines, origin=pts.origin)
+        return pts.with_arrays(positions=positions, normals=normals, colors=colors, u=u, v=v,
+                               normal_field=normal_field, clip_lines=clip_lines)
 
     # -- colours -----------------------------------------------------------------
 

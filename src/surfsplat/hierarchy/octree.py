@@ -195,7 +195,7 @@ def _reordered(cloud: SplatCloud, order: np.ndarray) -> SplatCloud:
               for name in POINT_ARRAYS}
     attributes = None if cloud.attributes is None else {
         name: np.take(values, order) for name, values in cloud.attributes.items()}
-    return SplatCloud(**fields, attributes=attributes, origin=cloud.origin)
+    return cloud.with_arrays(**fields, attributes=attributes)
 
 
 def _node_chunks(count: np.ndarray, parts: int) -> np.ndarray:

@@ -19,7 +19,8 @@ float32 (optional), ``node_normal_field`` (M, 2) float32, ``node_radius``,
 float32, optional ``point_colors`` (N, 3), ``point_normal_field`` (N, 2),
 ``point_clip_lines`` (N, 2, 3) float32; ``point_origin`` (3,) float64, the world position of
 the points' zero (world coordinates are ``point_origin + point_positions``; files without it,
-written before it existed, load with the origin at zero).
+written before it existed, load with the origin at zero); ``point_up`` (3,) float64, optional: the
+model's up axis (``SplatCloud.up``; absent where it is unknown and in older files).
 
 Per-point attributes (LAS dimensions, extra PLY properties, ``nonplanar``), optional: for each
 attribute NAME, ``point_attribute:NAME`` (N,) in the points' order and ``node_attribute:NAME``
@@ -35,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cloud import SplatCloud
+from ..cloud import SplatCloud, checked_up
 from ..errors import InputError, error_context
 from ..io.atomic import atomic_path, check_readable
 from ..io.npz import read_npz
@@ -45,7 +46,7 @@ from .model import FORMAT_VERSION, NODE_ATTRIBUTE, POINT_ATTRIBUTE, Hierarchy
 #: defined with the arrays in :mod:`~surfsplat.hierarchy.model`.
 FORMAT = "surfsplat-hierarchy"
 
-__all__ = ["FORMAT", "FORMAT_VERSION", "save_hierarchy", "load_hierarchy"]
+__all__ = ["FORMAT", "FORMAT_VERSION", "save_hierarchy", "load_hierarchy", "hierarchy_up"]
 
 #: name -> (dtype, shape after the first axis, first axis: "nodes", "points", "levels+1" or a number, required)
 _SPEC = {
@@ -74,6 +75,7 @@ _SPEC = {
     "point_normal_field": (np.float32, (2,), "points", False),
     "point_clip_lines": (np.float32, (2, 3), "points", False),
     "point_origin": (np.float64, (), 3, False),   # world position of the points' zero; absent in older files
+    "point_up": (np.float64, (), 3, False),   # the model's up axis; absent where unknown and in older files
 }
 
 
@@ -101,6 +103,8 @@ def save_hierarchy(hierarchy: Hierarchy, path, *, overwrite: bool = True) -> Pat
     members["leaf_capacity"] = np.array(hierarchy.leaf_capacity, dtype=np.int64)
     members["max_depth"] = np.array(hierarchy.max_depth, dtype=np.int64)
     members["point_origin"] = np.asarray(hierarchy.points.origin, dtype=np.float64)
+    if hierarchy.points.up is not None:
+        members["point_up"] = np.asarray(hierarchy.points.up, dtype=np.float64)
     try:  # through a temporary file beside ``path``: a failed write leaves no partial file, an old one intact
         with atomic_path(path, overwrite=overwrite) as temp, open(temp, "wb") as handle:
             np.savez(handle, **members)
@@ -128,6 +132,16 @@ def load_hierarchy(path) -> Hierarchy:
             raise InputError(f"{path}: not a surfsplat hierarchy file (not an .npz archive, or truncated)")
         # sizes checked before anything is inflated (a zip bomb, a header declaring a terabyte shape)
         return _from_members(read_npz(path, None, source), source)
+
+
+def hierarchy_up(path) -> tuple[float, float, float] | None:
+    """The up axis stored in a hierarchy file (its ``point_up`` member), or None where it has none or
+    is not a readable ``.npz`` archive. Reads that member only (:func:`~surfsplat.io.npz.read_npz`)."""
+    try:
+        up = read_npz(path, ("point_up",)).get("point_up")
+    except InputError:
+        return None
+    return checked_up(up) if up is not None and up.shape == (3,) and up.dtype.kind == "f" else None
 
 
 def _scalar(members: dict, name: str, source: str, kind) -> object:
@@ -182,7 +196,8 @@ def _from_members(members: dict[str, np.ndarray], source: str) -> Hierarchy:
     _check_structure(arrays, source)
     point_attributes, node_attributes = _attributes(members, sizes, source)
     points = SplatCloud(**{name: arrays["point_" + name] for name in
-                           ("positions", "normals", "colors", "u", "v", "normal_field", "clip_lines", "origin")},
+                           ("positions", "normals", "colors", "u", "v", "normal_field", "clip_lines", "origin",
+                            "up")},
                         attributes=point_attributes)
     return Hierarchy(points=points, order=arrays["order"], level_offsets=arrays["level_offsets"],
                      origin=arrays["origin"], leaf_capacity=int(leaf_capacity), max_depth=int(max_depth),

@@ -36,6 +36,7 @@ import numpy as np
 
 from ..cloud import DEFAULT_ALBEDO, SplatCloud
 from ..errors import InputError, file_reader
+from ..orientation import Z_UP
 from .atomic import memory_limit
 from .child import decoded_in_child
 
@@ -181,7 +182,7 @@ def read_e57(path: Path) -> SplatCloud:
     if any(s[2] is not None for s in scans):
         attributes["intensity"] = np.concatenate([s[2] if s[2] is not None else np.full(len(s[0]), np.nan)
                                                   for s in scans]).astype(np.float32)
-    return SplatCloud(positions=positions, colors=colors, attributes=attributes)
+    return SplatCloud(positions=positions, colors=colors, attributes=attributes, up=Z_UP)   # E57 scans are z-up
 
 
 def quaternion_matrix(q) -> np.ndarray:

@@ -31,6 +31,7 @@ import numpy as np
 
 from ..cloud import SplatCloud
 from ..errors import InputError, file_reader
+from ..orientation import Z_UP
 from .atomic import memory_limit
 from .child import decoded_in_child
 
@@ -154,7 +155,7 @@ def read_las(path: Path) -> SplatCloud:
         colors = np.clip(rgb.astype(np.float64) / rgb_scale(rgb), 0.0, 1.0).astype(np.float32)
 
     # float64 world coordinates: kept as float32 positions relative to an origin near the points
-    cloud = SplatCloud(positions=xyz, colors=colors, attributes=attributes or None)
+    cloud = SplatCloud(positions=xyz, colors=colors, attributes=attributes or None, up=Z_UP)   # LiDAR is z-up
     finite = cloud.positions[np.isfinite(cloud.positions).all(axis=1)]
     if len(finite):
         extent = np.abs(finite).max(axis=0)

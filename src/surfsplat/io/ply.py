@@ -28,6 +28,9 @@ splat centers. When a mesh stores no normals, each vertex gets the
 area-weighted normal of its faces; vertices used by no face then have no
 normal and are dropped by validation (the warning counts them as points with
 zero-length normals).
+
+The model's up axis (``SplatCloud.up``) is stored as a header comment ``comment surfsplat up X Y Z``
+(:data:`UP_COMMENT`), written when the cloud has one and read back by every reader of the file.
 """
 
 from __future__ import annotations
@@ -39,7 +42,7 @@ from pathlib import Path
 import numpy as np
 from plyfile import PlyData, PlyElement, PlyElementParseError, PlyParseError
 
-from ..cloud import NO_CLIP, SplatCloud
+from ..cloud import NO_CLIP, SplatCloud, checked_up
 from ..errors import InputError, file_reader
 from ..frames import tangent_frame
 from .gaussians import cloud_from_gaussians, is_gaussian_ply
@@ -49,6 +52,9 @@ from .ply_layout import check_body, check_consumed
 
 #: Names of the face element's list property, in order of preference.
 FACE_LIST_NAMES = ("vertex_indices", "vertex_index")
+
+#: The header comment storing the model's up axis: ``comment surfsplat up 0 0 1``.
+UP_COMMENT = "surfsplat up"
 
 _CLIP_NAMES = tuple(f"clip{k}_{c}" for k in (0, 1) for c in "abc")
 
@@ -213,7 +219,40 @@ def read_ply(path: Path) -> SplatCloud:
     colors (N, 3) in [0, 1], u, v (N, 3) model units, normal_field (N, 2),
     clip_lines (N, 2, 3). The caller runs ``validated``.
     """
-    return cloud_from_elements(read_elements(path), str(path))
+    return with_stored_up(cloud_from_elements(read_elements(path), str(path)), path)
+
+
+def ply_up(path) -> tuple[float, float, float] | None:
+    """The up axis stored in a PLY header (``comment surfsplat up X Y Z``, see :data:`UP_COMMENT`), or
+    None when the header has none (or ``path`` is no readable PLY header). Reads the header only.
+    InputError for a malformed up comment."""
+    try:
+        with open(path, "rb") as stream:
+            head = stream.read(1 << 16)
+    except OSError:
+        return None
+    end = head.find(b"end_header")
+    if not head.startswith(b"ply") or end < 0:
+        return None
+    for line in head[:end].decode("ascii", "replace").splitlines():
+        words = line.split()
+        if words[:1] == ["comment"] and " ".join(words[1:3]) == UP_COMMENT:
+            try:
+                return checked_up([float(x) for x in words[3:]])
+            except (ValueError, InputError):
+                raise InputError(f"{path}: malformed up comment {line.strip()!r} (expected "
+                                 f"'comment {UP_COMMENT} X Y Z')") from None
+    return None
+
+
+def with_stored_up(data, path):
+    """``data`` (a SplatCloud or a Mesh read from ``path``) with the up axis stored in its header
+    (:func:`ply_up`); a Mesh is returned as it is (meshes carry no up)."""
+    if isinstance(data, SplatCloud):
+        up = ply_up(path)
+        if up is not None:
+            data.up = up
+    return data
 
 
 @file_reader
@@ -224,7 +263,7 @@ def read_ply_input(path: Path) -> Mesh | SplatCloud:
     elements = read_elements(path)
     if "face" in elements and len(elements["face"]):
         return mesh_from_elements(elements, source)
-    return cloud_from_elements(elements, source)
+    return with_stored_up(cloud_from_elements(elements, source), path)
 
 
 def cloud_from_elements(elements: dict[str, np.ndarray], source: str) -> SplatCloud:
@@ -485,8 +524,10 @@ def write_ply(cloud: SplatCloud, path: Path, *, binary: bool = True, overwrite: 
     for name, values in columns:
         records[name] = values
     element = PlyElement.describe(records, "vertex")
-    ply = PlyData([element], text=not binary, byte_order="<",
-                  comments=["written by surfsplat"])
+    comments = ["written by surfsplat"]
+    if cloud.up is not None:
+        comments.append(f"{UP_COMMENT} " + " ".join(repr(float(x)) for x in cloud.up))
+    ply = PlyData([element], text=not binary, byte_order="<", comments=comments)
     if path.is_dir():
         raise InputError(f"{path}: is a directory, not a file")
     try:  # through a temporary file beside ``path``: a failed write leaves no partial file, an old one intact
@@ -543,5 +584,5 @@ def ply_columns(cloud: SplatCloud) -> list[tuple[str, np.ndarray]]:
     return columns
 
 
-__all__ = ["read_ply", "read_ply_mesh", "read_elements", "read_faces", "write_ply",
+__all__ = ["read_ply", "read_ply_mesh", "ply_up", "UP_COMMENT", "read_elements", "read_faces", "write_ply",
            "fan_triangulate", "color_scale", "read_colors", "circular_axes", "ply_columns"]

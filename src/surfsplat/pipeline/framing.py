@@ -12,6 +12,7 @@ from .. import defaults
 from ..camera import MIN_FOV, Camera, direction_vector, fit_points, rotate
 from ..cloud import SplatCloud
 from ..errors import InputError
+from ..viewpoint import choose_direction
 from .models import Model, as_model
 
 #: Default viewing direction (toward the eye) for a y-up world: front, a little right and above.
@@ -26,7 +27,9 @@ FLAT_MODEL_RATIO = 0.2
 
 def default_direction(cloud: SplatCloud, up) -> np.ndarray:
     """The automatic viewing direction (toward the eye): front, a little right and above relative to
-    ``up``; from about 45 degrees above for flat models (:data:`FLAT_MODEL_RATIO`)."""
+    ``up``, unless that view looks at one face of the model head-on and another shows clearly more
+    (:func:`surfsplat.viewpoint.choose_direction`: viewpoint entropy); flat models
+    (:data:`FLAT_MODEL_RATIO`: terrain, whose ground is one face by nature) from about 45 degrees above."""
     up = direction_vector(up, "up")
     up = up / np.linalg.norm(up)
     lo, hi = cloud.bounds()
@@ -34,15 +37,18 @@ def default_direction(cloud: SplatCloud, up) -> np.ndarray:
     along = abs(float(extent @ up))
     across = float(np.linalg.norm(extent - (extent @ up) * up))
     x, y, z = DEFAULT_DIRECTION
-    if along < FLAT_MODEL_RATIO * across:
+    flat = along < FLAT_MODEL_RATIO * across
+    if flat:
         y = 1.2   # about 45 degrees above the horizon
     # the y-up direction turned so +y goes to up: about y x up, or half a turn about x for -y
     direction = np.array([x, y, z])
     axis = np.cross([0.0, 1.0, 0.0], up)
     if np.linalg.norm(axis) < 1e-12:
-        return direction if up[1] > 0 else rotate(direction, np.array([1.0, 0.0, 0.0]), 180.0)
-    angle = np.degrees(np.arctan2(np.linalg.norm(axis), up[1]))
-    return rotate(direction, axis / np.linalg.norm(axis), angle)
+        direction = direction if up[1] > 0 else rotate(direction, np.array([1.0, 0.0, 0.0]), 180.0)
+    else:
+        angle = np.degrees(np.arctan2(np.linalg.norm(axis), up[1]))
+        direction = rotate(direction, axis / np.linalg.norm(axis), angle)
+    return direction if flat else choose_direction(cloud, up, direction).direction
 
 
 def auto_camera(cloud: SplatCloud, width: int = defaults.API_IMAGE_SIZE, height: int = defaults.API_IMAGE_SIZE,
@@ -101,8 +107,22 @@ class CameraSpec:
             return auto_camera(cloud, width, height, self.fov, up=up)
         lo, hi = cloud.bounds()
         target = self.target if self.target is not None else 0.5 * (lo + hi)
+        if self.up is None:
+            up = up_across(np.asarray(target, dtype=np.float64) - np.asarray(self.eye, dtype=np.float64), up)
         return clipped_to(Camera(eye=tuple(self.eye), target=tuple(target), up=up, fov=self.fov, width=width,
                                  height=height), cloud)
+
+
+def up_across(view, up) -> tuple[float, float, float]:
+    """``up``, or where the ``view`` direction runs along it (within about 1 degree: a data's up,
+    stored or guessed, that the caller's camera looks along) the other common up axis (+y for +z,
+    else +z), so that a placed camera without an up is always valid."""
+    view = np.asarray(view, dtype=np.float64)
+    u = np.asarray(direction_vector(up, "up"), dtype=np.float64)
+    length = float(np.linalg.norm(view))
+    if length == 0 or abs(float(view @ u)) < 0.9998 * length * float(np.linalg.norm(u)):
+        return tuple(up)
+    return (0.0, 1.0, 0.0) if abs(u[2]) > max(abs(u[0]), abs(u[1])) else (0.0, 0.0, 1.0)
 
 
 def resolve_camera(model: Model, camera: Camera | CameraSpec | None, width: int, height: int, *,

@@ -21,6 +21,7 @@ import numpy as np
 
 from .. import defaults, progress
 from ..camera import Camera, camera_flags
+from ..camera_path import orbit_cameras
 from ..errors import EmptyFrameWarning, InputError
 from ..geometry.closed import automatic_culling
 from ..hierarchy import Selection
@@ -38,7 +39,7 @@ from .framing import CameraSpec, local_camera, resolve_camera
 from .lod import cut_tolerance, hybrid_default, hybrid_splats, lod_strategy
 from .models import Model, as_model
 from .options import LOD_AUTO, LodOptions, SourceOptions
-from .sources import check_source, natural_up, read_source, source_name
+from .sources import check_source, read_source, source_name, up_of
 
 #: A frame covering less than this fraction of the pixels the model's bounds project to warns.
 MIN_COVERAGE = 0.01
@@ -143,12 +144,14 @@ class View:
         self.interactive = bool(interactive)
         self.name = source_name(source)
         check_source(source)
-        #: The up axis of the data (the world up of automatic cameras and orbits).
-        self.up = natural_up(source)
         #: Whether non-planar splats are drawn as round points (:func:`hybrid_default`).
         self.hybrid = hybrid_default(source, self.source_options.hybrid)
-        self.model: Model = as_model(read_source(source, self.source_options)).colored(self.source_options.color,
-                                                                                        self.up)
+        read = read_source(source, self.source_options)
+        #: The up axis of the data (the world up of automatic cameras and orbits), and why
+        #: (:func:`~surfsplat.pipeline.sources.up_of`: stored, the file kind's, or guessed).
+        self.up, self.up_reason = up_of(source, read)
+        self.model: Model = as_model(read).colored(self.source_options.color, self.up)
+        self._told_up = False
         self._drawn: Model | None = None        # the model as splats, oriented outward where closed
         self._outward = False
         self._tree: Model | None = None         # the hierarchy a cut needs (built once for a cloud)
@@ -164,6 +167,9 @@ class View:
             raise InputError(f"camera must be a Camera, a CameraSpec or None, got {type(camera).__name__}")
         if not isinstance(camera, Camera):
             width, height = check_image_size(width, height)
+            if (camera is None or camera.up is None) and not self._told_up:
+                progress.message(self.up_reason)   # the data's up is used: say which and how to change it
+                self._told_up = True
         return resolve_camera(self.model, camera, width, height, default_up=self.up)
 
     # -- what is drawn ---------------------------------------------------------
@@ -262,6 +268,23 @@ class View:
         result = RenderResult(frame, given, None, time.perf_counter() - start, gpu_lod_tolerance=float(tolerance))
         check_coverage(frame, self.model)
         return result
+
+    def orbit(self, camera: Camera | CameraSpec | None = None, frames: int = 72, degrees: float = 360.0,
+              elevation: float | None = None, *, width: int = defaults.API_IMAGE_SIZE,
+              height: int = defaults.API_IMAGE_SIZE) -> list[Camera]:
+        """The cameras of a turntable: ``frames`` views ``degrees / frames`` apart about the data's up
+        axis (:func:`surfsplat.camera_path.orbit_cameras`), starting from ``camera`` (:meth:`camera`).
+        An automatic camera (None, or a CameraSpec without an eye) frames the whole orbit: the target
+        at the center of the model's bounds and the eye at the distance where every frame shows every
+        splat (so a scan cannot leave the picture in the back views); a placed eye keeps its distance."""
+        start = self.camera(camera, width, height)
+        placed = isinstance(camera, Camera) or (camera is not None and camera.eye is not None)
+        if placed:
+            return orbit_cameras(start, frames, degrees, elevation)
+        splats = self.sample(start).points()
+        margin = float(splats.radii.max()) if splats.u is not None and len(splats) else 0.0
+        return orbit_cameras(start, frames, degrees, elevation, points=splats.positions.astype(np.float64)
+                             + splats.origin, margin=margin)
 
     def frames(self, cameras: list[Camera], **render_args):
         """Yield the (H, W, 3) uint8 image of each camera (:meth:`render`'s other arguments), with

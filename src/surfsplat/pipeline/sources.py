@@ -14,18 +14,19 @@ from ..colors import check_color_source
 from ..errors import InputError
 from ..geometry.preprocess import NONPLANAR, preprocess
 from ..hierarchy import Hierarchy, load_hierarchy
+from ..hierarchy.storage import hierarchy_up
 from ..hierarchy.chunked import ChunkedHierarchy, chunked_up, is_chunked_hierarchy, open_chunked
 from ..io import Mesh, load, load_input
 from ..io.objects import from_object
+from ..io.ply import ply_up
+from ..orientation import DEMO_PREFIX, Z_UP_SUFFIXES, change_hint, model_up, stored_up, up_name
 from ..scenes import SCENES, demo_scene
 from .options import SourceOptions
 
 #: Suffix of hierarchy files (``surfsplat build``).
 HIERARCHY_SUFFIX = ".npz"
-#: Prefix naming a built-in scene as a source: ``"demo:torus"``.
-DEMO_PREFIX = "demo:"
 #: Suffixes of files whose z axis points up (LiDAR, E57 scans), drawn hybrid by default.
-Z_UP_SUFFIXES = (".las", ".laz", ".e57")
+LIDAR_SUFFIXES = Z_UP_SUFFIXES
 
 
 def is_hierarchy_file(source) -> bool:
@@ -40,7 +41,7 @@ def is_demo_source(source) -> bool:
 
 def is_lidar(source) -> bool:
     """Whether ``source`` names a LAS/LAZ or E57 file (drawn hybrid by default)."""
-    return isinstance(source, (str, Path)) and Path(source).suffix.lower() in Z_UP_SUFFIXES
+    return isinstance(source, (str, Path)) and Path(source).suffix.lower() in LIDAR_SUFFIXES
 
 
 def source_name(source) -> str:
@@ -61,16 +62,28 @@ def check_source(source) -> None:
         raise InputError(f"{source}: no such file (or {DEMO_PREFIX}NAME for a built-in scene)")
 
 
-def natural_up(source) -> tuple[float, float, float]:
-    """The up axis a source's data assume: +z for LAS/LAZ (LiDAR) and E57 (scanner) files, a chunked
-    hierarchy's own, else +y."""
-    if is_lidar(source):
-        return (0.0, 0.0, 1.0)
-    if isinstance(source, ChunkedHierarchy):  # the up of the file it was built from
-        return source.up
-    if is_chunked_hierarchy(source):
-        return chunked_up(source)
-    return (0.0, 1.0, 0.0)
+def natural_up(source, model=None) -> tuple[float, float, float]:
+    """The up axis to show a source with: :func:`up_of`'s, without the reason."""
+    return up_of(source, model)[0]
+
+
+def up_of(source, model=None) -> tuple[tuple[float, float, float], str]:
+    """The up axis to show a source with, and one sentence saying why and how to change it
+    (:func:`surfsplat.orientation.model_up`): the up stored in the file (a PLY's ``comment surfsplat
+    up``, a hierarchy's ``point_up``, a chunked hierarchy's manifest) or with the model object, else
+    its kind's (+z for LAS/LAZ/E57 files, +y for ``demo:`` scenes), else guessed from the shape of
+    the loaded ``model`` where one is given (flat in z: +z), else +y."""
+    if isinstance(source, (str, Path)) and not is_demo_source(source):
+        path = Path(source)
+        stored = (chunked_up(path) if is_chunked_hierarchy(path) else hierarchy_up(path) if is_hierarchy_file(path)
+                  else ply_up(path) if path.suffix.lower() == ".ply" and path.is_file() else None)
+        if stored is not None:
+            return stored, f"up {up_name(stored)} (stored in {path.name}); {change_hint(stored)}"
+    elif model is None:
+        stored = stored_up(source)   # a model object's own up
+        if stored is not None:
+            return model_up(source)
+    return model_up(model, source)
 
 
 def load_cloud(path: str | Path, noun: str = "points") -> SplatCloud:

@@ -159,4 +159,4 @@ def merge_in_pixels(cloud: SplatCloud, camera: Camera, supersample: int = 1, bin
               for name in ("positions", "normals", "colors", "u", "v") if getattr(single, name) is not None}
     attributes = None if cloud.attributes is None else {
         name: np.concatenate([values[kept], values[firsts]]) for name, values in cloud.attributes.items()}
-    return SplatCloud(**fields, attributes=attributes, origin=cloud.origin)
+    return cloud.with_arrays(**fields, attributes=attributes)

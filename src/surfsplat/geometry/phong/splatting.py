@@ -148,6 +148,7 @@ def phong_fit(cloud: SplatCloud, error: float | None = None, *, count: int | Non
                 k = int(np.clip(8 * n // count, MAX_NEIGHBOURS, MAX_COUNT_NEIGHBOURS))
             error, splats = search_count(samples, count, k, relax, source)
         out = _to_cloud(samples, splats, cloud.origin)
+        out.up = cloud.up
         report.message(f"  {len(out):,} Phong splats for {n:,} samples (error {error:.4g}, "
                        f"{n / len(out):.1f} samples per splat)")
     # members in the order of the validated input

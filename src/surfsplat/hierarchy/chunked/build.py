@@ -163,7 +163,7 @@ def build_chunked(source, output, *, k: int = 8, outliers: str = "drop", sharp_a
                 "bounds": {"min": [float(x) for x in grid.lo], "max": [float(x) for x in grid.hi]},
                 "grid": {"corner": [float(x) for x in grid.corner], "cell_size": float(grid.cell_size),
                          "dims": list(grid.dims)},
-                "up": [0.0, 0.0, 1.0] if stream.z_up else [0.0, 1.0, 0.0],
+                "up": None if stream.up is None else [float(x) for x in stream.up],   # None: unknown (guessed)
                 "points": int(sum(c["points"] for c in cells)), "nodes": int(sum(c["nodes"] for c in cells)),
                 "has_colors": bool(stream.has_colors),
                 # colormaps span the points' 2nd-98th percentiles

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...cloud import checked_up
 from ...errors import InputError
 from ...io.npz import npz_names, read_npz
 
@@ -80,11 +81,17 @@ def is_chunked_hierarchy(path) -> bool:
     return isinstance(path, (str, Path)) and (Path(path) / MANIFEST).is_file()
 
 
-def chunked_up(directory) -> tuple[float, float, float]:
+def chunked_up(directory) -> tuple[float, float, float] | None:
     """The up axis of the data a chunked hierarchy was built from (its manifest's ``up``: +z for
-    LAS/LAZ input, else +y)."""
-    up = read_manifest(directory).get("up", (0.0, 1.0, 0.0))
-    return tuple(float(x) for x in up)
+    LAS/LAZ input, a PLY's stored up), or None where the input did not say (``up`` null or absent;
+    :func:`surfsplat.orientation.model_up` then guesses). InputError for a malformed ``up``."""
+    up = read_manifest(directory).get("up")
+    if up is None:
+        return None
+    try:
+        return checked_up(up)
+    except InputError:
+        raise InputError(f"{Path(directory) / MANIFEST}: malformed 'up' {up!r} (expected 3 numbers)") from None
 
 
 def write_manifest(directory: Path, manifest: dict) -> None:

@@ -47,7 +47,7 @@ from ...io.npz import read_npz
 from ..lod import Refinements, check_point_budget, refined_cut, refinements, select
 from ..model import Hierarchy, LodShading, Selection
 from ..storage import load_hierarchy
-from .layout import (CELLS, COARSE, NODE_FILES, NODES, POINT_FILES, PREVIEW, TOP, check_size, open_points,
+from .layout import (chunked_up, CELLS, COARSE, NODE_FILES, NODES, POINT_FILES, PREVIEW, TOP, check_size, open_points,
                      read_manifest, read_nodes)
 
 #: Cells kept loaded (node arrays in memory, splats memory-mapped).
@@ -122,7 +122,7 @@ class ChunkedHierarchy:
         self.path = Path(path)
         self.manifest = read_manifest(self.path)
         self.origin = np.array(self.manifest["origin"], dtype=np.float64)
-        self.up = tuple(float(x) for x in self.manifest.get("up", (0.0, 1.0, 0.0)))
+        self.up = chunked_up(self.path)   # None where the input did not say (guessed when shown)
         self.cells = self.manifest["cells"]
         try:
             self.attributes = {str(a["name"]): np.dtype(a["dtype"]) for a in self.manifest.get("attributes", [])}
@@ -143,6 +143,7 @@ class ChunkedHierarchy:
                              f"{len(self.cells)} cells")
         self.points = _read_preview(self.path / self.manifest.get("preview", PREVIEW), self.origin,
                                     list(self.attributes))
+        self.points.up = self.up
         roots = self.cells
         self._root_center = np.array([c["root"]["position"] for c in roots], dtype=np.float64)
         self._root_radius = np.array([c["root"]["radius"] for c in roots], dtype=np.float64)

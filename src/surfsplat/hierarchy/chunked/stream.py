@@ -27,6 +27,8 @@ from ...errors import InputError
 from ...io import load
 from ...io.las import check_header, las_attributes, rgb_scale
 from ...io.ply_layout import TYPE_SIZES, read_layout
+from ...io.ply import ply_up
+from ...orientation import Z_UP
 from .layout import cell_key
 
 #: Files of a folder of tiles that are read.
@@ -59,8 +61,9 @@ class PointStream:
 
     Attributes: ``path``, ``count`` (points), ``has_normals``, ``has_colors``, ``kind``
     ("las", "ply", "whole" or "tiles"), ``header_bounds`` (``(lo, hi)`` float64 from LAS headers,
-    else None), ``z_up`` (LAS/LAZ input), ``files``: ``(path, row of its first point)`` per file,
-    ``attributes``: {name: dtype} of the point attributes every chunk carries.
+    else None), ``up``: the input's up axis where its files say (LAS/LAZ: +z; a PLY written by
+    surfsplat: its stored up; tiles: theirs when they all agree), else None; ``files``: ``(path, row
+    of its first point)`` per file, ``attributes``: {name: dtype} of the point attributes every chunk carries.
     """
 
     def __init__(self, path, chunk_points: int):
@@ -77,7 +80,7 @@ class PointStream:
             return
         if not self.path.is_file():
             raise InputError(f"{self.path}: no such file")
-        self.z_up = suffix in (".las", ".laz")
+        self.up = Z_UP if suffix in (".las", ".laz") else ply_up(self.path) if suffix == ".ply" else None
         if suffix in (".las", ".laz"):
             self._open_las()
         elif suffix == ".ply" and self._open_ply():
@@ -86,6 +89,7 @@ class PointStream:
             self.kind = "whole"
             cloud = load(self.path)
             self._whole = cloud
+            self.up = cloud.up
             self.count = len(cloud)
             self.has_normals = cloud.normals is not None
             self.has_colors = cloud.colors is not None
@@ -104,7 +108,8 @@ class PointStream:
         self.count = int(sum(t.count for t in self._tiles))
         self.has_normals = all(t.has_normals for t in self._tiles)
         self.has_colors = all(t.has_colors for t in self._tiles)
-        self.z_up = all(t.z_up for t in self._tiles)
+        ups = {t.up for t in self._tiles}
+        self.up = ups.pop() if len(ups) == 1 else None
         self.attributes = {name: dtype for name, dtype in self._tiles[0].attributes.items()
                            if all(t.attributes.get(name) == dtype for t in self._tiles)}
         if all(t.header_bounds is not None for t in self._tiles):
