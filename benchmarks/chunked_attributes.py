@@ -85,7 +85,7 @@ def main() -> None:
         build_s = time.perf_counter() - start
         model = open_chunked(report.path)
         attribute_bytes = 0   # their share of the files: per-point files and node members
-        for i, cell in enumerate(model.cells):
+        for cell in model.cells:
             attribute_bytes += sum(size for name, size in cell["files"].items() if name.startswith("attribute_"))
             with np.load(report.path / "cells" / cell["key"] / "nodes.npz") as nodes:
                 attribute_bytes += sum(nodes[name].nbytes for name in nodes.files if name.startswith("node_attribute_"))

@@ -141,7 +141,7 @@ def peers(frames: int = 5) -> list[list]:
         light = np.asarray(view["light"], float) / np.linalg.norm(view["light"])
         lights = Lights(directions=[tuple(light)], ambient=0.2, diffuse=0.8, specular=0.3, shininess=32)
         drawn = {}
-        for name, coverage, tag in versions:
+        for _name, coverage, tag in versions:
             wall, cpu = time.perf_counter(), time.process_time()
             cloud = preprocess(source, coverage=coverage)
             wall, cpu = time.perf_counter() - wall, time.process_time() - cpu

@@ -193,7 +193,7 @@ def bunny_experiments(renderer: Renderer, args, out: Path) -> tuple[list, list, 
     # 2. sweeps
     sweep = []
     curves = {}
-    for count, cloud in sorted(phong_sets.items()):
+    for _count, cloud in sorted(phong_sets.items()):
         r = measure_modes(renderer, cloud, camera, truth)
         for mode, q in r.items():
             curves.setdefault(("Phong geometry", mode), []).append((len(cloud), q["psnr_inner"], q["ssim"]))

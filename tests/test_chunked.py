@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from surfsplat import api, pipeline
+from surfsplat import pipeline
 from surfsplat.cli import main
 from surfsplat.cloud import SplatCloud
 from surfsplat.errors import InputError

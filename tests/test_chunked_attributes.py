@@ -15,7 +15,7 @@ import pytest
 from PIL import Image
 from test_chunked import OFFSET, torus_points
 
-from surfsplat import api, pipeline
+from surfsplat import pipeline
 from surfsplat.cli import main
 from surfsplat.colors import class_colors
 from surfsplat.errors import InputError

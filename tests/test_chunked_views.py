@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from test_chunked import BOTH_SIDES, OFFSET, torus_points, write_ply
 
-from surfsplat import api, pipeline
+from surfsplat import pipeline
 from surfsplat.cli import main
 from surfsplat.geometry.preprocess import preprocess
 from surfsplat.hierarchy import build_hierarchy

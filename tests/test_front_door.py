@@ -15,7 +15,7 @@ from surfsplat import SplatCloud
 from surfsplat.cli import main
 from surfsplat.colors import ColorOptions, attribute_values, check_color_source, check_colormap
 from surfsplat.errors import InputError
-from surfsplat.io import load, save_ply
+from surfsplat.io import save_ply
 from surfsplat.io.atomic import atomic_path, same_file
 
 

@@ -6,7 +6,7 @@ import surfsplat
 import numpy as np
 import pytest
 
-from surfsplat import api, pipeline
+from surfsplat import pipeline
 from surfsplat.errors import InputError
 from surfsplat.hierarchy import build_hierarchy, select
 from surfsplat.hierarchy.lod import projected_size

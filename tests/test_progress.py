@@ -75,7 +75,7 @@ def test_warnings_and_messages_print_above_the_bar():
         with progress.stage("outer", total=3, unit="steps") as outer:
             outer.update()
             time.sleep(0.02)
-            warnings.warn("careful now")
+            warnings.warn("careful now", stacklevel=1)
             progress.message("a note")
             with progress.stage("inner"):
                 time.sleep(0.02)
@@ -97,7 +97,7 @@ def test_without_a_terminal_one_line_a_stage_and_no_bar():
             pass
         with progress.stage("outer", 5):
             with progress.stage("inner", 5):
-                warnings.warn("careful")
+                warnings.warn("careful", stacklevel=1)
         with progress.stage("frames", unit="frames", total=20) as frames:
             frames.update(20)
         with pytest.raises(ValueError):

@@ -13,7 +13,7 @@ from .camera import Camera
 from .camera_path import orbit_cameras
 from .io import Mesh, load_mesh
 from .lighting import Lights
-from .pipeline import (CameraSpec, LodOptions, RenderResult, SourceOptions, View, check_coverage, check_image_size,
+from .pipeline import (CameraSpec, LodOptions, SourceOptions, View, check_coverage, check_image_size,
                        check_render_args, check_source, natural_up)
 from .pipeline.framing import resolve_camera
 from .pipeline.models import as_model

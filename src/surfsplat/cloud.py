@@ -81,7 +81,7 @@ class SplatCloud:
     normal_field: np.ndarray | None = None
     clip_lines: np.ndarray | None = None
     attributes: dict[str, np.ndarray] | None = None
-    origin: np.ndarray | None = None
+    origin: np.ndarray = None  # type: ignore[assignment]  # None given: zeros (__post_init__)
     up: tuple[float, float, float] | None = None
 
     _OPTIONAL = ("normals", "colors", "u", "v", "normal_field", "clip_lines")

@@ -56,7 +56,7 @@ class Mesh:
     corner_normals: np.ndarray | None = None
     merged_vertices: int = field(default=0, compare=False)
     collapsed_faces: int = field(default=0, compare=False)
-    origin: np.ndarray | None = field(default=None, compare=False)
+    origin: np.ndarray = field(default=None, compare=False)  # type: ignore[assignment]  # None given: zeros
 
     def __post_init__(self) -> None:
         if self.origin is None:

@@ -10,7 +10,7 @@ looked at in this module only.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -21,7 +21,7 @@ from ..colors import ELEVATION, ColorOptions, colorize
 from ..errors import InputError
 from ..geometry.closed import closed_orientation, flipped_normals, is_closed_surface, outward_splats
 from ..geometry.sampling import samples_for_pixels, surface_splats
-from ..hierarchy import Hierarchy, Selection, build_hierarchy, select
+from ..hierarchy import Hierarchy, LodShading, Selection, build_hierarchy, select
 from ..hierarchy.chunked import ChunkedHierarchy
 from ..io import Mesh
 from .options import SourceOptions
@@ -31,12 +31,17 @@ class Model(Protocol):
     """What every model kind answers (:class:`CloudModel`, :class:`HierarchyModel`,
     :class:`ChunkedModel`, :class:`MeshModel`)."""
 
-    #: The object wrapped (a SplatCloud, Hierarchy, ChunkedHierarchy or Mesh).
-    data: object
-    #: Whether it is cut per view (a hierarchy, in memory or chunked).
-    is_tree: bool
-    #: Whether its splats are all in memory (a chunked hierarchy reads cells per view).
-    in_memory: bool
+    @property
+    def data(self) -> Any:
+        """The object wrapped (a SplatCloud, Hierarchy, ChunkedHierarchy or Mesh)."""
+
+    @property
+    def is_tree(self) -> bool:
+        """Whether it is cut per view (a hierarchy, in memory or chunked)."""
+
+    @property
+    def in_memory(self) -> bool:
+        """Whether its splats are all in memory (a chunked hierarchy reads cells per view)."""
 
     def points(self) -> SplatCloud:
         """The original points (positions, origin; splat axes where known), for framing and bounds."""
@@ -50,7 +55,7 @@ class Model(Protocol):
     def tree(self) -> "Model":
         """The model as a hierarchy (a cloud's point-octree built; a hierarchy as it is)."""
 
-    def cut(self, camera: Camera, tolerance: float, *, cull_backfaces: bool = False, shading: str = "fit",
+    def cut(self, camera: Camera, tolerance: float, *, cull_backfaces: bool = False, shading: LodShading = "fit",
             point_budget: int | None = None) -> tuple[SplatCloud, Selection | None]:
         """The splats to draw for ``camera`` (world) and the LOD selection (None for a cloud)."""
 
@@ -255,7 +260,7 @@ def _local_range(color: ColorOptions, points: SplatCloud, up):
 
 
 def lod_splats(hierarchy: Hierarchy, camera: Camera, lod_tolerance: float, *, cull_backfaces: bool = False,
-               lod_shading: str = "fit", point_budget: int | None = None) -> tuple[SplatCloud, Selection]:
+               lod_shading: LodShading = "fit", point_budget: int | None = None) -> tuple[SplatCloud, Selection]:
     """The splats of a hierarchy to draw for a view (``camera`` in world coordinates), and the
     selection (Pajarola 2003, sec. 5.1): nodes whose projected ellipse is at most ``lod_tolerance``
     pixels wide are drawn as one splat, others refined; nodes outside the view frustum (and with

@@ -138,4 +138,5 @@ class LodOptions:
     @property
     def cuts(self) -> bool:
         """Whether a cloud needs a hierarchy for these options (a tolerance > 0 or a budget)."""
-        return self.point_budget is not None or (self.tolerance not in (None, LOD_AUTO) and self.tolerance > 0)
+        tolerance = self.tolerance
+        return self.point_budget is not None or (isinstance(tolerance, (int, float)) and tolerance > 0)

@@ -25,7 +25,7 @@ from ..camera_path import orbit_cameras
 from ..errors import EmptyFrameWarning, InputError
 from ..geometry.closed import automatic_culling
 from ..hierarchy import Selection
-from ..hierarchy.sequential import sequential_layout
+from ..hierarchy.sequential import SequentialLayout, sequential_layout
 from ..lighting import Lights
 from ..rendering.frame import Frame, check_background
 from ..rendering.lod_auto import auto_merged
@@ -155,7 +155,7 @@ class View:
         self._drawn: Model | None = None        # the model as splats, oriented outward where closed
         self._outward = False
         self._tree: Model | None = None         # the hierarchy a cut needs (built once for a cloud)
-        self._layout = None                     # the GPU LOD layout of the hierarchy
+        self._layout: SequentialLayout | None = None   # the GPU LOD layout of the hierarchy
 
     # -- cameras -------------------------------------------------------------
 
@@ -237,7 +237,7 @@ class View:
         selection = None
         if strategy == "cpu":
             cloud, selection = self.tree(camera).cut(camera, cut_tolerance(self.lod, supersample),
-                                                     cull_backfaces=options.visibility.cull_backfaces,
+                                                     cull_backfaces=bool(options.visibility.cull_backfaces),
                                                      shading=self.lod.shading, point_budget=self.lod.point_budget)
             tree = self.tree(camera)
         else:

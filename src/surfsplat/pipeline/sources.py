@@ -98,15 +98,14 @@ def as_splats(source: SplatCloud | str | Path, options: SourceOptions | None = N
     """A render-ready SplatCloud from a cloud or a point file, preprocessed if needed (``options``:
     k neighbours, outliers, sharp features)."""
     options = options or SourceOptions()
-    if isinstance(source, (str, Path)):
-        source = load_cloud(source)
-    if not isinstance(source, SplatCloud):
+    cloud = load_cloud(source) if isinstance(source, (str, Path)) else source
+    if not isinstance(cloud, SplatCloud):
         raise InputError(f"expected a SplatCloud or a file path, got {type(source).__name__}")
-    if not source.has_splats:
-        check_color_source(source, options, added=(NONPLANAR,))   # a misspelt attribute fails before the work
-        source = preprocess(source, k=options.k, sharp_angle=options.raw_sharp_angle, outliers=options.outliers,
-                            mark_nonplanar=True)
-    return source
+    if not cloud.has_splats:
+        check_color_source(cloud, options, added=(NONPLANAR,))   # a misspelt attribute fails before the work
+        cloud = preprocess(cloud, k=options.k, sharp_angle=options.raw_sharp_angle, outliers=options.outliers,
+                           mark_nonplanar=True)
+    return cloud
 
 
 def read_source(source, options: SourceOptions | None = None):

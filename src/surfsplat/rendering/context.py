@@ -63,7 +63,7 @@ def gl_flush() -> bool:
         for name in ("GL", "OpenGL", "opengl32"):   # GLVND's libGL / libOpenGL, macOS, Windows
             path = ctypes.util.find_library(name)
             try:
-                _gl_flush = getattr(ctypes.CDLL(path), "glFlush") if path else False
+                _gl_flush = ctypes.CDLL(path).glFlush if path else False
             except (OSError, AttributeError):
                 continue
             if _gl_flush:

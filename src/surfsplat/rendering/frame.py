@@ -74,7 +74,7 @@ class Frame:
     depth: np.ndarray
     weight: np.ndarray
     camera: Camera
-    alpha: np.ndarray | None = None
+    alpha: np.ndarray = None  # type: ignore[assignment]  # None given: 1 where weight > 0 (__post_init__)
     background: tuple = (1.0, 1.0, 1.0)
 
     def __post_init__(self) -> None:
