@@ -76,10 +76,11 @@ class VisibilityOptions:
             for closed models with outward normals; it avoids blending across
             silhouette edges within depth_epsilon, and the back side's splats
             that a flat disk pushes past a curved silhouette (drawn as a dark rim
-            by two-sided lighting). None (default): automatic, on for the surface
-            of a closed mesh (its splats are oriented outward,
-            :func:`surfsplat.geometry.closed.is_closed_surface`), off for point
-            clouds and open surfaces (two-sided).
+            by two-sided lighting). None (default): automatic, which never culls
+            (:func:`surfsplat.geometry.closed.automatic_culling`: a back-facing
+            splat may be the only one covering a pixel of the front); closed
+            meshes and clouds are still oriented outward, so True keeps their
+            visible side.
             Splats with a normal field are dropped only when no normal of the
             field faces the eye (Botsch 2004, sec. 4.1). Hierarchy selections
             use it for normal-cone culling too.
