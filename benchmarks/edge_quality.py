@@ -1,4 +1,4 @@
-"""Antialiased edges: what supersampling gives, and why fold edges look wrong (issue "Antialiased edges").
+"""Antialiased edges: what supersampling gives, and why fold edges look wrong.
 
 Ground truth: ``render_mesh`` (the mesh, per-pixel Phong shading of its interpolated normals, 4 x 4
 supersampled), same camera and lights (one light with highlights, as benchmarks/phong_experiments.py).

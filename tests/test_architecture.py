@@ -14,7 +14,7 @@ from scipy.sparse.csgraph import connected_components
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "src" / "surfsplat"
-#: The largest module allowed, in lines (issue "one front door").
+#: The largest module allowed, in lines.
 MAX_MODULE_LINES = 800
 
 

@@ -1,4 +1,4 @@
-"""Chunked hierarchies (issue 16): streamed build in grid cells with halos on Dask, lazy opening.
+"""Chunked hierarchies: streamed build in grid cells with halos on Dask, lazy opening.
 
 The reference is the in-memory pipeline on the same points (float32 positions relative to the
 chunked build's origin): ``preprocess`` then ``build_hierarchy``.

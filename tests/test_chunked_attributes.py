@@ -1,4 +1,4 @@
-"""Point attributes in chunked hierarchies (issue 16): LAS dimensions such as classification and
+"""Point attributes in chunked hierarchies: LAS dimensions such as classification and
 intensity kept per cell (points in octree order, nodes by majority vote or mean, as the in-memory
 hierarchy), carried by views, and ``--color-by`` on a chunked model.
 
@@ -108,7 +108,7 @@ def test_version_1_directories_without_attributes_still_open(lidar, tmp_path):
     shutil.copytree(path, old)
     manifest = json.loads((old / "manifest.json").read_text())
     assert manifest["format_version"] == 2
-    manifest["format_version"] = 1   # what session 4 wrote: no attribute table, no attribute files read
+    manifest["format_version"] = 1   # what format version 1 wrote: no attribute table, no attribute files read
     del manifest["attributes"]
     (old / "manifest.json").write_text(json.dumps(manifest))
     model = open_chunked(old)

@@ -1,4 +1,4 @@
-"""Views of chunked hierarchies (issue 16): bounded memory (cells cut and gathered one at a time)
+"""Views of chunked hierarchies: bounded memory (cells cut and gathered one at a time)
 and the point budget as one priority order over every cell (Potree's, Schuetz 2016).
 
 The budget's reference is a brute force: every refinement of the top hierarchy and of every cell

@@ -267,7 +267,7 @@ def test_the_main_function_leaves_the_process_settings_alone(tmp_path, capsys):
 
 
 def test_a_mesh_renders_its_surface_by_default(tmp_path, capsys, shared_data):
-    """Issue "real data in": `render featuretype.ply` draws the sampled surface (welded, crease
+    """`render featuretype.ply` draws the sampled surface (welded, crease
     normals, clip lines), close to `render --mesh` of the same file; `--vertices` the old cloud."""
     import trimesh
 

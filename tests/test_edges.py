@@ -1,4 +1,4 @@
-"""Antialiased silhouettes without supersampling (issue 12): a rim pixel's alpha is the area of the
+"""Antialiased silhouettes without supersampling: a rim pixel's alpha is the area of the
 pixel the splats' disks cover (``VisibilityOptions.edge_coverage``, splat_fragment.glsl, normalize.frag).
 
 References: the exact area of a pixel box on one side of a straight line (brute force on a fine grid,

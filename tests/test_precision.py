@@ -1,4 +1,4 @@
-"""Precision independent of where the data sit (issue 17, item 3).
+"""Precision independent of where the data sit.
 
 The same torus (major radius 0.5, tube 0.2, splats about 8 mm apart) is rendered at the origin,
 moved to offsets 1e6 and 1e7 (arrays, a LAS file with scale 0.001, a PLY with double

@@ -1,4 +1,4 @@
-"""Reliability (issue "no traceback, no hang, no lost file, no silently wrong picture"): every fault a
+"""Reliability (no traceback, no hang, no lost file, no silently wrong picture): every fault a
 fuzz run found, reproduced with a small generated file, and a small seeded fuzz of the readers."""
 
 from __future__ import annotations

@@ -187,7 +187,7 @@ def psnr(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
 
 @pytest.mark.parametrize("technique, min_psnr", [("ewa", 45.0), ("flat", 45.0)])
 def test_sphere_against_exact_ray_cast(renderer, technique, min_psnr):
-    """Issue 2: sampled sphere vs exact per-pixel sphere, 512x512: no holes, PSNR asserted.
+    """Sampled sphere vs exact per-pixel sphere, 512x512: no holes, PSNR asserted.
 
     Measured on llvmpipe: ewa 57.2 dB, flat 53.8 dB (400 k splats).
     """
@@ -319,7 +319,7 @@ def exact_cube(cam: Camera, half: float = 0.5):
 
 @pytest.mark.parametrize("technique", ["flat", "ewa", "perspective"])
 def test_clipped_cube_has_sharp_edges_and_corners(renderer, technique):
-    """Issue 3: silhouette and edges within 1 px of the analytic cube, no blur across edges,
+    """Silhouette and edges within 1 px of the analytic cube, no blur across edges,
     no holes at the corners (one flat color per face, unlit; splats ~7 px wide).
 
     Without clip lines the same splats leak 110-400 px beyond the silhouette and
@@ -384,7 +384,7 @@ def exact_sphere_cube(cam: Camera, half: float = 0.5, radius: float = 0.65):
 
 @pytest.mark.parametrize("technique", ["flat", "ewa", "perspective"])
 def test_csg_solid_curved_and_flat_faces_meet_at_sharp_edges(renderer, technique):
-    """Issue 3: the CSG demo (cube & sphere): no holes, no leaks, and the flat faces' and the
+    """The CSG demo (cube & sphere): no holes, no leaks, and the flat faces' and the
     sphere's colors do not bleed across the circular edges by more than 1 px.
 
     The clip lines are straight, the edges circles: opaque `flat` disks leave single-pixel
@@ -442,7 +442,7 @@ def test_separate_sides_keep_a_hidden_back_face_out(renderer, technique):
     assert np.abs(back_only.color[ndimage.binary_erosion(back_only.mask, iterations=4)] - (0, 0, 1)).max() < 1e-3
 
 
-# -- supersampling, tiles, transparency (issue 12) ------------------------------------------------
+# -- supersampling, tiles, transparency ----------------------------------------------------------
 
 @pytest.fixture(scope="module")
 def torus_view():

@@ -1,4 +1,4 @@
-"""Robust splats from raw points (issue "Real data in, the right picture out", part 2): duplicates,
+"""Robust splats from raw points: duplicates,
 stray points, isolated clusters, scan lines, non-planar 'trees'; sizes bounded, surfaces hole-free,
 counts reported. Synthetic faulty clouds from surfsplat.scenes_faulty (a plane z = 0 plus faults)."""
 

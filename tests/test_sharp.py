@@ -111,7 +111,7 @@ def mesh_cube() -> SplatCloud:
 
 
 def test_mesh_cube_lines_are_the_exact_edges(mesh_cube):
-    """Issue: samples of a cube with --sharp-angle 30: a line exactly where a splat crosses an edge,
+    """Samples of a cube with --sharp-angle 30: a line exactly where a splat crosses an edge,
     two at corners, none elsewhere; the lines pass through the true edges (to float precision)."""
     cloud = mesh_cube
     assert cloud.has_splats and cloud.clip_lines is not None and len(cloud) == 20_000
@@ -204,12 +204,12 @@ def check_cube_rendering(renderer, cloud: SplatCloud, name: str) -> None:
 
 
 def test_mesh_cube_renders_sharp(renderer, mesh_cube):
-    """Issue: the sampled cube (random samples, 20 k) rendered with its clip lines is the exact cube."""
+    """The sampled cube (random samples, 20 k) rendered with its clip lines is the exact cube."""
     check_cube_rendering(renderer, mesh_cube, "mesh")
 
 
 def test_raw_cube_points_get_lines_and_exact_normals(renderer):
-    """Issue: positions only (random samples of a rotated cube, no normals) -> preprocess with
+    """Positions only (random samples of a rotated cube, no normals) -> preprocess with
     sharp_angle 30: PCA normals next to edges average two faces; re-fitted to the point's own
     face they are exact; lines on the edges (as the mesh's), and the exact silhouette."""
     mesh = rotated_box()
@@ -262,7 +262,7 @@ def project_mesh_coverage(mesh: Mesh, cam: Camera) -> np.ndarray:
 
 
 def test_cad_part_with_sharp_edges(renderer, shared_data):
-    """Issue: the CAD part (featuretype.ply: duplicated vertices along creases, long thin
+    """The CAD part (featuretype.ply: duplicated vertices along creases, long thin
     triangles, steps, holes, concave and convex edges), 200 k samples with sharp_angle 30.
 
     Measured: 14.4 % of the samples get lines, as expected from the sharp edges' length
