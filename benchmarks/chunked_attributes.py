@@ -85,7 +85,7 @@ def main() -> None:
         build_s = time.perf_counter() - start
         model = open_chunked(report.path)
         attribute_bytes = 0   # their share of the files: per-point files and node members
-        for i, cell in enumerate(model.cells):
+        for cell in model.cells:
             attribute_bytes += sum(size for name, size in cell["files"].items() if name.startswith("attribute_"))
             with np.load(report.path / "cells" / cell["key"] / "nodes.npz") as nodes:
                 attribute_bytes += sum(nodes[name].nbytes for name in nodes.files if name.startswith("node_attribute_"))
@@ -105,10 +105,12 @@ def main() -> None:
             f"{len(scene.cloud):,} points (ground, 7 houses, 9 trees; LAS point format 3), chunked build "
             f"{build_s:.1f} s into {report.cells} cells, {report.bytes / 2**20:.1f} MiB "
             f"({report.bytes / report.points:.0f} B a splat, of which {attribute_bytes / report.points:.0f} B the "
-            f"attributes' points and nodes); {len(model.attributes)} attributes kept: {', '.join(model.attributes)}.\n\n"
+            f"attributes' points and nodes); {len(model.attributes)} attributes kept: "
+            f"{', '.join(model.attributes)}.\n\n"
             f"Oblique view, {WIDTH}x{HEIGHT} `ewa`, LOD tolerance 1 px; in memory = the LAS file, its hierarchy "
             f"built on loading (render time includes preprocessing and building).\n\n"
-            "| colour by | chunked render s | in memory s | PSNR chunked vs in memory | pixels in palette colours (chunked / in memory) |\n"
+            "| colour by | chunked render s | in memory s | PSNR chunked vs in memory "
+            "| pixels in palette colours (chunked / in memory) |\n"
             "|---|---|---|---|---|\n")
     for r in rows:
         share = "-" if r["palette"] is None else f"{r['palette'][0]:.3f} / {r['palette'][1]:.3f}"
