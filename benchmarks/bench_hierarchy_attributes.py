@@ -76,7 +76,8 @@ def main() -> None:
             path = save_hierarchy(build_hierarchy(c), Path(tmp) / "h.npz", overwrite=True)
             rows.append([label, n, round(1000 * seconds, 1), round(path.stat().st_size / 2**20, 1)])
     write_table("hierarchy_attributes", ["step", "points", "ms (fastest)", "file MiB"], rows,
-                machine_description() + f", {len(topo['point_start']):,} nodes, {len(topo['level_offsets']) - 1} levels")
+                machine_description() + f", {len(topo['point_start']):,} nodes, "
+                f"{len(topo['level_offsets']) - 1} levels")
 
 
 if __name__ == "__main__":

@@ -98,7 +98,8 @@ def runner(argv: list[str]) -> None:
     timer.mark("setup_s")
     image, times = time_frames(render_once, args.repeat)
     save_png(args.out, np.round(np.clip(image, 0.0, 1.0) * 255.0).astype(np.uint8))
-    suffix = "" if args.lod_tolerance is None else f"_{'gpu_' if args.lod_mode == 'gpu' else ''}lod_{args.lod_tolerance}"
+    suffix = ("" if args.lod_tolerance is None
+              else f"_{'gpu_' if args.lod_mode == 'gpu' else ''}lod_{args.lod_tolerance}")
     suffix += "_raster" if args.no_compute else ""
     report(f"surfsplat_{args.technique}{suffix}", args, len(cloud), times, timer)
 

@@ -105,10 +105,12 @@ def main() -> None:
             f"{len(scene.cloud):,} points (ground, 7 houses, 9 trees; LAS point format 3), chunked build "
             f"{build_s:.1f} s into {report.cells} cells, {report.bytes / 2**20:.1f} MiB "
             f"({report.bytes / report.points:.0f} B a splat, of which {attribute_bytes / report.points:.0f} B the "
-            f"attributes' points and nodes); {len(model.attributes)} attributes kept: {', '.join(model.attributes)}.\n\n"
+            f"attributes' points and nodes); {len(model.attributes)} attributes kept: "
+            f"{', '.join(model.attributes)}.\n\n"
             f"Oblique view, {WIDTH}x{HEIGHT} `ewa`, LOD tolerance 1 px; in memory = the LAS file, its hierarchy "
             f"built on loading (render time includes preprocessing and building).\n\n"
-            "| colour by | chunked render s | in memory s | PSNR chunked vs in memory | pixels in palette colours (chunked / in memory) |\n"
+            "| colour by | chunked render s | in memory s | PSNR chunked vs in memory "
+            "| pixels in palette colours (chunked / in memory) |\n"
             "|---|---|---|---|---|\n")
     for r in rows:
         share = "-" if r["palette"] is None else f"{r['palette'][0]:.3f} / {r['palette'][1]:.3f}"

@@ -270,7 +270,8 @@ def supersampling(model: dict, renderer, ks, images: Path, docs: Path | None = N
         rows.append(base | {"technique": "ewa two-sided (not culled)", "splats": len(model["splats"]),
                             "K": max(ks), "frame_s": seconds} | scores(kept["two-sided"], truth, edges))
         print(rows[-1], flush=True)
-    if docs is not None and (1, False) in kept:   # the documentation's crops: the window where plain ewa at K = 1 errs most
+    # the documentation's crops: the window where plain ewa at K = 1 errs most
+    if docs is not None and (1, False) in kept:
         window = worst_window(np.abs(kept[(1, False)].color - truth.color).max(axis=2), edges)
         panels = [(crop(truth.color, window, 3), "mesh 4x4 (truth)"), (crop(mesh1.color, window, 3), "mesh 1 spp"),
                   (crop(kept[(1, False)].color, window, 3), "ewa K=1")]

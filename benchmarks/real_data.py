@@ -123,7 +123,8 @@ def inputs(folder: Path) -> list[tuple[str, Path, bool]]:
     env = dict(os.environ, PYTHONPATH=str(SRC))
     subprocess.run([sys.executable, "-c", "import sys; from surfsplat.scenes_faulty import faulty_scan; "
                     "from surfsplat.io import save_ply; from surfsplat import SplatCloud; "
-                    "c = faulty_scan().cloud; save_ply(SplatCloud(c.positions, colors=c.colors), sys.argv[1], overwrite=True)",
+                    "c = faulty_scan().cloud; "
+                    "save_ply(SplatCloud(c.positions, colors=c.colors), sys.argv[1], overwrite=True)",
                     str(faulty)], env=env, check=True)
     return [("featuretype.ply (CAD mesh)", DATA / "featuretype.ply", True),
             ("featuretype soup (PLY)", soup, True),

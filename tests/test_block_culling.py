@@ -64,7 +64,8 @@ def test_dropped_blocks_hold_only_splats_outside_the_view(gl_renderer, torus, ti
         camera = gpu.local_camera(close_view(torus))
         visible = gpu.visible_blocks(camera, FRUSTUM_MARGIN_PX, tile)
         assert 0 < np.count_nonzero(~visible) < len(visible)
-        dropped = np.concatenate([np.arange(b * BLOCK, min((b + 1) * BLOCK, gpu.count)) for b in np.flatnonzero(~visible)])
+        dropped = np.concatenate([np.arange(b * BLOCK, min((b + 1) * BLOCK, gpu.count))
+                                  for b in np.flatnonzero(~visible)])
         m, f = camera.view_matrix, camera.focal_px
         corners = np.stack([(position[dropped] + su * u[dropped] + sv * v[dropped]) @ m[:3, :3].T + m[:3, 3]
                             for su in (-1, 1) for sv in (-1, 1)], axis=1)   # (n, 4, 3) camera space
@@ -140,8 +141,8 @@ def test_near_blocks_of_quads_far_away_become_points(gl_renderer, monkeypatch, t
         options = RenderOptions()
         monkeypatch.setattr(Renderer, "_drawn_ranges", global_ranges)
         before = renderer.render(gpu, camera, technique, Lights(), options)
-        global_quads, _ = global_ranges(renderer, gpu, gpu.local_camera(camera), renderer_module.get_technique(technique),
-                                        options, 1)
+        global_quads, _ = global_ranges(renderer, gpu, gpu.local_camera(camera),
+                                        renderer_module.get_technique(technique), options, 1)
         monkeypatch.undo()
         monkeypatch.setattr(Renderer, "_drawn_ranges", spy)
         after = renderer.render(gpu, camera, technique, Lights(), options)

@@ -43,7 +43,8 @@ def quaternion(R: np.ndarray) -> list[float]:
     j, k = (i + 1) % 3, (i + 2) % 3
     s = math.sqrt(1.0 + R[i, i] - R[j, j] - R[k, k]) * 2
     q = [0.0] * 4
-    q[0], q[1 + i], q[1 + j], q[1 + k] = (R[k, j] - R[j, k]) / s, s / 4, (R[j, i] + R[i, j]) / s, (R[k, i] + R[i, k]) / s
+    q[0], q[1 + i], q[1 + j], q[1 + k] = ((R[k, j] - R[j, k]) / s, s / 4, (R[j, i] + R[i, j]) / s,
+                                          (R[k, i] + R[i, k]) / s)
     return q
 
 
@@ -108,7 +109,8 @@ def test_colmap_round_trip(tmp_path, model, extra):
 def nerf_data(with_size=True):
     frames = []
     for i, camera in enumerate(CAMERAS[:1]):
-        frames.append({"file_path": f"./train/r_{i}.png", "transform_matrix": np.linalg.inv(camera.view_matrix).tolist()})
+        frames.append({"file_path": f"./train/r_{i}.png",
+                       "transform_matrix": np.linalg.inv(camera.view_matrix).tolist()})
     camera = CAMERAS[0]
     angle_x = 2 * math.atan(0.5 * camera.width / camera.focal_px)
     data = {"camera_angle_x": angle_x, "frames": frames}

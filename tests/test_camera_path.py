@@ -124,7 +124,8 @@ def test_cli_turntable_along_a_path(tmp_path, capsys):
         assert main(["-q", "render", str(cloud), "--camera", str(camera), "-o", str(still), "--force"]) == 0
         assert np.abs(frame - np.asarray(Image.open(still), dtype=np.float64)).mean() < 3.0   # GIF palette
     assert not np.array_equal(frames[0], frames[2])
-    status = main(["-q", "turntable", str(cloud), "--path", str(keys), "--elevation", "10", "-o", str(tmp_path / "x.gif")])
+    status = main(["-q", "turntable", str(cloud), "--path", str(keys), "--elevation", "10",
+                   "-o", str(tmp_path / "x.gif")])
     assert status == 2 and "--elevation" in capsys.readouterr().err
     status = main(["-q", "turntable", str(cloud), "--loop", "-o", str(tmp_path / "x.gif")])
     assert status == 2 and "give --path" in capsys.readouterr().err

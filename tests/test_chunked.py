@@ -138,8 +138,8 @@ def test_views_read_only_the_cells_they_need(torus):
                                                    fov=30), 64, 64)
     cloud, selection = model.view_splats(far, 1.0)
     assert model.loads == 0 and selection.cells_loaded == 0 and len(cloud) >= 1
-    near = pipeline.resolve_camera(model, pipeline.CameraSpec(eye=tuple(OFFSET + [1.0, 0, 0.8]), target=tuple(OFFSET + [1.0, 0, 0]),
-                                                    fov=30), 64, 64)
+    near = pipeline.resolve_camera(model, pipeline.CameraSpec(eye=tuple(OFFSET + [1.0, 0, 0.8]),
+                                                              target=tuple(OFFSET + [1.0, 0, 0]), fov=30), 64, 64)
     cloud, selection = model.view_splats(near, 1.0)
     assert 0 < selection.cells_loaded < len(model.cells)
     assert len(model.cached) <= 2

@@ -89,7 +89,8 @@ def test_budget_cuts_are_nested_and_approach_the_full_picture(model):
     full = surfsplat.prepare(m, lod=surfsplat.LodOptions(tolerance=0.5)).render(camera, options=BOTH_SIDES)
     previous, scores = None, []
     for budget in (full.splats // 32, full.splats // 8, full.splats // 2, 2 * full.splats):
-        result = surfsplat.prepare(m, lod=surfsplat.LodOptions(tolerance=0.5, point_budget=budget)).render(camera, options=BOTH_SIDES)
+        result = surfsplat.prepare(m, lod=surfsplat.LodOptions(tolerance=0.5, point_budget=budget)).render(
+            camera, options=BOTH_SIDES)
         s = result.selection
         assert budget - 7 <= result.splats <= budget or (budget > full.splats and result.splats == full.splats)
         if previous is not None:   # nested: the larger budget only refines further
@@ -124,8 +125,10 @@ def test_many_cells_agree_with_the_in_memory_hierarchy_under_a_budget(model):
     camera = overview(m, 128)
     full = surfsplat.prepare(m, lod=surfsplat.LodOptions(tolerance=0.5)).render(camera, options=BOTH_SIDES)
     budget = full.splats // 10
-    a = surfsplat.prepare(m, lod=surfsplat.LodOptions(tolerance=0.5, point_budget=budget)).render(camera, options=BOTH_SIDES)
-    b = surfsplat.prepare(memory, lod=surfsplat.LodOptions(tolerance=0.5, point_budget=budget)).render(camera, options=BOTH_SIDES)
+    a = surfsplat.prepare(m, lod=surfsplat.LodOptions(tolerance=0.5, point_budget=budget)).render(
+        camera, options=BOTH_SIDES)
+    b = surfsplat.prepare(memory, lod=surfsplat.LodOptions(tolerance=0.5, point_budget=budget)).render(
+        camera, options=BOTH_SIDES)
     assert budget - 7 <= a.splats <= budget and budget - 7 <= b.splats <= budget
     assert abs(a.frame.mask.mean() - b.frame.mask.mean()) < 0.01
     assert abs(psnr(a.frame.color, full.frame.color) - psnr(b.frame.color, full.frame.color)) < 2.5

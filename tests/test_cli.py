@@ -199,7 +199,8 @@ def test_build_info_and_render_a_hierarchy(tmp_path, capsys):
     status, _, err = run(capsys, "render", ply, "-o", tmp_path / "direct.png", "--lod-tolerance", 64,
                          "--width", 128, "--height", 128)
     assert status == 0, err
-    assert np.array_equal(np.asarray(Image.open(tmp_path / "direct.png")), np.asarray(Image.open(tmp_path / "tau64.png")))
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "direct.png")),
+                          np.asarray(Image.open(tmp_path / "tau64.png")))
     status, _, err = run(capsys, "render", tmp_path / "missing.npz", "-o", tmp_path / "x.png")
     assert status == 2 and "missing.npz" in err
 

@@ -138,7 +138,8 @@ def test_edl_options_and_cli():
     assert render_options(args).edl is None
     args = parser.parse_args(["render", "in.ply", "-o", "out.png", "--edl"])
     assert render_options(args).edl == EdlOptions()
-    args = parser.parse_args(["render", "in.ply", "-o", "out.png", "--edl", "--edl-strength", "10", "--edl-radius", "2"])
+    args = parser.parse_args(["render", "in.ply", "-o", "out.png", "--edl", "--edl-strength", "10",
+                              "--edl-radius", "2"])
     assert render_options(args).edl == EdlOptions(strength=10.0, radius_px=2.0)
     with pytest.raises(SystemExit):
         parser.parse_args(["render", "in.ply", "-o", "out.png", "--edl-radius", "0.5"])

@@ -143,7 +143,8 @@ def test_text_pcd_las_e57_errors_name_the_file(tmp_path):
         load(short)
     assert caught.value.file == str(short) and caught.value.element == "x"
     pcd = tmp_path / "bad.pcd"
-    pcd.write_text("VERSION 0.7\nFIELDS x y\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n1 2\n")
+    pcd.write_text("VERSION 0.7\nFIELDS x y\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\n"
+                   "DATA ascii\n1 2\n")
     with pytest.raises(InputError, match=r"bad\.pcd: PCD has x y but not all of x y z") as caught:
         load(pcd)
     assert caught.value.file == str(pcd) and caught.value.element == "z"

@@ -211,7 +211,8 @@ def test_gpu_cut_matches_the_cpu_cut(technique, torus):
     camera = view(h.points, 0.9)
     both = RenderOptions(visibility=VisibilityOptions(cull_backfaces=False))
     for options in [both] + ([None] if technique == "ewa" else []):
-        gpu = api.render(h, camera, technique=technique, options=options, lod=surfsplat.LodOptions(tolerance=1.0, mode="gpu"))
+        gpu = api.render(h, camera, technique=technique, options=options,
+                         lod=surfsplat.LodOptions(tolerance=1.0, mode="gpu"))
         cpu = api.render(h, camera, technique=technique, options=options, lod=surfsplat.LodOptions(tolerance=1.0))
         assert gpu.mask.sum() > 0.1 * SIZE * SIZE
         assert psnr(gpu.color, cpu.color) >= 35.0
@@ -221,8 +222,10 @@ def test_gpu_cut_matches_the_cpu_cut_far_and_supersampled(torus):
     h = torus[0]
     for factor, supersample, tolerance in ((3.0, 1, 2.0), (1.2, 2, 1.0)):
         camera = view(h.points, factor)
-        gpu = surfsplat.prepare(h, lod=surfsplat.LodOptions(tolerance=tolerance, mode="gpu")).render(camera, supersample=supersample)
-        cpu = surfsplat.prepare(h, lod=surfsplat.LodOptions(tolerance=tolerance)).render(camera, supersample=supersample)
+        gpu = surfsplat.prepare(h, lod=surfsplat.LodOptions(tolerance=tolerance, mode="gpu")).render(
+            camera, supersample=supersample)
+        cpu = surfsplat.prepare(h, lod=surfsplat.LodOptions(tolerance=tolerance)).render(
+            camera, supersample=supersample)
         assert psnr(gpu.frame.color, cpu.frame.color) >= 35.0
         assert gpu.splats >= cpu.splats > 0   # the prefix holds at least the cut
 

@@ -81,7 +81,8 @@ def test_facing_points_face_the_eye_and_keep_the_rest(block):
 def test_hybrid_frame_no_holes_in_the_ground_trees_on_top(block, gl_renderer):
     scene, cloud = block
     camera = _top_camera(cloud)
-    frame = surfsplat.prepare(cloud, source_options=surfsplat.SourceOptions(hybrid=True)).render(camera, lights=None).frame
+    frame = surfsplat.prepare(cloud, source_options=surfsplat.SourceOptions(hybrid=True)).render(
+        camera, lights=None).frame
     image = frame.image().astype(np.float64) / 255
     # project every point; the ground away from houses and trees must be covered without holes
     view = camera.view_matrix

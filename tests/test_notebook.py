@@ -93,7 +93,8 @@ def test_sliders_stream_new_views(view):
     assert view.image.value != before
     red, blue = masks(after)
     assert center_x(red) < 48 < center_x(blue)
-    np.testing.assert_array_equal(after, surfsplat.render(view.view.sample().data, view.camera(), technique="flat").image())
+    np.testing.assert_array_equal(after, surfsplat.render(view.view.sample().data, view.camera(),
+                                                          technique="flat").image())
 
     view.azimuth.value = 90.0    # from +x: the red sphere in front hides the blue one, both centered
     red, blue = masks(pixels(view.image.value))

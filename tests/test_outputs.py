@@ -173,5 +173,6 @@ def test_cli_writes_the_maps_it_prints(tmp_path, sphere_file, capsys, openexr):
     assert abs(depth[30, 40] - (np.linalg.norm([0.3, 0.2, 3.0]) - RADIUS)) < 0.02   # the sphere's front
     rgb = np.asarray(Image.open(n), dtype=np.float64) / 255.0 * 2.0 - 1.0
     assert rgb[30, 40, 2] > 0.95   # facing the camera at the center
-    status = main(["-q", "render", str(sphere_file), "-o", str(tmp_path / "x.png"), "--normals", str(tmp_path / "n.bmp")])
+    status = main(["-q", "render", str(sphere_file), "-o", str(tmp_path / "x.png"),
+                   "--normals", str(tmp_path / "n.bmp")])
     assert status == 2 and "--normals writes" in capsys.readouterr().err

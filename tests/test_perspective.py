@@ -141,7 +141,8 @@ def test_projected_conic_is_the_image_of_the_splat_ellipse():
     assert np.abs(phi / phi_center[:, None]).max() < 1e-9
     # inside and outside the ellipse (all points still in front of the eye)
     for radius, sign in ((0.5, -1.0), (1.3, 1.0)):
-        pts = p[:, None] + radius * (np.cos(angle[::97])[:, None] * u[:, None] + np.sin(angle[::97])[:, None] * v[:, None])
+        pts = p[:, None] + radius * (np.cos(angle[::97])[:, None] * u[:, None]
+                                     + np.sin(angle[::97])[:, None] * v[:, None])
         dd = reference.project(cam, pts) - reference.project(cam, p)[:, None]
         hh = np.concatenate([dd, np.ones(dd.shape[:2] + (1,))], axis=-1)
         assert (sign * np.einsum("nki,nij,nkj->nk", hh, conic, hh) > 0).all()

@@ -95,7 +95,8 @@ def test_largest_nodes_are_refined_first(torus):
 
 def test_quality_grows_with_the_budget_and_the_api(torus, gl_renderer):
     h, camera = torus
-    reference = surfsplat.prepare(h, lod=surfsplat.LodOptions(tolerance=0.0)).render(camera).frame.image().astype(np.float32) / 255
+    reference = (surfsplat.prepare(h, lod=surfsplat.LodOptions(tolerance=0.0)).render(camera).frame.image()
+                 .astype(np.float32) / 255)
     scores, counts = [], []
     for n in (300, 3000, 30000):
         result = surfsplat.prepare(h, lod=surfsplat.LodOptions(tolerance=0.0, point_budget=n)).render(camera)

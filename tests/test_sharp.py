@@ -376,5 +376,6 @@ def test_cli_sharp_angle(tmp_path, capsys):
         for command in (("sample", mesh_path, "-n", 10), ("preprocess", raw)):
             out = tmp_path / "never.ply"
             status, _, err = run(capsys, *command, "-o", out, "--sharp-angle", bad)
-            assert status == 2 and "--sharp-angle" in err and "--sharp-angle: must be a number > 0 and < 180" in err, (bad, err)
+            assert status == 2 and "--sharp-angle" in err and "--sharp-angle: must be a number > 0 and < 180" in err, (
+                bad, err)
             assert "Traceback" not in err and not out.exists()

@@ -456,7 +456,8 @@ def test_budget_refines_progressively_with_edl_and_colors(xvfb_display, tmp_path
         detail.REFINE_MIN = 500
         model = pipeline.as_splats(aerial(n=8000, houses=3, trees=3).cloud)
         glfw, window, ctx = app.open_window(240, 180, "test")
-        plan = View(model, lod=LodOptions(point_budget=4000), source_options=SourceOptions(hybrid=True), interactive=True)
+        plan = View(model, lod=LodOptions(point_budget=4000), source_options=SourceOptions(hybrid=True),
+                    interactive=True)
         v = app.Viewer(glfw, window, ctx, plan, pipeline.CameraSpec(up=(0, 0, 1)), technique="ewa", lights=Lights(),
                        options=RenderOptions(), background=(1, 1, 1),
                        motion=app.MotionOptions("off"), hud=False, record=r"{tmp_path}/rec.gif")
@@ -575,7 +576,8 @@ def test_view_of_a_chunked_model_matches_render(xvfb_display, chunked_model, tmp
                        "--screenshot", out], xvfb_display)
     assert result.returncode == 0, result.stderr
     shot = np.asarray(Image.open(out)).astype(float)
-    expected = surfsplat.render(chunked_model, width=240, height=180, lod=surfsplat.LodOptions(point_budget=4000)).image().astype(float)
+    expected = surfsplat.render(chunked_model, width=240, height=180,
+                                lod=surfsplat.LodOptions(point_budget=4000)).image().astype(float)
     covered = (expected < 250).any(axis=2).mean()
     assert 0.1 < covered < 0.9   # the model is framed, not empty
     mse = ((shot - expected) ** 2).mean()

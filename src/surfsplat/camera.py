@@ -264,4 +264,5 @@ def camera_flags(camera: Camera) -> str:
                         for x in v)
 
     return (f"--eye {vec(camera.eye)} --target {vec(camera.target)} --up {vec(camera.up)} "
-            f"--fov {np.format_float_positional(float(camera.fov), precision=10, fractional=False, trim='-')} --width {camera.width} --height {camera.height}")
+            f"--fov {np.format_float_positional(float(camera.fov), precision=10, fractional=False, trim='-')} "
+            f"--width {camera.width} --height {camera.height}")

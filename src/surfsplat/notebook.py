@@ -1,8 +1,8 @@
 """Jupyter: an interactive orbit view rendered headless (ipywidgets, optional: the ``notebook`` extra).
 
 ``Orbit(source)`` prepares a view once (:class:`surfsplat.pipeline.View`: a file, ``demo:NAME``, a
-SplatCloud, a hierarchy, any object :func:`surfsplat.render` takes), frames it like ``surfsplat render`` does, and shows an
-``ipywidgets.Image`` with sliders for azimuth, elevation and zoom and a technique dropdown. Every
+SplatCloud, a hierarchy, any object :func:`surfsplat.render` takes), frames it like ``surfsplat render``
+does, and shows an ``ipywidgets.Image`` with sliders for azimuth, elevation and zoom and a technique dropdown. Every
 change renders one frame with the same renderer as :func:`surfsplat.render` (EGL, no display
 needed) and streams its PNG into the image. The widget logic runs without a browser: set
 ``orbit.azimuth.value = 90`` and ``orbit.image.value`` holds the new view.

@@ -450,7 +450,8 @@ def _node_splats(points: SplatCloud, topo: dict, origin: np.ndarray, sums: dict,
     # ellipse: the noisy normals of a few close points would tilt the rim wildly (measured: -3 dB
     # against flat node splats). Bound the rim tilt by 1.5 times the normal cone scaled to the ellipse;
     # on a sphere the slope is a / R and the cone about extent / R, so the cap leaves it alone.
-    cap = 1.5 * np.tan(np.minimum(cone, CONE_SHADING_MAX_ANGLE)) * semi[:, 0] / np.maximum(extent, np.finfo(np.float32).tiny)
+    cap = (1.5 * np.tan(np.minimum(cone, CONE_SHADING_MAX_ANGLE)) * semi[:, 0]
+           / np.maximum(extent, np.finfo(np.float32).tiny))
     field = np.clip(field, -cap[:, None], cap[:, None])
     colors = None
     if sums["color_sums"] is not None:

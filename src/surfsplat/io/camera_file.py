@@ -54,7 +54,8 @@ def save_cameras(cameras, path: str | os.PathLike, *, overwrite: bool = True) ->
 
 
 def save_camera(camera: Camera, path: str | os.PathLike, *, overwrite: bool = True) -> Path:
-    """Write ``camera`` as JSON to ``path``; an existing file is replaced unless ``overwrite=False``. Returns the path."""
+    """Write ``camera`` as JSON to ``path``; an existing file is replaced unless ``overwrite=False``.
+    Returns the path."""
     path = Path(path)
     text = json.dumps(camera_to_dict(camera), indent=2) + "\n"
     write_atomically(path, text.encode("utf-8"), overwrite=overwrite)

@@ -44,7 +44,8 @@ def check_map_path(kind: str, path: str | os.PathLike) -> Path:
     suffix = path.suffix.lower()
     allowed = MAP_SUFFIXES[kind]
     if suffix not in allowed:
-        raise InputError(f"{path}: --{kind} writes {', '.join('OUT' + s for s in allowed)}; not {suffix or 'no suffix'!r}")
+        raise InputError(f"{path}: --{kind} writes {', '.join('OUT' + s for s in allowed)}; "
+                         f"not {suffix or 'no suffix'!r}")
     if suffix == ".exr":
         check_exr(path)
     return path

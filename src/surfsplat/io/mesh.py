@@ -290,16 +290,19 @@ def check_obj_indices(path: Path, source: str) -> None:
     if not tokens:
         return
     if max(map(len, tokens)) > 18:
-        raise InputError(f"{source}: cannot read OBJ file: a face index with more than 17 digits; no file has that many vertices")
+        raise InputError(f"{source}: cannot read OBJ file: a face index with more than 17 digits; "
+                         "no file has that many vertices")
     indices = np.array(tokens).astype(np.int64)
     zero = indices == 0
     if zero.any():
-        raise InputError(f"{source}: cannot read OBJ file: a face refers to vertex 0, but OBJ vertex indices start at 1 "
+        raise InputError(f"{source}: cannot read OBJ file: a face refers to vertex 0, "
+                         "but OBJ vertex indices start at 1 "
                          f"({int(zero.sum())} such corners)")
     too_big = (indices > n_vertices) | (indices < -n_vertices)
     if too_big.any():
         value = indices[np.argmax(too_big)]
-        raise InputError(f"{source}: cannot read OBJ file: a face refers to vertex {value}, but the file has {n_vertices} vertices "
+        raise InputError(f"{source}: cannot read OBJ file: a face refers to vertex {value}, "
+                         f"but the file has {n_vertices} vertices "
                          f"(valid indices 1..{n_vertices} or -1..-{n_vertices}); "
                          f"{int(too_big.sum())} corners out of range")
 

@@ -105,10 +105,11 @@ def check_body(path: Path, source: str) -> PlyLayout | None:
             line = sample.split(b"\n", 1)[0].split()
             if (b"\n" in sample and _ASCII_BYTES.match(sample) and first is not None
                     and len(line) >= len(first)):
-                raise InputError(f"{source}: malformed PLY file: the header says {layout.format} but the body is ascii text; "
-                                 "fix the 'format' line of the header")
+                raise InputError(f"{source}: malformed PLY file: the header says {layout.format} "
+                                 "but the body is ascii text; fix the 'format' line of the header")
         if minimum > available:
-            raise InputError(f"{source}: malformed PLY file: the header declares {_declared(layout)} records, which need at "
+            raise InputError(f"{source}: malformed PLY file: the header declares {_declared(layout)} records, "
+                             "which need at "
                              f"least {minimum:,} bytes, but only {available:,} bytes follow the header "
                              "(truncated file, or wrong counts in the header)")
         lists = any(len(p) == 3 for _, _, props in layout.elements for p in props)
@@ -124,7 +125,8 @@ def check_body(path: Path, source: str) -> PlyLayout | None:
         if lines != rows:
             problem = ("too few, early end-of-file: truncated file, or counts too large" if lines < rows
                        else "more than declared: the counts in the header are too small")
-            raise InputError(f"{source}: malformed PLY file: the header declares {_declared(layout)} records ({rows:,} lines) "
+            raise InputError(f"{source}: malformed PLY file: the header declares {_declared(layout)} records "
+                             f"({rows:,} lines) "
                              f"but the body has {lines:,} lines ({problem})")
     return layout
 
@@ -133,7 +135,8 @@ def _check_extra(layout: PlyLayout, extra: int, source: str) -> None:
     """InputError when ``extra`` bytes after the declared binary records hold one more record or more."""
     last = next((e for e in reversed(layout.elements) if _record(e[2])), None)
     if last is not None and extra >= _record(last[2]):
-        raise InputError(f"{source}: malformed PLY file: {extra:,} bytes follow the {_declared(layout)} records the header "
+        raise InputError(f"{source}: malformed PLY file: {extra:,} bytes follow the {_declared(layout)} records "
+                         "the header "
                          f"declares (room for {extra // _record(last[2]):,} more '{last[0]}' records): "
                          "the counts in the header are too small")
 

@@ -150,7 +150,8 @@ def weld(mesh: Mesh, tolerance: float | None = None, *, source: str = "weld: mes
     keep = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])
     if not keep.any():   # a few far-off vertices make the diagonal, and so the tolerance, huge
         lo, hi = mesh.bounds()
-        raise InputError(f"{source}: welding merges vertices within {WELD_TOLERANCE if tolerance is None else tolerance:.3g}"
+        raise InputError(f"{source}: welding merges vertices within "
+                         f"{WELD_TOLERANCE if tolerance is None else tolerance:.3g}"
                          f"{' of the bounding-box diagonal' if tolerance is None else ''} and collapses every face; "
                          f"the model's bounds (min {np.array2string(lo, precision=4)} max "
                          f"{np.array2string(hi, precision=4)}) are far larger than its faces: remove the stray "

@@ -46,7 +46,8 @@ def lod_strategy(model: Model, lod: LodOptions, hybrid: bool, *, interactive: bo
                                            ("a chunked hierarchy", not model.in_memory)) if present]
     if lod.mode == "gpu":
         if blockers:
-            raise InputError(f"LOD mode 'gpu' draws the tolerance cut of a hierarchy in memory; {' and '.join(blockers)} "
+            raise InputError(f"LOD mode 'gpu' draws the tolerance cut of a hierarchy in memory; "
+                             f"{' and '.join(blockers)} "
                              f"need LOD mode 'cpu' (or 'auto', which chooses)")
         return "gpu"
     if lod.mode == "auto" and interactive and not blockers:

@@ -198,7 +198,8 @@ class ChunkedHierarchy:
         off = nodes["level_offsets"]
         m = len(nodes["node_positions"])
         levels = int(entry.get("coarse_levels", entry["levels"])) if coarse else int(entry["levels"])
-        if (not coarse and m != int(entry["nodes"])) or len(off) != levels + 1 or int(nodes["node_point_count"][0]) != n:
+        if ((not coarse and m != int(entry["nodes"])) or len(off) != levels + 1
+                or int(nodes["node_point_count"][0]) != n):
             raise InputError(f"{source}: corrupt chunk file: {m} nodes in {len(off) - 1} levels over "
                              f"{int(nodes['node_point_count'][0])} points, the manifest says {entry['nodes']} nodes "
                              f"in {entry['levels']} levels over {n} points")

@@ -2,7 +2,8 @@
 
 Readers (:class:`PointStream`): LAS/LAZ through laspy's chunk iterator, binary PLY memory-mapped
 (the vertex element read ``chunk_points`` records at a time), anything else read whole by
-:func:`surfsplat.io.load` (small inputs), and a folder of such tiles read one after the other. Each chunk is a :class:`Chunk` of float64 positions
+:func:`surfsplat.io.load` (small inputs), and a folder of such tiles read one after the other.
+Each chunk is a :class:`Chunk` of float64 positions
 (the file's coordinates, so georeferenced LiDAR keeps its precision until the origin is
 subtracted), optional normals and colors, and the point attributes (LAS/LAZ dimensions such as
 ``classification`` and ``intensity``, those of files read whole; a folder keeps those all its
@@ -186,7 +187,8 @@ class PointStream:
             for a in range(0, self.count, self.chunk_points):
                 rec = np.asarray(v[a:min(a + self.chunk_points, self.count)])
                 pos = np.column_stack([rec["x"], rec["y"], rec["z"]]).astype(np.float64)
-                nrm = np.column_stack([rec["nx"], rec["ny"], rec["nz"]]).astype(np.float32) if self.has_normals else None
+                nrm = (np.column_stack([rec["nx"], rec["ny"], rec["nz"]]).astype(np.float32) if self.has_normals
+                       else None)
                 col = None
                 if self.has_colors:
                     col = np.column_stack([rec["red"], rec["green"], rec["blue"]]).astype(np.float32)
@@ -202,7 +204,8 @@ class PointStream:
         try:
             with laspy.open(self.path) as reader:
                 for points in reader.chunk_iterator(self.chunk_points):
-                    pos = np.column_stack([np.asarray(points.x, dtype=np.float64), np.asarray(points.y, dtype=np.float64),
+                    pos = np.column_stack([np.asarray(points.x, dtype=np.float64),
+                                           np.asarray(points.y, dtype=np.float64),
                                            np.asarray(points.z, dtype=np.float64)])
                     col = None
                     if self.has_colors:
@@ -217,7 +220,8 @@ class PointStream:
         except InputError:
             raise
         except Exception as exc:  # laspy.LaspyException, lazrs errors, OSError
-            raise InputError(f"{self.path}: cannot read LAS file at point {first:,}: {type(exc).__name__}: {exc}") from exc
+            raise InputError(f"{self.path}: cannot read LAS file at point {first:,}: "
+                             f"{type(exc).__name__}: {exc}") from exc
 
 
 def _finite(chunk: Chunk) -> np.ndarray:
