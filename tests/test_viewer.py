@@ -335,8 +335,8 @@ def test_input_drives_the_view(xvfb_display, tmp_path):
         v._on_key(window, G.KEY_R, 0, G.PRESS, 0)
         v.step(wait=False)
         assert v.technique == v.techniques[(v.techniques.index("ewa") + 1) % len(v.techniques)]
-        # B: the closed torus was culled automatically; the key turns culling off
-        assert not v.options.filter.prefilter and not v.lights.enabled and v.options.visibility.cull_backfaces is False
+        # B: automatic culling drew the closed torus two-sided (it never culls); the key turns culling on
+        assert not v.options.filter.prefilter and not v.lights.enabled and v.options.visibility.cull_backfaces is True
         assert v.hud.show_help and abs(v.lod_tolerance - 2 ** 0.5) < 1e-9
         assert v.controller.camera == v.controller.home(*v.size)
         v._on_key(window, G.KEY_2, 0, G.PRESS, 0)
@@ -690,8 +690,8 @@ def test_preview_level_follows_the_frame_time():
     assert next_preview_level(1, counts, frame1 - 0.015, 25.0, frame1) == 1
 
 
-def test_viewer_culls_closed_surfaces_automatically(xvfb_display):
-    # as render does: a closed surface seen from outside is culled, a sheet never; B turns it off
+def test_viewer_draws_two_sided_by_default_and_b_culls(xvfb_display):
+    # as render does: automatic culling never culls (it can open holes), a closed surface neither; B culls
     result = run_python("""
         from surfsplat import scenes
         from surfsplat.lighting import Lights
@@ -703,11 +703,12 @@ def test_viewer_culls_closed_surfaces_automatically(xvfb_display):
         kw = dict(technique="ewa", lights=Lights(), options=RenderOptions(), background=(1, 1, 1),
                   motion=app.MotionOptions("off"), hud=False)
         torus = app.Viewer(glfw, window, ctx, View("demo:torus", interactive=True), None, **kw)
-        assert torus.options.visibility.cull_backfaces is None and torus.culling
-        assert torus.drawn_options().visibility.cull_backfaces is True
+        assert torus.options.visibility.cull_backfaces is None and not torus.culling
+        assert torus.drawn_options().visibility.cull_backfaces is False
         torus._actions.append(("cull",))
         torus._process_input(0.0)
-        assert torus.options.visibility.cull_backfaces is False and not torus.culling
+        assert torus.options.visibility.cull_backfaces is True and torus.culling
+        assert torus.drawn_options().visibility.cull_backfaces is True
         torus.release()
         sheet = app.Viewer(glfw, window, ctx, View(scenes.checkerboard(n_side=100), interactive=True), None, **kw)
         assert not sheet.culling

@@ -399,7 +399,8 @@ def perspective_footprint(camera: Camera, p_cam: np.ndarray, n_cam: np.ndarray, 
     sin = np.sqrt(np.maximum(0.0, 1.0 - cos * cos))
     condition = (1.0 + sin) / np.maximum(cos, 1e-300)
     zmin = z - zext
-    conic = visible & (condition <= PERSPECTIVE_MAX_CONDITION) & (zmin >= np.maximum(near, PERSPECTIVE_NEAR_FRACTION * z))
+    in_front = zmin >= np.maximum(near, PERSPECTIVE_NEAR_FRACTION * z)
+    conic = visible & (condition <= PERSPECTIVE_MAX_CONDITION) & in_front
     mode = np.where(conic, PERSPECTIVE_CONIC, np.where(visible, PERSPECTIVE_RAYCAST, PERSPECTIVE_CULLED))
 
     zs = np.where(conic, z, 1.0)

@@ -250,8 +250,8 @@ def add_render_options(p: argparse.ArgumentParser, *, window: bool = False) -> N
                         "(default: a pixel blends only splats seen from the side of its nearest one, so hidden "
                         "walls never show through)")
     p.add_argument("--no-clip-fringe", action="store_true",
-                   help="ewa/perspective: draw the papers' full prefiltered footprints, also beyond the surface over the "
-                        "background and farther surfaces (default: they end at the surface: thinner, sharper "
+                   help="ewa/perspective: draw the papers' full prefiltered footprints, also beyond the surface over "
+                        "the background and farther surfaces (default: they end at the surface: thinner, sharper "
                         "silhouettes and fold crests)")
     p.add_argument("--edge-coverage", action="store_true",
                    help="antialias silhouettes over the background without supersampling: a rim pixel's alpha is "

@@ -98,7 +98,8 @@ class Viewer(ViewerInput):
         self.lights, self.options, self.background = lights, options, tuple(background)
         self.plan = plan
         tolerance = plan.lod.tolerance
-        self.lod_tolerance = defaults.LOD_TOLERANCE if tolerance is None or isinstance(tolerance, str) else float(tolerance)
+        automatic = tolerance is None or isinstance(tolerance, str)   # "auto": the default tolerance's cut
+        self.lod_tolerance = defaults.LOD_TOLERANCE if automatic else float(tolerance)
         self.motion, self.motion_scale = motion.mode, float(motion.scale)
         # progressive refinement of a still view under a point budget: budgets[refine] is drawn
         self.point_budget, self.hybrid = plan.lod.point_budget, plan.hybrid
@@ -366,7 +367,8 @@ class Viewer(ViewerInput):
             f"{self.technique}{'   hybrid' if self.hybrid else ''}   {self.drawn:,} splats"
             f"{self._budget_text()}   {rate}   ({ms:.0f} ms/frame)",
             f"prefilter {on[self.options.filter.prefilter]}   lighting {on[self.lights.enabled]}   "
-            f"culling {on[self.options.visibility.cull_backfaces]}{' (on)' if self.options.visibility.cull_backfaces is None and self.culling else ''}   "
+            f"culling {on[self.options.visibility.cull_backfaces]}"
+            f"{' (on)' if self.options.visibility.cull_backfaces is None and self.culling else ''}   "
             f"EDL {on[self.options.edl is not None]}   "
             f"LOD tolerance {self.lod_tolerance:.3g} px "
             f"({self.lod.select_ms:.0f} ms to select)",
