@@ -105,16 +105,11 @@ class CloudModel:
         return self, orientation != 0
 
 
-@dataclass(frozen=True)
-class HierarchyModel:
-    """A point-octree in memory (Pajarola 2003), cut per view on the CPU or the GPU."""
+class _TreeModel:
+    """What the two hierarchy kinds share: their points (a chunked hierarchy's: the preview splats made
+    by the build) frame the view; they are drawn as they are, already a tree."""
 
-    data: Hierarchy
-    closed: bool | None = None
-    #: The cloud it was built from (its rows are the hierarchy's points reordered by ``data.order``).
-    built_from: SplatCloud | None = None
-    is_tree = True
-    in_memory = True
+    data: Hierarchy | ChunkedHierarchy
 
     def points(self) -> SplatCloud:
         return self.data.points
@@ -127,6 +122,18 @@ class HierarchyModel:
 
     def tree(self):
         return self
+
+
+@dataclass(frozen=True)
+class HierarchyModel(_TreeModel):
+    """A point-octree in memory (Pajarola 2003), cut per view on the CPU or the GPU."""
+
+    data: Hierarchy
+    closed: bool | None = None
+    #: The cloud it was built from (its rows are the hierarchy's points reordered by ``data.order``).
+    built_from: SplatCloud | None = None
+    is_tree = True
+    in_memory = True
 
     def cut(self, camera, tolerance, *, cull_backfaces=False, shading="fit", point_budget=None):
         return lod_splats(self.data, camera, tolerance, cull_backfaces=cull_backfaces, lod_shading=shading,
@@ -143,24 +150,12 @@ class HierarchyModel:
 
 
 @dataclass(frozen=True)
-class ChunkedModel:
+class ChunkedModel(_TreeModel):
     """A chunked hierarchy on disk (``surfsplat build --chunked``): only the cells a view needs are read."""
 
     data: ChunkedHierarchy
     is_tree = True
     in_memory = False
-
-    def points(self) -> SplatCloud:
-        return self.data.points   # the preview splats made by the build
-
-    def bounds(self):
-        return self.data.points.bounds()
-
-    def surface(self, camera, options, image_size):
-        return self
-
-    def tree(self):
-        return self
 
     def cut(self, camera, tolerance, *, cull_backfaces=False, shading="fit", point_budget=None):
         return self.data.view_splats(camera, tolerance, cull_backfaces=cull_backfaces, lod_shading=shading,
