@@ -111,7 +111,7 @@ def main() -> None:
             renderer.draw(gpu, cam, technique, lights, options)
             ctx.finish()
             t1 = time.perf_counter()
-            local = gpu.local_camera(_with_clip_planes(cam, gpu))
+            local = gpu.gpu_camera(_with_clip_planes(cam, gpu))
             t2 = time.perf_counter()
             gpu.draw_ranges(local, point_radius(local, gpu, technique, options, 1, renderer.point_px))
             t3 = time.perf_counter()

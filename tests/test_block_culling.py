@@ -58,10 +58,10 @@ def test_dropped_blocks_hold_only_splats_outside_the_view(gl_renderer, torus, ti
         position, u, v = (np.frombuffer(gpu.buffers[k].read(), "f4").reshape(-1, 3).astype(np.float64)
                           for k in ("position", "u", "v"))
         far = Camera(eye=(0.0, -6.0, 4.0), target=(0, 0, 0), up=(0, 0, 1), fov=40, width=120, height=96)
-        far = gpu.local_camera(far.with_clip_from_bounds(*torus.bounds(), margin=float(torus.radii.max())))
+        far = gpu.gpu_camera(far.with_clip_from_bounds(*torus.bounds(), margin=float(torus.radii.max())))
         if tile is None:
             assert gpu.visible_blocks(far, FRUSTUM_MARGIN_PX).all()
-        camera = gpu.local_camera(close_view(torus))
+        camera = gpu.gpu_camera(close_view(torus))
         visible = gpu.visible_blocks(camera, FRUSTUM_MARGIN_PX, tile)
         assert 0 < np.count_nonzero(~visible) < len(visible)
         dropped = np.concatenate([np.arange(b * BLOCK, min((b + 1) * BLOCK, gpu.count))
@@ -141,7 +141,7 @@ def test_near_blocks_of_quads_far_away_become_points(gl_renderer, monkeypatch, t
         options = RenderOptions()
         monkeypatch.setattr(Renderer, "_drawn_ranges", global_ranges)
         before = renderer.render(gpu, camera, technique, Lights(), options)
-        global_quads, _ = global_ranges(renderer, gpu, gpu.local_camera(camera),
+        global_quads, _ = global_ranges(renderer, gpu, gpu.gpu_camera(camera),
                                         renderer_module.get_technique(technique), options, 1)
         monkeypatch.undo()
         monkeypatch.setattr(Renderer, "_drawn_ranges", spy)
@@ -203,6 +203,6 @@ def test_a_margin_that_is_not_positive_is_a_clear_error(gl_renderer, torus, marg
     gpu = gl_renderer.upload(torus)
     try:
         with pytest.raises(InputError, match="margin must be a positive number of pixels"):
-            gpu.visible_blocks(gpu.local_camera(close_view(torus)), margin)
+            gpu.visible_blocks(gpu.gpu_camera(close_view(torus)), margin)
     finally:
         gpu.release()

@@ -176,7 +176,7 @@ def test_small_blocks_partition_the_ranges_and_bound_every_box(gl_renderer):
         for distance, expect_small, expect_others in ((40.0, True, False), (4.0, True, True), (1.5, False, True)):
             eye = distance * np.array([0.3, -0.8, 0.5]) / np.linalg.norm([0.3, -0.8, 0.5])   # the torus is at 0
             camera = Camera(eye=tuple(eye), target=(0, 0, 0), up=(0, 0, 1), fov=40, width=200, height=160)
-            camera = gpu.local_camera(camera.with_clip_from_bounds(*cloud.bounds(), margin=float(cloud.radii.max())))
+            camera = gpu.gpu_camera(camera.with_clip_from_bounds(*cloud.bounds(), margin=float(cloud.radii.max())))
             others, small = gpu.split_blocks(ranges, gpu.small_blocks(camera, box))
             got = sorted(i for f, n in others + small for i in range(f, f + n))
             assert got == want

@@ -62,7 +62,7 @@ def world_distance(layout, camera: Camera) -> np.ndarray:
 
 def cpu_drawn(layout, gpu, camera: Camera, tolerance: float) -> np.ndarray:
     """The NumPy interval rule for ``camera`` (world) with the near plane the renderer draws with."""
-    local = gpu.local_camera(_with_clip_planes(camera, gpu))
+    local = gpu.gpu_camera(_with_clip_planes(camera, gpu))
     return drawn_mask(layout.lod, world_distance(layout, camera), local.focal_px / tolerance, local.near / gpu.scale)
 
 
@@ -85,7 +85,7 @@ def test_the_shader_keeps_exactly_the_entries_of_the_numpy_rule(renderer, torus)
     lod = np.frombuffer(gpu.buffers["lod"].read(), "f4").reshape(-1, 4)
     try:
         for factor, tolerance in ((0.5, 1.0), (1.0, 0.5), (2.0, 2.0), (6.0, 1.0)):
-            camera = gpu.local_camera(_with_clip_planes(view(torus[0].points, factor), gpu))
+            camera = gpu.gpu_camera(_with_clip_planes(view(torus[0].points, factor), gpu))
             m = camera.view_matrix
             block = {"u_view": tuple(m.T.astype("f4").ravel()), "u_near_far": (camera.near, camera.far),
                      "u_focal": camera.focal_px, "u_viewport": (camera.width, camera.height)}
@@ -240,7 +240,7 @@ def test_the_ranges_hold_the_whole_cut_and_shrink_as_the_camera_moves_away(torus
     sizes = []
     for factor in (0.5, 2.0, 4.0, 8.0, 16.0, 32.0):
         camera = view(h.points, factor)
-        local = gpu.local_camera(_with_clip_planes(camera, gpu))
+        local = gpu.gpu_camera(_with_clip_planes(camera, gpu))
         start, end = gpu.windows(local)
         ranged = np.zeros(gpu.count, dtype=bool)
         for a, b in zip(start, end):

@@ -111,7 +111,7 @@ def test_frame_programs_read_the_blocks(renderer):
                 assert program[name].binding == binding
     blocks = renderer._blocks
     view = np.frombuffer(blocks.buffer.read(size=64, offset=blocks.offsets["Camera"]), "f4")
-    local = renderer._uploaded.local_camera(camera.with_clip_from_bounds(*cloud.bounds(),
+    local = renderer._uploaded.gpu_camera(camera.with_clip_from_bounds(*cloud.bounds(),
                                                                          margin=float(cloud.radii.max())))
     np.testing.assert_array_equal(view, local.view_matrix.T.astype("f4").ravel())
     assert {"u_view", "u_light_dirs", "u_depth_epsilon", "u_deferred"} <= renderer._blocks.members

@@ -40,7 +40,7 @@ class GpuSplats:
 
     The buffers hold the cloud's positions relative to its float64 ``origin``, times ``scale`` (a
     power of two, :func:`gpu_scale`: GPU units); ``bounds`` and ``max_radius`` are in world units.
-    Cameras given to the renderer are world cameras; :meth:`local_camera` is the one the GPU draws with.
+    Cameras given to the renderer are world cameras; :meth:`gpu_camera` is the one the GPU draws with.
     """
 
     buffers: dict[str, moderngl.Buffer]
@@ -73,7 +73,7 @@ class GpuSplats:
         sequential layout's LOD scale."""
         return {}
 
-    def local_camera(self, camera: Camera) -> Camera:
+    def gpu_camera(self, camera: Camera) -> Camera:
         """The world ``camera`` in the buffers' frame: eye and target moved by ``-origin`` in float64,
         then scaled by ``scale`` (exact: a power of two), so that the GPU composes its float32
         transform from numbers of the size of the model wherever it sits."""

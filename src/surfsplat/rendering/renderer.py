@@ -437,7 +437,7 @@ class Renderer:
         """The passes :meth:`draw` runs for this frame (``camera``: a world camera, as :meth:`draw`
         takes), with the splat ranges each draws (:mod:`~surfsplat.rendering.passes`)."""
         technique = get_technique(technique) if isinstance(technique, str) else technique
-        camera = splats.local_camera(_with_clip_planes(camera, splats))
+        camera = splats.gpu_camera(_with_clip_planes(camera, splats))
         return self._plan(splats, camera, technique, options, tile or (0, 0, camera.width, camera.height),
                           supersample)
 
@@ -469,7 +469,7 @@ class Renderer:
         output pixel along each axis that ``camera`` is drawn at (``u_supersample``).
         """
         technique = get_technique(technique) if isinstance(technique, str) else technique
-        camera = splats.local_camera(_with_clip_planes(camera, splats))   # world camera in, GPU frame out
+        camera = splats.gpu_camera(_with_clip_planes(camera, splats))   # world camera in, GPU frame out
         tile = tile or (0, 0, camera.width, camera.height)
         targets = self._ensure_targets(tile[2], tile[3])
         # the camera, the lights and the options: one buffer for every program of the frame

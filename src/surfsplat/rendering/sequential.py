@@ -139,7 +139,7 @@ class GpuSequential(GpuSplats):
 
     def prefix_count(self, camera: Camera) -> int:
         """Entries a frame of the world ``camera`` hands to the GPU (the ranges of all segments)."""
-        start, end = self.windows(self.local_camera(_with_clip_planes(camera, self)))
+        start, end = self.windows(self.gpu_camera(_with_clip_planes(camera, self)))
         return int((end - start).sum())
 
     def draw_ranges(self, camera: Camera, point_radius: float) -> tuple[list, list]:
