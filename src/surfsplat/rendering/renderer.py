@@ -53,7 +53,7 @@ from .options import RenderOptions
 from .shaders import (GLSL_VERSION, PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBILITY,
                       BuiltProgram, build_compute, build_program, undeclared)
 from .technique import Technique
-from .tiles import MAX_SUPERSAMPLE, MAX_TILE, SubPixels, box_reduce, tile_rects, tile_side
+from .tiles import MAX_TILE, SubPixels, box_reduce, check_supersample, tile_rects, tile_side
 from .techniques import get_technique
 from .uniform_blocks import FrameBlocks
 
@@ -533,13 +533,11 @@ class Renderer:
                background=(1.0, 1.0, 1.0), *, supersample: int = 1, max_tile: int = MAX_TILE) -> Frame:
         """Render into a :class:`Frame` (color, depth, weight, alpha as NumPy arrays).
 
-        ``supersample`` K (1..8): the image is drawn at K times the size and box-filtered per
-        pixel (:mod:`surfsplat.rendering.tiles`); any size is drawn in tiles of at most
+        ``supersample`` K (1..16, :func:`~surfsplat.rendering.tiles.check_supersample`): the image is drawn
+        at K times the size and box-filtered per pixel (:mod:`surfsplat.rendering.tiles`); any size is drawn in tiles of at most
         ``max_tile`` sub-pixels. The EWA prefilter and the kernels act on the sub-pixels.
         """
-        k = int(supersample)
-        if isinstance(supersample, bool) or not 1 <= k <= MAX_SUPERSAMPLE or k != supersample:
-            raise InputError(f"supersample must be an integer in 1..{MAX_SUPERSAMPLE}, got {supersample!r}")
+        k = check_supersample(supersample)
         check_render_memory(len(splats) if isinstance(splats, SplatCloud) else splats.count, camera.width,
                             camera.height, k, max_tile)
         if isinstance(splats, SplatCloud):
