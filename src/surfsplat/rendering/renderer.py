@@ -534,8 +534,8 @@ class Renderer:
         """Render into a :class:`Frame` (color, depth, weight, alpha as NumPy arrays).
 
         ``supersample`` K (1..16, :func:`~surfsplat.rendering.tiles.check_supersample`): the image is drawn
-        at K times the size and box-filtered per pixel (:mod:`surfsplat.rendering.tiles`); any size is drawn in tiles of at most
-        ``max_tile`` sub-pixels. The EWA prefilter and the kernels act on the sub-pixels.
+        at K times the size and box-filtered per pixel (:mod:`surfsplat.rendering.tiles`); any size is drawn
+        in tiles of at most ``max_tile`` sub-pixels. The EWA prefilter and the kernels act on the sub-pixels.
         """
         k = check_supersample(supersample)
         check_render_memory(len(splats) if isinstance(splats, SplatCloud) else splats.count, camera.width,
