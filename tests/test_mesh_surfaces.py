@@ -355,3 +355,13 @@ def test_open_boundaries_clip_the_splats_at_the_outline():
         reach[boundaries] = float(np.abs(rim[kept][:, :2]).max()) - 1.0
         radius = float(splats.radii.max())
     assert reach[True] <= 0.25 * radius + 1e-6 and reach[False] > 0.8 * radius, (reach, radius)
+
+
+def test_a_mesh_behind_the_eye_is_sampled_as_if_seen_not_at_the_cap():
+    from surfsplat.camera import Camera
+    box = trimesh.creation.box()
+    mesh = Mesh(box.vertices.astype(np.float32), box.faces.astype(np.int32))
+    facing = Camera(eye=(0.0, 0.0, 10.0), target=(0.0, 0.0, 0.0), width=32, height=32)
+    away = Camera(eye=(0.0, 0.0, 10.0), target=(0.0, 0.0, 20.0), width=32, height=32)
+    seen = samples_for_pixels(mesh, camera=facing)
+    assert seen < 10_000 and samples_for_pixels(mesh, camera=away) == seen   # was MAX_SAMPLES (2,000,000)

@@ -250,12 +250,19 @@ def view_spacing(mesh: Mesh, camera: Camera, pixels: float = DEFAULT_SPACING_PX)
     ``pixels * distance / focal_px``, with ``distance`` the center's depth
     along the view axis (model units; at least 1e-6 of the bounding-box
     diagonal) and ``focal_px`` the camera's focal length in pixels. Surfaces
-    nearer to the eye than the center get proportionally more pixels.
+    nearer to the eye than the center get proportionally more pixels. A mesh
+    wholly behind the eye (every corner of its box) is not in the view: the
+    distance is the eye's to the center, so that it is sampled as if seen.
     """
     pixels = _check_positive(pixels, "view_spacing: pixels")
     lo, hi = (np.asarray(b, dtype=np.float64) for b in mesh.validated("view_spacing: mesh").bounds())
     center = 0.5 * (lo + hi)
-    depth = -float((camera.view_matrix[:3, :3] @ center + camera.view_matrix[:3, 3])[2])
+    view = np.asarray(camera.view_matrix, dtype=np.float64)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    if ((corners @ view[:3, :3].T + view[:3, 3])[:, 2] >= 0).all():   # camera space looks along -z
+        depth = float(np.linalg.norm(np.asarray(camera.eye, dtype=np.float64) - center))
+    else:
+        depth = -float((view[:3, :3] @ center + view[:3, 3])[2])
     depth = max(depth, 1e-6 * (float(np.linalg.norm(hi - lo)) or 1.0))
     return pixels * depth / camera.focal_px
 
