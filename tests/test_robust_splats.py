@@ -94,6 +94,15 @@ def test_many_coincident_copies_are_one_point():
     assert len(out) == 200 and report.exact_duplicates == 200
 
 
+def test_signed_zeros_are_the_same_position():
+    rng = np.random.default_rng(5)
+    base = np.column_stack([rng.uniform(size=(300, 2)), np.zeros(300)]).astype(np.float32)
+    negative = base[:100].copy()
+    negative[:, 2] = -0.0  # the same points, written with the other zero (as some exporters do)
+    rep = exact_duplicates(np.concatenate([base, negative]))
+    assert rep is not None and (rep[300:] == np.arange(100)).all() and (rep[:300] == np.arange(300)).all()
+
+
 def test_near_but_distinct_points_are_not_merged():
     rng = np.random.default_rng(4)
     p = np.column_stack([rng.uniform(size=(500, 2)), np.zeros(500)])

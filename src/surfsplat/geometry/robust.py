@@ -156,7 +156,8 @@ def exact_duplicates(positions: np.ndarray) -> np.ndarray | None:
         Found by sorting a 64-bit hash of the coordinates' bits and comparing neighbours in
         that order (~0.1 s per million points).
     """
-    pos = np.ascontiguousarray(positions, dtype=np.float32)
+    # + 0.0 turns -0.0 into +0.0: equal positions, and now equal bits for the hash
+    pos = np.ascontiguousarray(positions, dtype=np.float32) + np.float32(0.0)
     bits = pos.view(np.uint32).astype(np.uint64)
     key = bits[:, 0] * np.uint64(0x9E3779B97F4A7C15)
     key ^= bits[:, 1] * np.uint64(0xC2B2AE3D27D4EB4F)
