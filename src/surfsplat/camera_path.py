@@ -122,7 +122,8 @@ def interpolate_cameras(keys: list[Camera], frames: int, *, closed: bool = False
                          f"{int(np.argmin(size))}; give the key cameras up vectors away from their view")
     near = far = None
     if all(c.near is not None and c.far is not None for c in keys):
-        near, far = min(c.near for c in keys), max(c.far for c in keys)
+        near = min(float(c.near) for c in keys if c.near is not None)
+        far = max(float(c.far) for c in keys if c.far is not None)
     first = replace(keys[0], near=near, far=far).resized(width or keys[0].width, height or keys[0].height)
     return [replace(first, eye=tuple(e), target=tuple(g), up=tuple(u / n), fov=float(f))
             for e, g, u, n, f in zip(eye, target, up, size, fov)]
@@ -171,7 +172,8 @@ def orbit_cameras(camera: Camera, frames: int, degrees: float = 360.0, elevation
     cameras = [replace(camera, eye=tuple(target + rotate(offset, up, a)), target=tuple(target)) for a in angles]
     if points is not None:
         clipped = [replace(c, near=None, far=None).with_clip_from_bounds(lo, hi, margin) for c in cameras]
-        near, far = min(c.near for c in clipped), max(c.far for c in clipped)
+        near = min(float(c.near) for c in clipped if c.near is not None)
+        far = max(float(c.far) for c in clipped if c.far is not None)
         return [replace(c, near=near, far=far) for c in cameras]
     if camera.near is not None and camera.far is not None:
         near, far = camera.near, camera.far

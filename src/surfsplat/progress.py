@@ -19,6 +19,7 @@ import threading
 import time
 import warnings
 from contextlib import contextmanager
+from typing import Any
 
 from tqdm import tqdm
 
@@ -30,7 +31,7 @@ TICK = 0.5
 _enabled = False
 _stages: list["Stage"] = []   # the running stages, outermost first
 _open_line: "Stage | None" = None   # the stage whose "  NAME ..." line awaits its end (not a terminal)
-_previous_showwarning = None
+_previous_showwarning: Any = None   # warnings.showwarning while a stage runs
 
 
 def enable(on: bool = True) -> None:
@@ -146,7 +147,8 @@ class Stage:
 
     def _tick(self) -> None:
         while not self._stop.wait(TICK):
-            self.bar.update(0)   # redraws (after LIVE_DELAY) and records the draw, so close() clears it
+            if self.bar is not None:
+                self.bar.update(0)   # redraws (after LIVE_DELAY) and records the draw, so close() clears it
 
     def update(self, n: int = 1) -> None:
         """``n`` more steps of the stage's ``total`` are done: the live bar moves; without a terminal

@@ -80,8 +80,9 @@ def torus(n_major: int = 400, n_minor: int = 160, major: float = 1.0, minor: flo
     """
     if n_major < 3 or n_minor < 3 or not (0 < minor < major):
         raise InputError("torus needs n_major, n_minor >= 3 and 0 < minor < major")
-    theta, phi = np.meshgrid(np.arange(n_major) * 2 * np.pi / n_major, np.arange(n_minor) * 2 * np.pi / n_minor)
-    theta, phi = theta.ravel(), phi.ravel()
+    theta_grid, phi_grid = np.meshgrid(np.arange(n_major) * 2 * np.pi / n_major,
+                                       np.arange(n_minor) * 2 * np.pi / n_minor)
+    theta, phi = theta_grid.ravel(), phi_grid.ravel()
     ring = major + minor * np.cos(phi)
     positions = np.stack([ring * np.cos(theta), ring * np.sin(theta), minor * np.sin(phi)], axis=1)
     normals = np.stack([np.cos(phi) * np.cos(theta), np.cos(phi) * np.sin(theta), np.sin(phi)], axis=1)
@@ -188,6 +189,7 @@ def sphere_cube(n: int = 150_000, half: float = 0.5, radius: float = 0.65) -> Sp
     disk = ga**2 + gb**2 <= (rho + splat_r) ** 2
     ga, gb = ga[disk], gb[disk]
     axes = np.eye(3)
+    assert shell.normals is not None and shell.u is not None and shell.v is not None
     pos, nor, uu, vv = [shell.positions], [shell.normals], [shell.u], [shell.v]
     for face in range(6):  # six faces, not a loop over points
         k, sign = face // 2, 1.0 - 2.0 * (face % 2)
@@ -221,7 +223,8 @@ def sphere_cube(n: int = 150_000, half: float = 0.5, radius: float = 0.65) -> Sp
     b = half * face_normal[rows] + rho * in_plane[rows] / np.maximum(dist[rows, None], 1e-12)
     line = np.stack([-(b * u[rows]).sum(1), -(b * v[rows]).sum(1), radius**2 - (b * positions[rows]).sum(1)], axis=1)
     _add_clip_line(lines, used, rows, line)
-    colors = np.where(on_shell[:, None], np.float32([0.9, 0.55, 0.2]), np.float32([0.35, 0.55, 0.85]))
+    shell_color, face_color = np.asarray([0.9, 0.55, 0.2], np.float32), np.asarray([0.35, 0.55, 0.85], np.float32)
+    colors = np.where(on_shell[:, None], shell_color, face_color)
     return SplatCloud(positions, normals, colors, u, v, clip_lines=lines)
 
 

@@ -76,7 +76,7 @@ def _assemble(parts: list[tuple[np.ndarray, bool]], side: float, spacing: float,
     surface = np.concatenate([np.full(len(p), s) for p, s in parts])
     order = rng.permutation(len(pts))
     pts, surface = pts[order], surface[order]
-    colors = np.where(surface[:, None], np.float32(SURFACE_COLOR), np.float32(FAULT_COLOR)).astype(np.float32)
+    colors = np.where(surface[:, None], np.asarray(SURFACE_COLOR, np.float32), np.asarray(FAULT_COLOR, np.float32))
     return FaultyCloud(SplatCloud(pts.astype(np.float32), colors=colors), surface, float(side), float(spacing), name,
                        int(duplicates))
 

@@ -111,12 +111,14 @@ class _View:
     def of(cls, camera: Camera, h: Hierarchy) -> "_View":
         if camera.near is None or camera.far is None:
             camera = camera.with_clip_from_bounds(*h.sphere_bounds())
+        near, far = camera.near, camera.far
+        assert near is not None and far is not None   # set from the bounds above
         m = camera.view_matrix
         tan_v = float(np.tan(np.radians(camera.fov) / 2.0))
         tan_h = tan_v * camera.width / camera.height
         return cls(eye=np.asarray(camera.eye, dtype=np.float64), right=m[0, :3], up=m[1, :3], forward=-m[2, :3],
                    tan_h=tan_h, tan_v=tan_v, cos_h=1.0 / np.sqrt(1.0 + tan_h * tan_h),
-                   cos_v=1.0 / np.sqrt(1.0 + tan_v * tan_v), near=float(camera.near), far=float(camera.far),
+                   cos_v=1.0 / np.sqrt(1.0 + tan_v * tan_v), near=float(near), far=float(far),
                    focal=float(camera.focal_px))
 
 
@@ -194,10 +196,8 @@ def _traverse(hierarchy: Hierarchy, lod: _LodArrays, view: _View, lod_tolerance:
     frustum = cull_frustum  # False once every node left is entirely inside the frustum
     for level in range(hierarchy.levels):
         lo, hi = int(off[level]), int(off[level + 1])
-        if isinstance(reach, np.ndarray) and reach.dtype != bool:
-            rows = reach + lo
-        else:
-            rows = slice(lo, hi)
+        rows: np.ndarray | slice = (reach + lo if isinstance(reach, np.ndarray) and reach.dtype != bool
+                                    else slice(lo, hi))
         out, inside, back, refine = _test(lod, rows, view, lod_tolerance, frustum, cull_backfaces)
         live = ~(out | back)
         if isinstance(reach, np.ndarray) and reach.dtype == bool:

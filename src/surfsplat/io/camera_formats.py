@@ -214,7 +214,7 @@ def load_nerf(path: Path, data, width: int | None = None, height: int | None = N
             if w is None or h is None:
                 raise InputError(f"{where}: no image size (w, h) in the file; give --width and --height")
             if "fl_x" in keys or "fl_y" in keys:
-                fx = float(keys.get("fl_x", keys.get("fl_y")))
+                fx = float(keys["fl_x"] if "fl_x" in keys else keys["fl_y"])
                 fy = float(keys.get("fl_y", fx))
             elif "camera_angle_x" in keys:
                 fx = 0.5 * w / math.tan(0.5 * float(keys["camera_angle_x"]))

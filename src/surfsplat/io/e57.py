@@ -207,7 +207,7 @@ def spherical_to_cartesian(rae: np.ndarray) -> np.ndarray:
     return np.column_stack([flat * np.cos(azimuth), flat * np.sin(azimuth), r * np.sin(elevation)])
 
 
-def _scan(data: dict, i: int, source: str) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+def _scan(data, i: int, source: str) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
     """``(positions (M, 3) float64 in file coordinates, colors (M, 3) or None, intensity (M,) or None)``
     of scan ``i`` of the child's output, its invalid points dropped."""
     fields = {key.split(":", 1)[1]: data[key] for key in data.files if key.startswith(f"{i}:")}

@@ -43,13 +43,13 @@ def save_exr(channels: dict[str, np.ndarray], path: str | os.PathLike, *, attrib
     ``"RGB"``) as a ZIP-compressed scanline EXR, row 0 at the top, atomically; returns the path."""
     import OpenEXR   # optional: the `exr` extra (checked by check_exr)
 
-    path = check_exr(path)
+    out = check_exr(path)
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage, **(attributes or {})}
     pixels = {name: np.ascontiguousarray(values, dtype=np.float32) for name, values in channels.items()}
-    with atomic_path(path, overwrite=overwrite) as temp:
+    with atomic_path(out, overwrite=overwrite) as temp:
         with OpenEXR.File(header, pixels) as image:
             image.write(str(temp))
-    return path
+    return out
 
 
 @file_reader

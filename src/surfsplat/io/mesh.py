@@ -14,6 +14,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import trimesh
@@ -56,7 +57,7 @@ class Mesh:
     corner_normals: np.ndarray | None = None
     merged_vertices: int = field(default=0, compare=False)
     collapsed_faces: int = field(default=0, compare=False)
-    origin: np.ndarray = field(default=None, compare=False)  # type: ignore[assignment]  # None given: zeros
+    origin: np.ndarray = field(default=None, compare=False)  # type: ignore[arg-type]  # None given: zeros
 
     def __post_init__(self) -> None:
         if self.origin is None:
@@ -307,7 +308,7 @@ def check_obj_indices(path: Path, source: str) -> None:
                          f"{int(too_big.sum())} corners out of range")
 
 
-def _trimesh_parts(loaded) -> list[tuple[object, np.ndarray]]:
+def _trimesh_parts(loaded) -> list[tuple[Any, np.ndarray]]:
     """``[(Trimesh or PointCloud, 4x4 transform)]``: a single geometry with the identity, or
     every geometry instance of a Scene with its node's world transform."""
     if isinstance(loaded, (trimesh.Trimesh, trimesh.PointCloud)):
@@ -344,7 +345,7 @@ def _trimesh_arrays(geometry, transform: np.ndarray):
                 length = np.linalg.norm(normals, axis=1, keepdims=True)
                 normals = np.where(length > 0, normals / np.where(length > 0, length, 1.0), 0.0)
         visual = getattr(geometry, "visual", None)
-        if getattr(visual, "kind", None) == "vertex":
+        if visual is not None and getattr(visual, "kind", None) == "vertex":
             rgba = np.asarray(visual.vertex_colors)
             if rgba.shape[0] == len(vertices):
                 colors = rgba[:, :3].astype(np.float64) / 255.0

@@ -114,7 +114,7 @@ def _read_member(archive: zipfile.ZipFile, info: zipfile.ZipInfo, source: str, p
             raise InputError(f"{source}: member '{name}' declares shape {shape} of {dtype} "
                              f"({need:,} bytes) but holds {held:,} bytes", file=path, element=name)
         array = np.empty(shape, dtype=dtype, order="F" if fortran else "C")
-        view = memoryview(array.reshape(-1, order="A").view(np.uint8)) if need else memoryview(b"")
+        view = array.reshape(-1, order="A").view(np.uint8).data if need else memoryview(b"")
         done = 0
         while done < need:
             chunk = stream.read(min(_CHUNK, need - done))

@@ -121,7 +121,7 @@ def _ints(words, n: int, key: str, source: str) -> list[int]:
 
 
 def _ascii(body: bytes, dtype: np.dtype, points: int, source: str) -> np.ndarray:
-    columns = sum(int(np.prod(dtype[name].shape)) or 1 for name in dtype.names)
+    columns = sum(int(np.prod(dtype[name].shape)) or 1 for name in dtype.names or ())
     try:
         table = np.loadtxt(body.decode("ascii").splitlines(), dtype=np.float64, ndmin=2, comments="#")
     except (ValueError, UnicodeDecodeError) as exc:
@@ -133,7 +133,7 @@ def _ascii(body: bytes, dtype: np.dtype, points: int, source: str) -> np.ndarray
                          f"the header says {points} of {columns}")
     out = np.zeros(points, dtype=dtype)
     col = 0
-    for name in dtype.names:
+    for name in dtype.names or ():
         width = int(np.prod(dtype[name].shape)) or 1
         values = table[:points, col:col + width]
         if name in ("rgb", "rgba") and dtype[name].kind == "f":
@@ -148,7 +148,7 @@ def _ascii(body: bytes, dtype: np.dtype, points: int, source: str) -> np.ndarray
 
 
 def _cloud(data: np.ndarray, source: str) -> SplatCloud:
-    names = set(data.dtype.names)
+    names = set(data.dtype.names or ())
 
     def group(*names_):
         if not all(n in names for n in names_):

@@ -274,7 +274,7 @@ def cloud_from_elements(elements: dict[str, np.ndarray], source: str) -> SplatCl
         return cloud_from_gaussians(data, source)
 
     # float64 world coordinates: the SplatCloud keeps them relative to an origin where they sit far out
-    positions = _group(data, names, ("x", "y", "z"), source, required=True, dtype=np.float64)
+    positions = _positions(data, names, source)
     normals = _group(data, names, ("nx", "ny", "nz"), source)
     colors = read_colors(data, names, source)
 
@@ -340,7 +340,7 @@ def mesh_from_elements(elements: dict[str, np.ndarray], source: str) -> Mesh:
     """The Mesh of parsed PLY elements (:func:`read_elements`); see :func:`read_ply_mesh`."""
     data = _vertex_element(elements, source)
     names = set(data.dtype.names or ())
-    vertices = _group(data, names, ("x", "y", "z"), source, required=True, dtype=np.float64)
+    vertices = _positions(data, names, source)
     faces = read_faces(elements, len(data), source)
     if faces is None or len(faces) == 0:
         raise InputError(f"{source}: PLY file has no faces; it is a point cloud, not a mesh", element="face")
@@ -510,6 +510,13 @@ def _group(data: np.ndarray, names: set[str], group: tuple[str, ...], source: st
             raise InputError(f"{source}: vertex property {name!r} must be a number, not a list",
                              element="vertex." + name)
     return np.column_stack([_column(data, name) for name in group]).astype(dtype, copy=False)
+
+
+def _positions(data: np.ndarray, names: set[str], source: str) -> np.ndarray:
+    """(N, 3) float64 x, y, z of the vertex element (InputError naming the missing ones)."""
+    positions = _group(data, names, ("x", "y", "z"), source, required=True, dtype=np.float64)
+    assert positions is not None   # required
+    return positions
 
 
 # -- writing ---------------------------------------------------------------

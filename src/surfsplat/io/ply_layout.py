@@ -59,11 +59,11 @@ def read_layout(path: Path) -> PlyLayout | None:
         lines = head[:match.start()].decode("ascii").splitlines()
     except UnicodeDecodeError:
         return None
-    lines = [line.split() for line in lines]
-    if len(lines) < 2 or lines[0] != ["ply"] or len(lines[1]) != 3 or lines[1][0] != "format":
+    header = [line.split() for line in lines]
+    if len(header) < 2 or header[0] != ["ply"] or len(header[1]) != 3 or header[1][0] != "format":
         return None
     elements: list[tuple[str, int, list[tuple[str, ...]]]] = []
-    for words in lines[2:]:
+    for words in header[2:]:
         if not words or words[0] in ("comment", "obj_info"):
             continue
         if words[0] == "element" and len(words) == 3 and words[2].isdigit():
@@ -75,7 +75,7 @@ def read_layout(path: Path) -> PlyLayout | None:
             elements[-1][2].append((words[4], words[2], words[3]))
         else:
             return None
-    return PlyLayout(lines[1][1], match.end(), os.stat(path).st_size, elements)
+    return PlyLayout(header[1][1], match.end(), os.stat(path).st_size, elements)
 
 
 def _record(props: list[tuple[str, ...]]) -> int:

@@ -69,12 +69,12 @@ def write_video(frames: Iterable[np.ndarray], path: str | os.PathLike, *, fps: f
     """Write (H, W, 3) uint8 frames as an animation at ``fps`` frames per second: a looping GIF, or
     H.264 MP4 / VP9 WebM through ffmpeg (frame sizes rounded down to even for the codecs). MP4/WebM
     frames are streamed one at a time; a GIF keeps them until written. Returns the path."""
-    path = check_video_path(path)
+    out = check_video_path(path)
     if not (np.isfinite(fps) and fps > 0):
         raise InputError(f"frames per second must be positive, got {fps}")
-    with atomic_path(path, overwrite=overwrite) as temp:
-        if path.suffix.lower() == ".gif":
-            _write_gif(frames, temp, path, fps)
+    with atomic_path(out, overwrite=overwrite) as temp:
+        if out.suffix.lower() == ".gif":
+            _write_gif(frames, temp, out, fps)
         else:
-            _write_ffmpeg(frames, temp, path, fps)
-    return path
+            _write_ffmpeg(frames, temp, out, fps)
+    return out

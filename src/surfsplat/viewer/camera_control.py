@@ -164,7 +164,7 @@ class CameraController:
     orbit_speed: float = 0.3
     fly_speed: float = 0.5
     look_speed: float = 60.0
-    up: np.ndarray = field(default=None)
+    up: np.ndarray = field(default=None)  # type: ignore[arg-type]  # None given: set in __post_init__
 
     def __post_init__(self) -> None:
         self.up = _world_up(self.camera, self.up)

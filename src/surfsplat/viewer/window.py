@@ -36,7 +36,7 @@ def open_window(width: int, height: int, title: str, visible: bool = True):
     def fail(what: str):
         why = what + (f" ({'; '.join(errors)})" if errors else "")
         glfw.terminate()
-        glfw.set_error_callback(None)
+        glfw.set_error_callback(None)  # type: ignore[arg-type]  # None removes the callback
         return RenderError(NO_DISPLAY.format(why=why))
 
     if not glfw.init():
