@@ -38,10 +38,11 @@ from .rendering.renderer import default_renderer, reset_default_renderer
 from .scenes import demo_scene
 from .version import __version__
 from .viewer import MotionOptions, view
+from .web import export
 
 __all__ = [
     # rendering
-    "render", "prepare", "View", "RenderResult", "render_mesh", "view", "orbit_cameras", "Frame",
+    "render", "prepare", "View", "RenderResult", "render_mesh", "view", "orbit_cameras", "Frame", "export",
     # options users build
     "Camera", "CameraSpec", "Lights", "RenderOptions", "FilterOptions", "VisibilityOptions", "KernelOptions",
     "EdlOptions", "SourceOptions", "LodOptions", "ColorOptions", "MotionOptions",

@@ -1,4 +1,4 @@
-"""Command line: ``surfsplat render|demo|build|info|preprocess|phong|sample|view``.
+"""Command line: ``surfsplat render|demo|build|info|preprocess|phong|sample|export|view``.
 
 The parser (:class:`surfsplat.cli.parser.Parser`: short usage errors with suggestions) is built
 here from the shared option groups of :mod:`surfsplat.cli.options`; each
@@ -12,10 +12,11 @@ import argparse
 import sys
 import warnings
 
-from .. import progress
+from .. import defaults, progress
 from ..version import __version__
 from ..errors import SurfsplatError
 from ..scenes import SCENES
+from ..web.shaders import WEB_TECHNIQUES
 from . import chunked, commands
 from . import options as opt
 from .parser import Parser
@@ -153,6 +154,23 @@ def build_parser() -> argparse.ArgumentParser:
                         "normals differ by more than DEG degrees (0 < DEG < 180; default: points only)")
     opt.add_force_option(p)
     p.set_defaults(func=commands.cmd_sample)
+
+    p = sub.add_parser("export", help="write a static web viewer of a model (WebGL2; open index.html, no server "
+                                      "needed)")
+    p.add_argument("input", help="a point, splat or mesh file, a hierarchy MODEL.npz or MODEL.ssh, or demo:NAME")
+    p.add_argument("-o", "--output", required=True,
+                   help="output folder (index.html, viewer.js, shaders.js, data.js), or one self-contained "
+                        "page where it ends in .html")
+    p.add_argument("--technique", default="ewa", choices=list(WEB_TECHNIQUES),
+                   help="the page's first technique (switchable on the page; default ewa)")
+    p.add_argument("--background", type=opt.UNIT, nargs=3, metavar=("R", "G", "B"), default=defaults.BACKGROUND,
+                   help="the page's first background colour, components in [0, 1] (default white)")
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing file or non-empty folder that surfsplat export did not write "
+                        "(an earlier export is always replaced)")
+    opt.add_source_options(p)
+    opt.add_lod_options(p)
+    p.set_defaults(func=commands.cmd_export)
 
     add_view_command(sub)
     for subparser in sub.choices.values():

@@ -28,6 +28,7 @@ from ..hierarchy import build_hierarchy, load_hierarchy, save_hierarchy
 from ..hierarchy.nodes import is_majority_voted
 from ..colors import describe_attributes
 from ..io import load, load_mesh, save_ply
+from ..web import export
 from . import options as opt
 
 
@@ -403,3 +404,14 @@ def cmd_sample(args) -> None:
                             smooth_normals=args.smooth_normals)
     save_ply(cloud, out)
     progress.message(f"wrote {len(cloud):,} samples -> {out}")
+
+
+def cmd_export(args) -> None:
+    """``surfsplat export``: a static web viewer of a model (:func:`surfsplat.web.export`)."""
+    check_output(args.output, inputs_of(args), directory=not str(args.output).lower().endswith((".html", ".htm")))
+    result = export(args.input, args.output, technique=args.technique, background=tuple(args.background),
+                    source_options=opt.source_options(args), lod=opt.lod_options(args),
+                    point_budget=args.point_budget, force=args.force)
+    progress.message(f"exported {result.splats:,} splats ({result.bytes / 1e6:.1f} MB of splats, "
+                     f"{result.bytes / max(result.splats, 1):.0f} bytes each) in {result.seconds:.2f} s -> "
+                     f"{result.path}{'' if result.path.suffix else '/index.html'}")

@@ -61,6 +61,17 @@ def auto_camera(cloud: SplatCloud, width: int = defaults.API_IMAGE_SIZE, height:
     splats. Without a direction: :func:`default_direction` (so ``up=(0, 0, 1)`` suits z-up
     data such as LiDAR).
     """
+    points, direction, up, margin = auto_fit_inputs(cloud, up, direction)
+    camera = fit_points(points, direction=direction, up=up, fov=fov, width=width, height=height, margin=margin)
+    return clipped_to(replace(camera, near=None, far=None), cloud)   # near/far from every splat, not the subsample
+
+
+def auto_fit_inputs(cloud: SplatCloud, up=(0.0, 1.0, 0.0), direction=None) -> tuple[np.ndarray, np.ndarray,
+                                                                                      np.ndarray, float]:
+    """What :func:`auto_camera` fits for any image size: the points (float64 world positions, a regular
+    subsample of :data:`FIT_SAMPLE` of larger clouds), the direction toward the eye
+    (:func:`default_direction` where None), the up vector and the margin (the 99th percentile splat
+    radius, model units). The browser viewer exports these to frame its page as ``surfsplat render`` does."""
     up = direction_vector(up, "up")
     if not np.abs(up).max() > 0:
         raise InputError(f"up must be a finite non-zero vector, got {tuple(up)!r}")
@@ -69,9 +80,7 @@ def auto_camera(cloud: SplatCloud, width: int = defaults.API_IMAGE_SIZE, height:
     step = max(1, len(cloud) // FIT_SAMPLE)
     margin = float(np.percentile(cloud.radii, 99)) if cloud.u is not None else 0.0
     # world positions in float64: the camera is composed where the data sit, whatever their offset
-    camera = fit_points(cloud.positions[::step].astype(np.float64) + cloud.origin, direction=direction, up=up,
-                        fov=fov, width=width, height=height, margin=margin)
-    return clipped_to(replace(camera, near=None, far=None), cloud)   # near/far from every splat, not the subsample
+    return cloud.positions[::step].astype(np.float64) + cloud.origin, np.asarray(direction, np.float64), up, margin
 
 
 @dataclass(frozen=True)

@@ -45,6 +45,14 @@ GLSL_VERSION = "#version 330 core"
 #: The version line of compute shaders (``*.comp``), used only where the context has OpenGL 4.3.
 COMPUTE_GLSL_VERSION = "#version 430 core"
 
+#: The version line of the GLSL ES 3.00 variant (WebGL2: the browser viewer, :mod:`surfsplat.web`).
+GLSL_ES_VERSION = "#version 300 es"
+
+#: The default precisions an ES source declares after its version line: GLSL ES gives fragment
+#: shaders no default float precision and samplers only lowp; the desktop's float32 everywhere is highp.
+ES_PRECISION = ("precision highp float;", "precision highp int;", "precision highp sampler2D;",
+                "precision highp usampler2D;")
+
 #: Invocations per work group of the compute shaders (their ``COMPUTE_GROUP`` macro).
 COMPUTE_GROUP = 64
 
@@ -145,8 +153,9 @@ def _define_value(key: str, value) -> str:
 
 
 def prologue(defines: dict[str, object] | None = None, version: str = GLSL_VERSION) -> list[str]:
-    """The version line and the ``#define`` lines: :data:`SHARED_DEFINES`, then ``defines`` (sorted)."""
-    lines = [version]
+    """The version line (with :data:`ES_PRECISION` after :data:`GLSL_ES_VERSION`) and the ``#define`` lines:
+    :data:`SHARED_DEFINES`, then ``defines`` (sorted)."""
+    lines = [version] + (list(ES_PRECISION) if version == GLSL_ES_VERSION else [])
     own = dict(defines or {})
     for key, value in list(SHARED_DEFINES.items()) + sorted(own.items()):
         if not _DEFINE_NAME.fullmatch(key):
@@ -168,7 +177,8 @@ def compose(name: str, defines: dict[str, object] | None = None, *, search_path:
         search_path: folders searched for files before the package's ``glsl/``.
         files: the source-string numbering to extend (``files[k]`` is file k;
             give both stages of a program the same list); a new one by default.
-        version: the ``#version`` line (:data:`COMPUTE_GLSL_VERSION` for compute shaders).
+        version: the ``#version`` line (:data:`COMPUTE_GLSL_VERSION` for compute shaders,
+            :data:`GLSL_ES_VERSION` for WebGL2).
 
     Raises:
         RenderError: a file is missing, an include cycle, a bad define, a file

@@ -1,0 +1,14 @@
+"""The browser viewer: ``surfsplat export`` writes a static page that draws a model in WebGL2 with the
+package's own shaders (``docs/guides/web.md``).
+
+- :mod:`~surfsplat.web.format`: the web format (19 bytes a splat) and its decoding, in NumPy;
+- :mod:`~surfsplat.web.shaders`: the ``rendering/glsl`` files composed for GLSL ES 3.00;
+- :mod:`~surfsplat.web.framing`: the page's default view, as ``surfsplat render`` frames the model;
+- :mod:`~surfsplat.web.export`: :func:`export`, the page and its scripts;
+- :mod:`~surfsplat.web.browser`: a small headless-Chromium driver (DevTools protocol over a pipe) that
+  the tests and the benchmark open pages with.
+"""
+
+from .export import ExportResult, export
+
+__all__ = ["ExportResult", "export"]

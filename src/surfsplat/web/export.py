@@ -1,0 +1,219 @@
+"""``surfsplat export``: a static web viewer of any model ``surfsplat render`` draws.
+
+The model is loaded and prepared by the view plan (:class:`surfsplat.pipeline.View`), exactly as a render
+does: files read, raw points preprocessed, meshes sampled for the default camera, colours applied,
+hierarchies cut (at the default camera within the point budget, else their finest level). Its splats are
+quantized into the web format (:mod:`surfsplat.web.format`, 19 bytes a splat) and written with the
+viewer's page and scripts: ``index.html``, ``viewer.js``, ``shaders.js`` (the package's GLSL files composed
+for GLSL ES 3.00, :mod:`surfsplat.web.shaders`) and ``data.js`` (the streams as base64: a page opened
+from ``file://`` may load scripts but may not ``fetch`` files). An output ending in ``.html`` is one
+self-contained file. Nothing is fetched from the internet, nothing is built.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import time
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from .. import defaults, progress
+from ..camera import Camera
+from ..cloud import SplatCloud
+from ..errors import InputError
+from ..io.atomic import atomic_path, check_writable
+from ..lighting import Lights
+from ..pipeline import CameraSpec, LodOptions, SourceOptions, View, check_source
+from ..pipeline.framing import auto_fit_inputs
+from ..pipeline.models import as_model
+from ..rendering.edl import neighbour_offsets
+from ..rendering.frame import check_background
+from ..rendering.options import EdlOptions, RenderOptions
+from ..rendering.techniques import get_technique
+from ..version import __version__
+from . import format as web_format
+from .framing import fit_frame
+from .shaders import WEB_TECHNIQUES, shader_bundle
+
+#: The files of an exported folder (a folder holding only these, with our index.html, is replaced).
+FILES = ("index.html", "viewer.js", "shaders.js", "data.js")
+#: The generator tag of the page: what marks a file or folder as an earlier export (replaced without --force).
+GENERATOR = "surfsplat export"
+#: A hierarchy is cut to at most this many splats at the default camera unless a budget is given.
+DEFAULT_POINT_BUDGET = 5_000_000
+
+
+@dataclass(frozen=True)
+class ExportResult:
+    """What :func:`export` wrote.
+
+    Attributes:
+        path: the folder (or the ``.html`` file).
+        splats: splats exported.
+        bytes: bytes of the splat streams (``splats * 19``).
+        seconds: wall-clock time of the whole export.
+        files: the files written.
+    """
+
+    path: Path
+    splats: int
+    bytes: int
+    seconds: float
+    files: tuple[Path, ...]
+
+
+def _is_export(path: Path) -> bool:
+    """Whether ``path`` (a folder or an .html file) was written by :func:`export`."""
+    page = path / "index.html" if path.is_dir() else path
+    if path.is_dir() and not {p.name for p in path.iterdir()} <= set(FILES):
+        return False
+    try:
+        head = page.read_text(encoding="utf-8", errors="replace")[:2000]
+    except OSError:
+        return False
+    return f'content="{GENERATOR}' in head
+
+
+def check_export_output(output, force: bool = False) -> tuple[Path, bool]:
+    """``(path, single_file)``: where :func:`export` writes (a folder, or one file where the name ends in
+    ``.html``), checked before any work. An existing file or non-empty folder that an earlier export did
+    not write is refused (InputError) unless ``force``."""
+    path = Path(output)
+    single = path.suffix.lower() in (".html", ".htm")
+    check_writable(path, directory=not single)
+    occupied = path.exists() and (not path.is_dir() or any(path.iterdir()))
+    if occupied and not force and not _is_export(path):
+        what = "folder is not empty" if path.is_dir() else "file exists"
+        raise InputError(f"{path}: the {what} and was not written by surfsplat export; pass --force to replace it")
+    return path, single
+
+
+def _b64(array: np.ndarray) -> str:
+    return base64.b64encode(np.ascontiguousarray(array).tobytes()).decode("ascii")
+
+
+def _script_json(value) -> str:
+    """JSON safe inside an HTML ``<script>`` element (no ``</`` closes it)."""
+    return json.dumps(value, separators=(",", ":")).replace("</", "<\\/")
+
+
+def exported_splats(plan: View, camera: Camera, point_budget: int | None) -> SplatCloud:
+    """The splats a page draws: the view plan's model as splats for ``camera`` (a mesh sampled for it);
+    a hierarchy's cut at ``camera`` within ``point_budget`` (its finest level where that holds it all)."""
+    drawn = plan.sample(camera)
+    if not drawn.is_tree:
+        return drawn.points()
+    budget = point_budget or DEFAULT_POINT_BUDGET
+    tree = plan.tree(camera)
+    cloud, _ = tree.cut(camera, 0.0, shading=plan.lod.shading, point_budget=budget)
+    return cloud
+
+
+def page_data(plan: View, cloud: SplatCloud, technique: str, background, name: str) -> tuple[dict, dict]:
+    """The header (everything but the streams) and the streams of a page drawing ``cloud``."""
+    if len(cloud) == 0:
+        raise InputError(f"{name}: no splats to export")
+    if cloud.u is None or cloud.v is None or cloud.normals is None:
+        raise InputError(f"{name}: the prepared model has no splat axes or normals to export")
+    colors = cloud.colors if cloud.colors is not None else np.full((len(cloud), 3), 0.8, np.float32)
+    streams, header = web_format.encode(cloud.positions, cloud.normals, colors, cloud.u, cloud.v)
+    model = as_model(plan.model).points()
+    points, direction, up, margin = auto_fit_inputs(model, plan.up)
+    options, lights = RenderOptions(), Lights()
+    radius = float(cloud.radii.max())
+    header.update({
+        "name": name, "version": __version__, "origin": np.asarray(cloud.origin, np.float64).tolist(),
+        "bounds": [b.tolist() for b in cloud.bounds()], "max_radius": radius,
+        "fit": fit_frame(points, direction, up, margin), "fov": defaults.FOV,
+        "technique": technique, "techniques": list(WEB_TECHNIQUES), "background": list(background),
+        "uniforms": {t: {k: list(np.atleast_1d(v).astype(float)) for k, v in get_technique(t).uniforms(options).items()}
+                     for t in WEB_TECHNIQUES},
+        "frame": {"u_depth_epsilon": options.visibility.depth_epsilon,
+                  "u_separate_sides": options.visibility.separate_sides,
+                  "u_clip_fringe": options.visibility.clip_fringe, "u_deferred": options.deferred,
+                  "u_cull_backfaces": False, "u_supersample": 1.0},
+        "material": [lights.ambient, lights.diffuse, lights.specular, lights.shininess],
+        "edl": {"strength": EdlOptions().strength, "offsets": neighbour_offsets(EdlOptions().radius_px)},
+    })
+    return header, {key: _b64(value) for key, value in streams.items()}
+
+
+def _static(name: str) -> str:
+    return resources.files(__package__).joinpath("static").joinpath(name).read_text(encoding="utf-8")
+
+
+def page_files(header: dict, streams: dict) -> dict[str, str]:
+    """The text of each file of an exported folder (:data:`FILES`)."""
+    title = html.escape(f"{Path(str(header['name'])).name} - surfsplat")
+    scripts = "\n".join(f'<script src="{name}"></script>' for name in ("shaders.js", "data.js", "viewer.js"))
+    page = (_static("index.html").replace("{{GENERATOR}}", f"{GENERATOR} {__version__}")
+            .replace("{{TITLE}}", title).replace("{{SCRIPTS}}", scripts))
+    return {"index.html": page, "viewer.js": _static("viewer.js"),
+            "shaders.js": f"window.SURFSPLAT_SHADERS = {_script_json(shader_bundle())};\n",
+            "data.js": f"window.SURFSPLAT_DATA = {_script_json({'header': header, 'streams': streams})};\n"}
+
+
+def single_page(files: dict[str, str]) -> str:
+    """One self-contained page: the folder's scripts inlined into its ``index.html``."""
+    for name in ("shaders.js", "data.js", "viewer.js"):
+        if "</script" in files[name].lower():   # JSON is escaped (_script_json); the viewer has none
+            raise InputError(f"{name} cannot be inlined: it contains '</script'")
+    inline = "\n".join(f"<script>\n{files[name]}\n</script>" for name in ("shaders.js", "data.js", "viewer.js"))
+    scripts = "\n".join(f'<script src="{name}"></script>' for name in ("shaders.js", "data.js", "viewer.js"))
+    return files["index.html"].replace(scripts, inline)
+
+
+def export(source, output, *, technique: str = "ewa", background=defaults.BACKGROUND,
+           source_options: SourceOptions | None = None, lod: LodOptions | None = None,
+           camera: CameraSpec | None = None, point_budget: int | None = None, force: bool = False) -> ExportResult:
+    """Write a static web viewer of ``source`` to ``output``: a folder (``index.html``, ``viewer.js``,
+    ``shaders.js``, ``data.js``), or one self-contained file where ``output`` ends in ``.html``.
+
+    Args:
+        source: anything :func:`surfsplat.render` takes (a file, ``demo:NAME``, a SplatCloud, a Mesh,
+            a hierarchy), prepared by :class:`~surfsplat.pipeline.View` as a render prepares it.
+        technique: the page's first technique: "ewa", "flat" or "points" (switchable on the page).
+        background: the page's first background, RGB in [0, 1].
+        source_options, lod: as :func:`surfsplat.render` takes them.
+        camera: the view a mesh is sampled for and a hierarchy cut at (None: the automatic one of
+            ``surfsplat render``, at 1024 x 1024 pixels). The page opens at its own default view.
+        point_budget: at most this many splats from a hierarchy (default 5,000,000).
+        force: replace an existing file or non-empty folder that an earlier export did not write.
+
+    Returns:
+        :class:`ExportResult`.
+    """
+    start = time.perf_counter()
+    if technique not in WEB_TECHNIQUES:
+        raise InputError(f"technique {technique!r} is not drawn by the web viewer; choose one of "
+                         f"{', '.join(WEB_TECHNIQUES)}")
+    background = tuple(float(c) for c in check_background(background))
+    if point_budget is not None and not (isinstance(point_budget, (int, np.integer)) and point_budget >= 1):
+        raise InputError(f"point budget must be a whole number >= 1, got {point_budget!r}")
+    path, single = check_export_output(output, force)
+    check_source(source)
+    plan = View(source, source_options=source_options, lod=lod)
+    size = defaults.CLI_IMAGE_SIZE
+    view_camera = plan.camera(camera, size, size)
+    with progress.stage("exporting for the web"):
+        cloud = exported_splats(plan, view_camera, point_budget)
+        header, streams = page_data(plan, cloud, technique, background, plan.name)
+        files = page_files(header, streams)
+    written: list[Path] = []
+    if single:
+        with atomic_path(path) as temp:
+            Path(temp).write_text(single_page(files), encoding="utf-8")
+        written.append(path)
+    else:
+        with atomic_path(path, directory=True) as temp:
+            Path(temp).chmod(0o755)   # a web server's user reads it (mkdtemp makes it the owner's alone)
+            for name, text in files.items():
+                (Path(temp) / name).write_text(text, encoding="utf-8")
+        written.extend(path / name for name in files)
+    count = len(cloud)
+    return ExportResult(path, count, count * web_format.BYTES_PER_SPLAT, time.perf_counter() - start, tuple(written))

@@ -1,0 +1,91 @@
+"""The browser viewer's shaders: the package's own ``rendering/glsl`` files composed for GLSL ES 3.00.
+
+WebGL2 runs the desktop renderer's raster passes (``docs/guides/web.md``): the same files, composed by
+the same :func:`surfsplat.rendering.shaders.compose` with :data:`~surfsplat.rendering.shaders.GLSL_ES_VERSION`
+(``#version 300 es`` and the default precisions), the same pass ids and shared constants. Each program
+is a (vertex, fragment) pair and its defines, as :mod:`surfsplat.rendering.passes` builds them for a
+frame drawn without compute shaders, with instanced quads, in one tile, without edge coverage:
+
+- ``ewa``: ``ewa.vert``/``ewa.frag`` with ``PASS`` = visibility and accumulation, then ``cracks.frag``
+  and ``normalize.frag`` (Guennebaud 2003: visibility splatting, accumulation, normalization);
+- ``flat``: ``disk.vert``/``flat.frag``, one opaque pass, then ``normalize.frag``;
+- ``points``: ``points.vert``/``points.frag``, one opaque pass, ``normalize.frag``, then eye-dome
+  lighting (``edl.frag``, the formula of :mod:`surfsplat.rendering.edl`).
+
+What does not port: the compute passes (``visibility.comp``, ``opaque_resolve.frag``: WebGL2 has no
+compute shaders, SSBOs or image atomics; the raster path draws the same pictures), and ``phong``,
+``perspective`` and ``blend`` are not exported yet (their shaders would compose as well, but the web
+format carries no normal fields or clip lines).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..rendering.edl import NEIGHBOURS
+from ..rendering.shaders import GLSL_ES_VERSION, PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBILITY, PROLOGUE, compose
+from ..rendering.uniform_blocks import FRAME_BLOCKS, block_layout
+from ..rendering.shaders import read_source
+
+
+@dataclass(frozen=True)
+class WebProgram:
+    """One program of the browser viewer: its files, defines and composed ES sources."""
+
+    name: str
+    vertex: str
+    fragment: str
+    defines: tuple[tuple[str, object], ...]
+    vertex_text: str
+    fragment_text: str
+    files: tuple[str, ...]
+
+
+#: name -> (vertex file, fragment file, defines): every program the browser viewer draws with.
+PROGRAMS: dict[str, tuple[str, str, dict[str, object]]] = {
+    "ewa_visibility": ("ewa.vert", "ewa.frag", {"PASS": PASS_VISIBILITY}),
+    "ewa_accumulation": ("ewa.vert", "ewa.frag", {"PASS": PASS_ACCUMULATION}),
+    "cracks": ("fullscreen.vert", "cracks.frag", {}),
+    "normalize": ("fullscreen.vert", "normalize.frag", {}),
+    "flat": ("disk.vert", "flat.frag", {"PASS": PASS_OPAQUE}),
+    "points": ("points.vert", "points.frag", {"PASS": PASS_OPAQUE}),
+    "edl": ("fullscreen.vert", "edl.frag", {"EDL_NEIGHBOURS": NEIGHBOURS}),
+}
+
+#: The techniques the browser viewer draws.
+WEB_TECHNIQUES = ("ewa", "flat", "points")
+
+
+def web_program(name: str) -> WebProgram:
+    """The program ``name`` of :data:`PROGRAMS` composed for GLSL ES 3.00 (one file numbering for its
+    two stages, as :func:`surfsplat.rendering.shaders.build_program` composes a desktop program)."""
+    vertex, fragment, defines = PROGRAMS[name]
+    files = [PROLOGUE]
+    vs = compose(vertex, defines, files=files, version=GLSL_ES_VERSION)
+    fs = compose(fragment, defines, files=files, version=GLSL_ES_VERSION)
+    return WebProgram(name, vertex, fragment, tuple(sorted(defines.items())), vs.text, fs.text, tuple(files))
+
+
+def web_programs() -> dict[str, WebProgram]:
+    """Every program of :data:`PROGRAMS`, composed from the current ``glsl/`` files."""
+    return {name: web_program(name) for name in PROGRAMS}
+
+
+def block_layouts() -> dict:
+    """The std140 layouts of the frame's uniform blocks (:data:`~surfsplat.rendering.uniform_blocks.FRAME_BLOCKS`),
+    read from their GLSL declarations: block name -> {"binding", "size", "members": [{name, type, length,
+    offset}]}, for the viewer to write the same bytes the desktop renderer writes."""
+    layouts = {}
+    for block, (file, binding) in FRAME_BLOCKS.items():
+        layout = block_layout(block, read_source(file))
+        layouts[block] = {"binding": binding, "size": layout.size,
+                          "members": [{"name": m.name, "type": m.type, "length": m.length, "offset": m.offset}
+                                      for m in layout.members]}
+    return layouts
+
+
+def shader_bundle() -> dict:
+    """What the viewer's ``shaders.js`` holds: each program's sources and the uniform blocks' layouts."""
+    return {"programs": {name: {"vertex": p.vertex_text, "fragment": p.fragment_text, "files": list(p.files)}
+                         for name, p in web_programs().items()},
+            "blocks": block_layouts()}

@@ -1,0 +1,597 @@
+// surfsplat web viewer: draws the splats of data.js with the programs of shaders.js (the package's GLSL
+// files composed for GLSL ES 3.00) in the passes of the desktop renderer (surfsplat.rendering.passes).
+// No build step, no network: every input is a script loaded by the page.
+(function () {
+  'use strict';
+  var DATA = window.SURFSPLAT_DATA;
+  var SHADERS = window.SURFSPLAT_SHADERS;
+  var H = DATA.header;
+
+  // Attribute locations, bound before linking: one vertex array serves every splat program.
+  var ATTRIBUTES = ['in_corner', 'in_position', 'in_normal', 'in_color', 'in_u', 'in_v',
+                    'in_clip0', 'in_clip1', 'in_normal_field'];
+  var NO_DEPTH = 1e37;           // shaders.NO_DEPTH: the visibility target's clear value
+  var SIDE_UNIT = 2;             // passes.SIDE_TEXTURE_UNIT
+  var EDL_COLOR_UNIT = 4, EDL_DEPTH_UNIT = 5;
+
+  var state = {
+    technique: H.technique, background: H.background.slice(), edl: H.technique === 'points',
+    camera: null, frameMs: 0, frames: 0, splats: H.count, errors: [], ready: false, firstFrameMs: null,
+    ui: true, width: 0, height: 0
+  };
+  window.surfsplat = state;
+
+  function fail(text) {
+    state.errors.push(text);
+    var box = document.getElementById('message');
+    box.textContent = text;
+    box.style.display = 'block';
+    console.error(text);
+  }
+
+  // ---- decoding: the twin of surfsplat/web/format.py --------------------------------------------
+  function bytes(b64) {
+    var bin = atob(b64), out = new Uint8Array(bin.length);
+    for (var i = 0; i < bin.length; ++i) out[i] = bin.charCodeAt(i);
+    return out;
+  }
+
+  function u16(b64) { var b = bytes(b64); return new Uint16Array(b.buffer, b.byteOffset, b.length / 2); }
+
+  function decode() {
+    var n = H.count, s = DATA.streams;
+    var qp = u16(s.position), qn = u16(s.normal), qa = u16(s.angle), qr = u16(s.radii);
+    var pos = new Float32Array(3 * n), nrm = new Float32Array(3 * n), u = new Float32Array(3 * n),
+        v = new Float32Array(3 * n);
+    var lo = H.lo, hi = H.hi, U16 = 65535, OCT = 65534;   // format.U16, format.OCT_LEVELS
+    var w0 = hi[0] - lo[0], w1 = hi[1] - lo[1], w2 = hi[2] - lo[2];
+    var l0 = H.log_radius[0], lw = H.log_radius[1] - H.log_radius[0];
+    for (var i = 0; i < n; ++i) {
+      var k = 3 * i;
+      pos[k] = lo[0] + qp[k] / U16 * w0;
+      pos[k + 1] = lo[1] + qp[k + 1] / U16 * w1;
+      pos[k + 2] = lo[2] + qp[k + 2] / U16 * w2;
+      // octahedral_decode
+      var x = -1 + qn[2 * i] / OCT * 2, y = -1 + qn[2 * i + 1] / OCT * 2;
+      var z = 1 - Math.abs(x) - Math.abs(y), t = Math.max(-z, 0);
+      x -= x >= 0 ? t : -t;
+      y -= y >= 0 ? t : -t;
+      var len = Math.sqrt(x * x + y * y + z * z);
+      x /= len; y /= len; z /= len;
+      nrm[k] = x; nrm[k + 1] = y; nrm[k + 2] = z;
+      // tangent_basis (Duff et al. 2017)
+      var sign = z >= 0 ? 1 : -1, a = -1 / (sign + z), b = x * y * a;
+      var b1x = 1 + sign * x * x * a, b1y = sign * b, b1z = -sign * x;
+      var b2x = b, b2y = sign + y * y * a, b2z = -y;
+      var ang = qa[i] * (Math.PI / 65536), c = Math.cos(ang), sn = Math.sin(ang);
+      var dx = c * b1x + sn * b2x, dy = c * b1y + sn * b2y, dz = c * b1z + sn * b2z;
+      var ru = Math.pow(2, l0 + qr[2 * i] / U16 * lw), rv = Math.pow(2, l0 + qr[2 * i + 1] / U16 * lw);
+      u[k] = dx * ru; u[k + 1] = dy * ru; u[k + 2] = dz * ru;
+      v[k] = (y * dz - z * dy) * rv; v[k + 1] = (z * dx - x * dz) * rv; v[k + 2] = (x * dy - y * dx) * rv;
+    }
+    return {position: pos, normal: nrm, u: u, v: v, color: bytes(s.color)};
+  }
+
+  // ---- small float64 vector helpers ---------------------------------------------------------------
+  function sub(a, b) { return [a[0] - b[0], a[1] - b[1], a[2] - b[2]]; }
+  function add(a, b) { return [a[0] + b[0], a[1] + b[1], a[2] + b[2]]; }
+  function scale(a, s) { return [a[0] * s, a[1] * s, a[2] * s]; }
+  function dot(a, b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+  function cross(a, b) { return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]; }
+  function norm(a) { return Math.sqrt(dot(a, a)); }
+  function unit(a) { return scale(a, 1 / norm(a)); }
+  function rotate(v, axis, angle) {   // Rodrigues, axis unit
+    var c = Math.cos(angle), s = Math.sin(angle);
+    return add(add(scale(v, c), scale(cross(axis, v), s)), scale(axis, dot(axis, v) * (1 - c)));
+  }
+
+  // Camera.view_matrix (gluLookAt) of eye/target/up given relative to the splats' origin: rows.
+  function viewRows(eye, target, up) {
+    var f = unit(sub(target, eye)), s = unit(cross(f, up)), u = cross(s, f);
+    return [s, u, scale(f, -1), [-dot(s, eye), -dot(u, eye), dot(f, eye)]];
+  }
+
+  // Camera.with_clip_from_bounds of the splats' bounds grown by their largest radius (framing.clipped_to).
+  function nearFar(eye, target, up) {
+    var r = viewRows(eye, target, up), m = H.max_radius;
+    var lo = sub(H.bounds[0], [m, m, m]), hi = add(H.bounds[1], [m, m, m]);
+    var dmin = Infinity, dmax = -Infinity;
+    for (var i = 0; i < 8; ++i) {
+      var c = [(i & 1) ? hi[0] : lo[0], (i & 2) ? hi[1] : lo[1], (i & 4) ? hi[2] : lo[2]];
+      var d = -(dot(r[2], c) + r[3][2]);
+      dmin = Math.min(dmin, d); dmax = Math.max(dmax, d);
+    }
+    var diag = norm(sub(hi, lo)) || 1;
+    var far = Math.max(dmax * 1.01, diag * 1e-3);
+    var near = Math.max(dmin * 0.99, far * 1e-4, diag * 1e-4);
+    return [Math.min(near, far * 0.5), far];
+  }
+
+  // surfsplat.web.framing.camera_from_frame: fit_points of the exported hulls at this size.
+  function centering(hull, dist, m) {
+    var lo = Infinity, hi = -Infinity, i;
+    for (i = 0; i < hull.length; ++i) { lo = Math.min(lo, hull[i][0]); hi = Math.max(hi, hull[i][0]); }
+    lo -= m; hi += m;
+    for (var step = 0; step < 60; ++step) {
+      var c = 0.5 * (lo + hi), big = -Infinity, small = Infinity;
+      for (i = 0; i < hull.length; ++i) {
+        var depth = dist - hull[i][1];
+        big = Math.max(big, (hull[i][0] + m - c) / depth);
+        small = Math.min(small, (hull[i][0] - m - c) / depth);
+      }
+      if (big + small > 0) lo = c; else hi = c;
+    }
+    return 0.5 * (lo + hi);
+  }
+
+  function defaultCamera(width, height) {
+    var F = H.fit, m = F.margin, fov = H.fov, fill = 0.9;
+    var ty = fill * Math.tan(fov * Math.PI / 360), tx = ty * width / height;
+    var hulls = [F.hull_x, F.hull_y], ts = [tx, ty], offsets = [], distances = [];
+    for (var k = 0; k < 2; ++k) {
+      var a = -Infinity, b = -Infinity, hull = hulls[k], t = ts[k];
+      for (var i = 0; i < hull.length; ++i) {
+        a = Math.max(a, hull[i][1] + (hull[i][0] + m) / t);
+        b = Math.max(b, hull[i][1] + (m - hull[i][0]) / t);
+      }
+      offsets.push(0.5 * t * (a - b));
+      distances.push(0.5 * (a + b));
+    }
+    var dist = Math.max(Math.max(distances[0], distances[1]), F.zmax + m + 1e-3 * F.extent);
+    for (k = 0; k < 2; ++k) if (distances[k] < dist) offsets[k] = centering(hulls[k], dist, m);
+    var target = add(add(F.center, scale(F.right, offsets[0])), scale(F.screen_up, offsets[1]));
+    return {eye: add(target, scale(F.direction, dist)), target: target, up: F.up.slice(), fov: fov};
+  }
+
+  // ---- GL setup -------------------------------------------------------------------------------------
+  var canvas = document.getElementById('view');
+  var gl = canvas.getContext('webgl2', {antialias: false, alpha: false, depth: false, stencil: false,
+                                        preserveDrawingBuffer: true, premultipliedAlpha: false});
+  if (!gl) { fail('This browser has no WebGL2: the viewer needs it.'); return; }
+  if (!gl.getExtension('EXT_color_buffer_float')) { fail('WebGL2 without EXT_color_buffer_float: float targets are needed.'); return; }
+  var floatBlend = !!gl.getExtension('EXT_float_blend');
+
+  function compile(type, text, name) {
+    var sh = gl.createShader(type);
+    gl.shaderSource(sh, text);
+    gl.compileShader(sh);
+    if (!gl.getShaderParameter(sh, gl.COMPILE_STATUS)) {
+      throw new Error('shader ' + name + ' failed to compile: ' + translate(gl.getShaderInfoLog(sh), SHADERS.programs[name].files));
+    }
+    return sh;
+  }
+
+  // shaders.translate_log: a position "S:L" with L = k * 10000 + line names file k's line.
+  function translate(log, files) {
+    return String(log).replace(/(\d+):(\d+)/g, function (all, src, line) {
+      var k = Math.floor(line / 10000), local = line % 10000;
+      return (k > 0 && k < files.length) ? files[k] + ':' + local : all;
+    });
+  }
+
+  var programs = {};
+  function build(name) {
+    var p = SHADERS.programs[name], prog = gl.createProgram();
+    gl.attachShader(prog, compile(gl.VERTEX_SHADER, p.vertex, name));
+    gl.attachShader(prog, compile(gl.FRAGMENT_SHADER, p.fragment, name));
+    for (var i = 0; i < ATTRIBUTES.length; ++i) gl.bindAttribLocation(prog, i, ATTRIBUTES[i]);
+    gl.linkProgram(prog);
+    if (!gl.getProgramParameter(prog, gl.LINK_STATUS)) throw new Error('program ' + name + ' failed to link: ' + gl.getProgramInfoLog(prog));
+    for (var block in SHADERS.blocks) {
+      var index = gl.getUniformBlockIndex(prog, block);
+      if (index !== gl.INVALID_INDEX) gl.uniformBlockBinding(prog, index, SHADERS.blocks[block].binding);
+    }
+    var uniforms = {}, count = gl.getProgramParameter(prog, gl.ACTIVE_UNIFORMS);
+    for (i = 0; i < count; ++i) {
+      var info = gl.getActiveUniform(prog, i), key = info.name.replace(/\[0\]$/, '');
+      var loc = gl.getUniformLocation(prog, info.name);
+      if (loc) uniforms[key] = {loc: loc, type: info.type, size: info.size};
+    }
+    return {program: prog, uniforms: uniforms};
+  }
+
+  function setUniforms(p, values) {
+    gl.useProgram(p.program);
+    for (var key in values) {
+      var u = p.uniforms[key];
+      if (!u) continue;   // declared but not active in this program (the compiler dropped it)
+      var v = values[key], arr = Array.isArray(v) ? v : [v];
+      switch (u.type) {
+        case gl.FLOAT: gl.uniform1fv(u.loc, arr); break;
+        case gl.FLOAT_VEC2: gl.uniform2fv(u.loc, arr); break;
+        case gl.FLOAT_VEC3: gl.uniform3fv(u.loc, arr); break;
+        case gl.FLOAT_VEC4: gl.uniform4fv(u.loc, arr); break;
+        case gl.INT_VEC2: gl.uniform2iv(u.loc, arr); break;
+        case gl.BOOL: case gl.INT: case gl.SAMPLER_2D: case gl.UNSIGNED_INT_SAMPLER_2D:
+          gl.uniform1iv(u.loc, arr.map(Number)); break;
+        default: throw new Error('uniform ' + key + ' of an unexpected type ' + u.type);
+      }
+    }
+  }
+
+  // The frame's std140 blocks (uniform_blocks.py lays them out from the same declarations).
+  var blocks = {};
+  for (var name in SHADERS.blocks) {
+    var layout = SHADERS.blocks[name], buffer = gl.createBuffer(), data = new ArrayBuffer(layout.size);
+    gl.bindBuffer(gl.UNIFORM_BUFFER, buffer);
+    gl.bufferData(gl.UNIFORM_BUFFER, layout.size, gl.DYNAMIC_DRAW);
+    gl.bindBufferBase(gl.UNIFORM_BUFFER, layout.binding, buffer);
+    blocks[name] = {layout: layout, buffer: buffer, data: data, f32: new Float32Array(data), i32: new Int32Array(data)};
+  }
+
+  function writeBlocks(values) {
+    for (var name in blocks) {
+      var b = blocks[name];
+      b.layout.members.forEach(function (m) {
+        if (!(m.name in values)) throw new Error('uniform block ' + name + ' needs ' + m.name);
+        var v = values[m.name], flat = [].concat.apply([], Array.isArray(v) ? v.map(function (x) { return Array.isArray(x) ? x : [x]; }) : [[v]]);
+        var at = m.offset / 4;
+        if (m.type === 'int' || m.type === 'bool' || m.type === 'uint') { b.i32[at] = Number(flat[0]); return; }
+        var width = {float: 1, vec2: 2, vec3: 3, vec4: 4, mat4: 16}[m.type];
+        if (m.length === null || m.length === undefined) { for (var i = 0; i < flat.length; ++i) b.f32[at + i] = flat[i]; return; }
+        for (var row = 0; row < m.length; ++row) for (var c = 0; c < width; ++c) b.f32[at + 4 * row + c] = flat[row * width + c];
+      });
+      gl.bindBuffer(gl.UNIFORM_BUFFER, b.buffer);
+      gl.bufferSubData(gl.UNIFORM_BUFFER, 0, b.data);
+    }
+  }
+
+  // ---- splats -------------------------------------------------------------------------------------
+  var splats, vao = gl.createVertexArray(), empty = gl.createVertexArray();
+  function upload(decoded) {
+    gl.bindVertexArray(vao);
+    function attribute(index, array, size, type, normalized, divisor) {
+      var buf = gl.createBuffer();
+      gl.bindBuffer(gl.ARRAY_BUFFER, buf);
+      gl.bufferData(gl.ARRAY_BUFFER, array, gl.STATIC_DRAW);
+      gl.enableVertexAttribArray(index);
+      gl.vertexAttribPointer(index, size, type, normalized, 0, 0);
+      gl.vertexAttribDivisor(index, divisor);
+    }
+    attribute(0, new Float32Array([-1, -1, 1, -1, -1, 1, 1, 1]), 2, gl.FLOAT, false, 0);
+    attribute(1, decoded.position, 3, gl.FLOAT, false, 1);
+    attribute(2, decoded.normal, 3, gl.FLOAT, false, 1);
+    attribute(3, decoded.color, 3, gl.UNSIGNED_BYTE, true, 1);
+    attribute(4, decoded.u, 3, gl.FLOAT, false, 1);
+    attribute(5, decoded.v, 3, gl.FLOAT, false, 1);
+    for (var i = 6; i < ATTRIBUTES.length; ++i) gl.vertexAttrib4f(i, 0, 0, 0, 0);   // no clip lines, no normal field
+    gl.bindVertexArray(null);
+  }
+
+  // ---- targets ------------------------------------------------------------------------------------
+  var targets = null;
+  function texture(format, w, h) {
+    var t = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D, t);
+    var internal = {rg: gl.RG32F, rgba: gl.RGBA32F, depth: gl.DEPTH_COMPONENT32F}[format];
+    gl.texStorage2D(gl.TEXTURE_2D, 1, internal, w, h);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
+    return t;
+  }
+  function framebuffer(colors, depth) {
+    var f = gl.createFramebuffer();
+    gl.bindFramebuffer(gl.FRAMEBUFFER, f);
+    colors.forEach(function (t, i) { gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0 + i, gl.TEXTURE_2D, t, 0); });
+    if (depth) gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.DEPTH_ATTACHMENT, gl.TEXTURE_2D, depth, 0);
+    gl.drawBuffers(colors.map(function (t, i) { return gl.COLOR_ATTACHMENT0 + i; }));
+    if (gl.checkFramebufferStatus(gl.FRAMEBUFFER) !== gl.FRAMEBUFFER_COMPLETE) throw new Error('incomplete framebuffer');
+    return f;
+  }
+  function ensureTargets(w, h) {
+    if (targets && targets.w === w && targets.h === h) return targets;
+    if (targets) targets.all.forEach(function (x) { gl.isTexture(x) ? gl.deleteTexture(x) : gl.deleteFramebuffer(x); });
+    var t = {w: w, h: h, side: texture('rg', w, h), cracks: texture('rg', w, h), accum: texture('rgba', w, h),
+             aux: texture('rgba', w, h), depth: texture('depth', w, h), out: texture('rgba', w, h),
+             depthSum: texture('rg', w, h)};
+    t.fboVisibility = framebuffer([t.side]);
+    t.fboCracks = framebuffer([t.cracks]);
+    t.fboAccum = framebuffer([t.accum, t.aux], t.depth);
+    t.fboOut = framebuffer([t.out, t.depthSum]);
+    t.all = [t.fboVisibility, t.fboCracks, t.fboAccum, t.fboOut, t.side, t.cracks, t.accum, t.aux, t.depth, t.out, t.depthSum];
+    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+    targets = t;
+    return t;
+  }
+  function bindTexture(unit, t) { gl.activeTexture(gl.TEXTURE0 + unit); gl.bindTexture(gl.TEXTURE_2D, t); }
+
+  // ---- a frame: the passes of surfsplat.rendering.passes ------------------------------------------
+  function frameValues(cam, w, h) {
+    var o = H.origin, eye = sub(cam.eye, o), target = sub(cam.target, o);
+    var r = viewRows(eye, target, cam.up), nf = nearFar(cam.eye, cam.target, cam.up);
+    var view = [r[0][0], r[1][0], r[2][0], 0, r[0][1], r[1][1], r[2][1], 0, r[0][2], r[1][2], r[2][2], 0,
+                r[3][0], r[3][1], r[3][2], 1];   // column-major
+    // the headlight (Lights() default): from the target toward the eye, in camera space
+    var l = unit(sub(cam.eye, cam.target)), light = [dot(r[0], l), dot(r[1], l), dot(r[2], l)];
+    var fr = H.frame;
+    return {
+      u_view: view, u_tile: [0, 0, w, h], u_viewport: [w, h], u_near_far: nf,
+      u_focal: 0.5 * h / Math.tan(cam.fov * Math.PI / 360),
+      u_light_dirs: [light, [0, 0, 0], [0, 0, 0], [0, 0, 0]], u_material: H.material, u_num_lights: 1,
+      u_lighting: true, u_depth_epsilon: fr.u_depth_epsilon, u_supersample: fr.u_supersample,
+      u_cull_backfaces: fr.u_cull_backfaces, u_separate_sides: fr.u_separate_sides,
+      u_clip_fringe: fr.u_clip_fringe, u_deferred: fr.u_deferred
+    };
+  }
+
+  function drawSplats(p, values) {
+    setUniforms(p, values);
+    gl.bindVertexArray(vao);
+    gl.drawArraysInstanced(gl.TRIANGLE_STRIP, 0, 4, H.count);
+    gl.bindVertexArray(null);
+  }
+  function fullscreen(p, values) {
+    setUniforms(p, values);
+    gl.bindVertexArray(empty);
+    gl.drawArrays(gl.TRIANGLES, 0, 3);
+    gl.bindVertexArray(null);
+  }
+
+  function render() {
+    var w = canvas.width, h = canvas.height, t = ensureTargets(w, h), technique = state.technique;
+    var start = performance.now();
+    writeBlocks(frameValues(state.camera, w, h));
+    var own = Object.assign({u_side: SIDE_UNIT, u_max_point: 1023}, H.uniforms[technique] || {});
+    gl.viewport(0, 0, w, h);
+    gl.disable(gl.CULL_FACE);
+    gl.bindFramebuffer(gl.FRAMEBUFFER, t.fboAccum);
+    gl.depthMask(true);
+    gl.clearBufferfv(gl.COLOR, 0, [0, 0, 0, 0]);
+    gl.clearBufferfv(gl.COLOR, 1, [0, 0, 0, 0]);
+    gl.clearBufferfv(gl.DEPTH, 0, [1]);
+    var blended = technique === 'ewa';
+    if (blended) {
+      // 1. visibility: per pixel the nearest offset depths by MIN blending
+      gl.bindFramebuffer(gl.FRAMEBUFFER, t.fboVisibility);
+      gl.clearBufferfv(gl.COLOR, 0, [NO_DEPTH, NO_DEPTH, 0, 0]);
+      gl.disable(gl.DEPTH_TEST);
+      gl.enable(gl.BLEND);
+      gl.blendEquation(gl.MIN);
+      drawSplats(programs.ewa_visibility, own);
+      // 2. cracks: the record with one-pixel cracks marked
+      gl.disable(gl.BLEND);
+      gl.bindFramebuffer(gl.FRAMEBUFFER, t.fboCracks);
+      bindTexture(SIDE_UNIT, t.side);
+      fullscreen(programs.cracks, {u_side: SIDE_UNIT});
+      // 3. accumulation: additive blending of the weighted colours, depths and normals
+      bindTexture(SIDE_UNIT, t.cracks);
+      gl.bindFramebuffer(gl.FRAMEBUFFER, t.fboAccum);
+      gl.depthMask(false);
+      gl.enable(gl.BLEND);
+      gl.blendEquation(gl.FUNC_ADD);
+      gl.blendFunc(gl.ONE, gl.ONE);
+      drawSplats(programs.ewa_accumulation, own);
+    } else {
+      // the one opaque pass: a plain z-buffer
+      gl.enable(gl.DEPTH_TEST);
+      gl.depthFunc(gl.LESS);
+      gl.disable(gl.BLEND);
+      drawSplats(programs[technique], own);
+      bindTexture(SIDE_UNIT, t.side);
+    }
+    // normalization (and eye-dome lighting from its depth)
+    gl.depthMask(true);
+    gl.disable(gl.BLEND);
+    gl.disable(gl.DEPTH_TEST);
+    bindTexture(0, t.accum);
+    bindTexture(1, t.aux);
+    var normalize = {u_accum: 0, u_aux: 1, u_side: SIDE_UNIT, u_cover: 3, u_background: state.background,
+                     u_edge_fringe: blended};
+    if (state.edl) {
+      gl.bindFramebuffer(gl.FRAMEBUFFER, t.fboOut);
+      fullscreen(programs.normalize, normalize);
+      gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+      bindTexture(EDL_COLOR_UNIT, t.out);
+      bindTexture(EDL_DEPTH_UNIT, t.depthSum);
+      fullscreen(programs.edl, {u_color: EDL_COLOR_UNIT, u_depth: EDL_DEPTH_UNIT, u_background: state.background,
+                                u_edl_strength: H.edl.strength, u_edl_offsets: [].concat.apply([], H.edl.offsets)});
+    } else {
+      gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+      fullscreen(programs.normalize, normalize);
+    }
+    gl.finish();
+    state.frameMs = performance.now() - start;
+    state.frames += 1;
+    var error = gl.getError();
+    if (error !== gl.NO_ERROR) fail('WebGL error ' + error + ' while drawing');
+  }
+
+  // ---- camera, URL, interaction ---------------------------------------------------------------------
+  function parseVec(text) {
+    var v = String(text).split(',').map(Number);
+    return v.length === 3 && v.every(isFinite) ? v : null;
+  }
+  function readParams() {
+    var out = {}, parts = (location.search.slice(1) + '&' + location.hash.slice(1)).split('&');
+    parts.forEach(function (kv) {
+      if (!kv) return;
+      var i = kv.indexOf('='), k = decodeURIComponent(i < 0 ? kv : kv.slice(0, i));
+      out[k] = i < 0 ? '' : decodeURIComponent(kv.slice(i + 1));
+    });
+    return out;
+  }
+  var params = readParams();
+
+  function sizeCanvas() {
+    var dpr = window.devicePixelRatio || 1;
+    var w = Math.max(1, Math.round(canvas.clientWidth * dpr)), h = Math.max(1, Math.round(canvas.clientHeight * dpr));
+    if (canvas.width !== w || canvas.height !== h) { canvas.width = w; canvas.height = h; return true; }
+    return false;
+  }
+
+  function fmt(v) { return v.map(function (x) { return Number(x.toPrecision(10)); }).join(','); }
+  var urlTimer = null;
+  function saveUrl() {
+    clearTimeout(urlTimer);
+    urlTimer = setTimeout(function () {
+      var c = state.camera;
+      var hash = '#eye=' + fmt(c.eye) + '&target=' + fmt(c.target) + '&up=' + fmt(c.up) + '&fov=' + c.fov +
+                 '&technique=' + state.technique + (state.edl !== (state.technique === 'points') ? '&edl=' + (state.edl ? 1 : 0) : '');
+      try { history.replaceState(null, '', location.pathname + location.search + hash); } catch (e) { /* file:// in some browsers */ }
+    }, 250);
+  }
+
+  var homeCamera = null;
+  function home() {
+    state.camera = defaultCamera(canvas.width, canvas.height);
+    homeCamera = state.camera;
+  }
+
+  var dirty = true;
+  function request() {
+    if (!dirty) { dirty = true; requestAnimationFrame(tick); }
+  }
+  function changed() { state.moved = true; saveUrl(); request(); }
+
+  function orbit(dx, dy) {   // radians about the world up through the target, then about the screen right
+    var c = state.camera, up = unit(c.up), offset = sub(c.eye, c.target);
+    offset = rotate(offset, up, -dx);
+    var right = unit(cross(sub(c.target, c.eye), up));
+    var turned = rotate(offset, right, -dy);
+    if (Math.abs(dot(unit(turned), up)) < 0.999) offset = turned;   // never over the pole
+    c.eye = add(c.target, offset);
+  }
+  function pan(dx, dy) {   // pixels
+    var c = state.camera, dist = norm(sub(c.eye, c.target));
+    var per = 2 * dist * Math.tan(c.fov * Math.PI / 360) / canvas.clientHeight;
+    var f = unit(sub(c.target, c.eye)), right = unit(cross(f, c.up)), up = cross(right, f);
+    var move = add(scale(right, -dx * per), scale(up, dy * per));
+    c.eye = add(c.eye, move);
+    c.target = add(c.target, move);
+  }
+  function zoom(factor) {
+    var c = state.camera;
+    c.eye = add(c.target, scale(sub(c.eye, c.target), factor));
+  }
+
+  var drag = null, pointers = {};
+  canvas.addEventListener('pointerdown', function (e) {
+    canvas.focus();
+    canvas.setPointerCapture(e.pointerId);
+    pointers[e.pointerId] = [e.clientX, e.clientY];
+    drag = {x: e.clientX, y: e.clientY, pan: e.shiftKey || e.button === 2 || e.button === 1};
+  });
+  canvas.addEventListener('pointermove', function (e) {
+    if (!(e.pointerId in pointers)) return;
+    var ids = Object.keys(pointers);
+    if (ids.length === 2) {   // pinch: zoom by the change of the fingers' distance, pan by their midpoint
+      var other = pointers[ids[0] == e.pointerId ? ids[1] : ids[0]], before = pointers[e.pointerId];
+      var d0 = Math.hypot(before[0] - other[0], before[1] - other[1]), d1 = Math.hypot(e.clientX - other[0], e.clientY - other[1]);
+      if (d0 > 0 && d1 > 0) zoom(d0 / d1);
+      pan((e.clientX - before[0]) / 2, (e.clientY - before[1]) / 2);
+    } else if (drag) {
+      var dx = e.clientX - drag.x, dy = e.clientY - drag.y;
+      if (drag.pan) pan(dx, dy); else orbit(dx * 0.01, dy * 0.01);
+      drag.x = e.clientX; drag.y = e.clientY;
+    }
+    pointers[e.pointerId] = [e.clientX, e.clientY];
+    changed();
+  });
+  function release(e) { delete pointers[e.pointerId]; if (!Object.keys(pointers).length) drag = null; }
+  canvas.addEventListener('pointerup', release);
+  canvas.addEventListener('pointercancel', release);
+  canvas.addEventListener('contextmenu', function (e) { e.preventDefault(); });
+  canvas.addEventListener('wheel', function (e) {
+    e.preventDefault();
+    zoom(Math.exp(e.deltaY * (e.deltaMode === 1 ? 0.05 : 0.0015)));
+    changed();
+  }, {passive: false});
+  canvas.addEventListener('keydown', function (e) {
+    var step = 0.1, px = 40, handled = true;
+    if (e.key === 'ArrowLeft') { if (e.shiftKey) pan(px, 0); else orbit(-step, 0); }
+    else if (e.key === 'ArrowRight') { if (e.shiftKey) pan(-px, 0); else orbit(step, 0); }
+    else if (e.key === 'ArrowUp') { if (e.shiftKey) pan(0, px); else orbit(0, -step); }
+    else if (e.key === 'ArrowDown') { if (e.shiftKey) pan(0, -px); else orbit(0, step); }
+    else if (e.key === '+' || e.key === '=') zoom(0.9);
+    else if (e.key === '-' || e.key === '_') zoom(1 / 0.9);
+    else handled = false;
+    if (handled) { e.preventDefault(); changed(); }
+  });
+  document.addEventListener('keydown', function (e) {
+    if (e.target && (e.target.tagName === 'INPUT' || e.target.tagName === 'SELECT')) return;
+    if (e.key === 'Home' || e.key === '0') { home(); changed(); }
+    else if (e.key === 't' || e.key === 'T') { var ts = H.techniques; setTechnique(ts[(ts.indexOf(state.technique) + 1) % ts.length]); }
+    else if (e.key === 'e' || e.key === 'E') { state.edl = !state.edl; syncControls(); changed(); }
+    else if (e.key === 'p' || e.key === 'P') screenshot();
+  });
+
+  function setTechnique(name) {
+    if (!(name in H.uniforms)) return;
+    if (name === 'ewa' && !floatBlend) { fail('ewa needs EXT_float_blend, which this browser lacks'); return; }
+    state.technique = name;
+    syncControls();
+    changed();
+  }
+
+  function screenshot() {
+    render();
+    var link = document.createElement('a');
+    link.download = String(H.name).split(/[\\/]/).pop().replace(/\.[^.]*$/, '') + '-' + state.technique + '.png';
+    link.href = canvas.toDataURL('image/png');
+    link.click();
+  }
+
+  // ---- controls -------------------------------------------------------------------------------------
+  var select = document.getElementById('technique'), bg = document.getElementById('background'),
+      edlBox = document.getElementById('edl'), hud = document.getElementById('hud');
+  H.techniques.forEach(function (t) { var o = document.createElement('option'); o.value = o.textContent = t; select.appendChild(o); });
+  function hex(c) { return '#' + c.map(function (x) { return ('0' + Math.round(Math.min(1, Math.max(0, x)) * 255).toString(16)).slice(-2); }).join(''); }
+  function syncControls() { select.value = state.technique; bg.value = hex(state.background); edlBox.checked = state.edl; }
+  select.addEventListener('change', function () { setTechnique(select.value); });
+  bg.addEventListener('input', function () {
+    var v = bg.value; state.background = [1, 3, 5].map(function (i) { return parseInt(v.substr(i, 2), 16) / 255; });
+    document.body.style.background = v;
+    request();
+  });
+  edlBox.addEventListener('change', function () { state.edl = edlBox.checked; changed(); });
+  document.getElementById('home').addEventListener('click', function () { home(); changed(); });
+  document.getElementById('screenshot').addEventListener('click', screenshot);
+  var helpButton = document.getElementById('helpbutton'), help = document.getElementById('help');
+  helpButton.addEventListener('click', function () {
+    var open = help.style.display !== 'block';
+    help.style.display = open ? 'block' : 'none';
+    helpButton.setAttribute('aria-expanded', String(open));
+  });
+  window.addEventListener('resize', function () { if (sizeCanvas()) request(); });
+
+  function tick() {
+    dirty = false;
+    if (sizeCanvas() && !params.eye && !state.moved) home();
+    try { render(); } catch (e) { fail(String(e && e.message || e)); return; }
+    hud.textContent = H.count.toLocaleString('en') + ' splats drawn \u00b7 ' + state.frameMs.toFixed(1) + ' ms/frame \u00b7 ' +
+                      state.technique + (state.edl ? ' + EDL' : '');
+    if (!state.ready) {
+      state.ready = true;
+      state.firstFrameMs = performance.now();
+      document.body.setAttribute('data-ready', '1');
+    }
+  }
+
+  // ---- start ----------------------------------------------------------------------------------------
+  try {
+    if (params.ui === '0') { state.ui = false; document.body.classList.add('noui'); }
+    if (params.technique && params.technique in H.uniforms) state.technique = params.technique;
+    if (params.background) { var b = parseVec(params.background); if (b) state.background = b; }
+    state.edl = params.edl !== undefined ? params.edl === '1' : state.technique === 'points';
+    if (state.technique === 'ewa' && !floatBlend) state.technique = 'flat';
+    document.body.style.background = hex(state.background);
+    for (var p in SHADERS.programs) programs[p] = build(p);
+    splats = decode();
+    upload(splats);
+    sizeCanvas();
+    home();
+    var eye = parseVec(params.eye || ''), target = parseVec(params.target || ''), up = parseVec(params.up || '');
+    if (eye) {
+      state.camera = {eye: eye, target: target || homeCamera.target, up: up || homeCamera.up,
+                      fov: Number(params.fov) > 0 ? Number(params.fov) : H.fov};
+      state.moved = true;
+    }
+    syncControls();
+    dirty = false;
+    request();
+  } catch (e) {
+    fail(String(e && e.message || e));
+  }
+})();
