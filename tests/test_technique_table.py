@@ -16,7 +16,7 @@ from surfsplat.errors import InputError
 from surfsplat.lighting import Lights
 from surfsplat.rendering import compute_visibility
 from surfsplat.rendering.options import RenderOptions, VisibilityOptions
-from surfsplat.rendering.passes import EDGE_COVERAGE_DEFINE
+from surfsplat.rendering.passes import EDGE_COVERAGE_DEFINE, FILL_GAP_PX
 from surfsplat.rendering.renderer import Renderer
 from surfsplat.rendering.shaders import compose
 from surfsplat.rendering.technique import Technique
@@ -151,8 +151,9 @@ def test_toy_technique_gets_every_declared_path(toy_renderer, scene, paths):
         full, off = (toy_renderer.plan(gpu, scene[1], t) for t in (BOX, BOX_OFF))
     finally:
         gpu.release()
-    assert full.names == ("clear", "compute_visibility", "visibility", "cracks", "accumulation", "normalization")
-    assert off.names == ("clear", "visibility", "cracks", "accumulation", "normalization")
+    assert full.names == ("clear", "compute_visibility", "visibility", "cracks", "accumulation", "normalization",
+                          "fill")
+    assert off.names == ("clear", "visibility", "cracks", "accumulation", "normalization", "fill")
     n = len(scene[0])
     accumulated = full.get("accumulation")
     assert count(accumulated.points) > 0.9 * n and count(accumulated.quads) + count(accumulated.points) <= n
@@ -232,8 +233,8 @@ def test_opaque_toy_gets_the_compute_passes(toy_renderer, gl_renderer, scene, pa
         full, off = (toy_renderer.plan(gpu, scene[1], t) for t in (DISK, DISK_OFF))
     finally:
         gpu.release()
-    assert full.names == ("clear", "opaque", "compute_opaque", "normalization")
-    assert off.names == ("clear", "opaque", "normalization")
+    assert full.names == ("clear", "opaque", "compute_opaque", "normalization", "fill")
+    assert off.names == ("clear", "opaque", "normalization", "fill")
     assert full.get("normalization").side == off.get("normalization").side == "side"
     assert count(full.get("compute_opaque").computed) > 0 and not off.get("opaque").points
 
@@ -260,6 +261,7 @@ def test_builtin_plans_follow_their_declarations(gl_renderer, scene, name):
     try:
         plan = gl_renderer.plan(gpu, scene[1], technique, EDGES)
         raster = gl_renderer.plan(gpu, scene[1], technique, replace(EDGES, compute=False))
+        unfilled = gl_renderer.plan(gpu, scene[1], technique, replace(EDGES, fill_holes=False))
     finally:
         gpu.release()
     first, last = ("visibility", "accumulation") if technique.blended else ("opaque", "opaque")
@@ -269,7 +271,9 @@ def test_builtin_plans_follow_their_declarations(gl_renderer, scene, name):
     declared = technique.compute_visibility if technique.blended else technique.compute_opaque
     if not (declared and gl_renderer.has_compute):
         expected.remove(compute)
-    assert plan.names == tuple(expected) + ("normalization",)
+    assert plan.names == tuple(expected) + ("normalization", "fill")
+    assert plan.get("fill").gap == FILL_GAP_PX and plan.get("normalization").filled
+    assert unfilled.names == tuple(expected) + ("normalization",) and not unfilled.get("normalization").filled
     assert compute not in raster.names
     drawn = raster.get(last)   # the compute passes off: every drawn splat rasterized
     assert count(drawn.quads + drawn.points) > 0.5 * len(scene[0])

@@ -497,3 +497,75 @@ def point_footprint(center: np.ndarray, diameter: float, pixels: np.ndarray) -> 
     d = pixels - np.asarray(center, np.float64)
     inside = (d ** 2).sum(axis=-1) <= (0.5 * diameter) ** 2
     return inside | np.all(np.floor(pixels) == np.floor(center), axis=-1)
+
+
+#: The 4 axes of :func:`fill_holes` (x right, y along the array's rows; the rule is symmetric in both).
+FILL_AXES = ((1, 0), (0, 1), (1, 1), (1, -1))
+
+
+def fill_holes(color: np.ndarray, weight: np.ndarray, depth: np.ndarray, alpha: np.ndarray, focal_px: float,
+               gap: int = 3, depth_px: float = 24.0, iterations: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                                                  np.ndarray, np.ndarray]:
+    """Screen-space hole filling (``glsl/fill.frag``): ``(color, weight, depth, alpha, filled)`` of an image.
+
+    ``color`` (H, W, C), ``weight`` (H, W; > 0 where covered, < 0 marks a non-finite pixel, left alone),
+    ``depth`` (H, W) camera-space depth of the covered pixels, ``alpha`` (H, W), ``focal_px``: focal length
+    in the image's pixels; ``gap``: widest gap filled, pixels; ``depth_px``: depth tolerance, pixels: two
+    pixels' surfaces are apart where their depths differ by more than ``tau(z) = depth_px z / focal_px``.
+
+    A pixel q lies in front of p when q is covered and p is not, or ``z_q < z_p - tau(z_p)``. Along each of
+    the 4 axes (:data:`FILL_AXES`, both directions) the nearest pixel in front of p within ``gap`` steps is
+    looked for; the axis encloses p where both are found at distances adding up to at most ``gap + 1``.
+    Enclosed along at least 3 axes, p takes the inverse-distance weighted mean of color, weight, depth
+    and alpha of those neighbours of enclosing axes that lie on the front surface (depth within
+    ``tau(z_f)`` of the nearest, ``z_f``). Pintus et al. 2011 (enclosure, front neighbours) with the
+    bounded gap of Marroquim et al. 2007. ``iterations``: the rule applied that many times, each on the last
+    one's image. ``filled``: (H, W) bool, the pixels any iteration filled.
+    """
+    filled = np.zeros(np.shape(weight), bool)
+    for _ in range(int(iterations)):
+        color, weight, depth, alpha, once = _fill_once(color, weight, depth, alpha, focal_px, gap, depth_px)
+        filled |= once
+    return color, weight, depth, alpha, filled
+
+
+def _fill_once(color, weight, depth, alpha, focal_px, gap, depth_px):
+    """One iteration of :func:`fill_holes`."""
+    h, w = weight.shape
+    covered = weight > 0
+    z = np.where(covered, depth, np.inf).astype(np.float64)
+    limit = np.where(covered, z - depth_px * np.where(covered, z, 0.0) / focal_px, np.inf)
+    g = int(gap)
+    pad = ((g, g), (g, g))
+    zp = np.pad(z, pad, constant_values=np.inf)
+    channels = np.concatenate([np.asarray(color, np.float64).reshape(h, w, -1), weight[..., None].astype(np.float64),
+                               alpha[..., None].astype(np.float64)], axis=-1)
+    cp = np.pad(channels, pad + ((0, 0),))
+    steps = np.zeros((8, h, w), np.int64)
+    found_z = np.full((8, h, w), np.inf)
+    found_c = np.zeros((8, h, w, channels.shape[-1]))
+    for i, (ax, ay) in enumerate(FILL_AXES):
+        for side, sign in enumerate((1, -1)):
+            j = 2 * i + side
+            for k in range(g, 0, -1):   # the nearest wins: written last
+                dx, dy = sign * ax * k, sign * ay * k
+                zq = zp[g + dy:g + dy + h, g + dx:g + dx + w]
+                hit = zq < limit
+                steps[j] = np.where(hit, k, steps[j])
+                found_z[j] = np.where(hit, zq, found_z[j])
+                found_c[j] = np.where(hit[..., None], cp[g + dy:g + dy + h, g + dx:g + dx + w], found_c[j])
+    axis = (steps[0::2] > 0) & (steps[1::2] > 0) & (steps[0::2] + steps[1::2] <= g + 1)   # (4, H, W)
+    filled = (axis.sum(axis=0) >= 3) & ~(weight < 0) & (g > 0)
+    enclosing = np.repeat(axis, 2, axis=0)   # (8, H, W)
+    front = np.where(enclosing, found_z, np.inf).min(axis=0)
+    with np.errstate(invalid="ignore"):   # inf - inf where nothing encloses the pixel
+        use = enclosing & (found_z <= front + depth_px * front / focal_px)
+    inv = np.where(use, 1.0 / np.maximum(steps, 1), 0.0)
+    total = np.maximum(inv.sum(axis=0), 1e-30)
+    mean_c = (inv[..., None] * found_c).sum(axis=0) / total[..., None]
+    mean_z = (inv * np.where(use, found_z, 0.0)).sum(axis=0) / total
+    out_color = np.where(filled[..., None], mean_c[..., :-2].reshape(np.shape(color)), color)
+    out_weight = np.where(filled, mean_c[..., -2], weight)
+    out_depth = np.where(filled, mean_z, depth)
+    out_alpha = np.where(filled, mean_c[..., -1], alpha)
+    return out_color, out_weight, out_depth, out_alpha, filled

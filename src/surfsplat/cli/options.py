@@ -257,6 +257,9 @@ def add_render_options(p: argparse.ArgumentParser, *, window: bool = False) -> N
                    help="antialias silhouettes over the background without supersampling: a rim pixel's alpha is "
                         "the area of it the splats' disks cover (ewa/perspective both sides of the rim, blend/phong "
                         "its inner side; best with splats of a pixel or more)")
+    p.add_argument("--fill-holes", action=argparse.BooleanOptionalAction, default=default(RenderOptions, "fill_holes"),
+                   help="fill holes of up to 3 pixels between the pixels of the front surface in screen space "
+                        "(depth-aware: never from a surface behind; silhouettes do not grow; default %(default)s)")
     p.add_argument("--no-compute", action="store_true",
                    help="draw every splat through the raster pipeline, not the small splats' first pass with "
                         "compute shaders (used where OpenGL 4.3 is there: faster on the CPU renderer, the same "
@@ -302,7 +305,7 @@ def render_options(args) -> RenderOptions:
                              sigma=args.kernel_sigma),
         deferred=args.deferred,
         edl=EdlOptions(strength=args.edl_strength, radius_px=args.edl_radius) if args.edl else None,
-        compute=not args.no_compute)
+        fill_holes=args.fill_holes, compute=not args.no_compute)
 
 
 def lights(args) -> Lights:

@@ -212,6 +212,12 @@ class RenderOptions:
             mesh (and per-splat lighting) averages the two lit colours: 3.9 dB worse
             inside the CAD part.
         edl: eye-dome lighting (:class:`EdlOptions`) of the rendered image; None: off.
+        fill_holes: fill the holes of up to 3 pixels between the pixels of a front surface in screen space
+            after the normalization pass (every technique; :func:`surfsplat.reference.fill_holes`, ``fill.frag``):
+            a pixel no splat covers, or whose splats lie behind the surface around it, is filled with the
+            depth and color of the front surface where that surface encloses it along 3 of 4 axes
+            (horizontal, vertical, the diagonals); the background beyond a silhouette is never enclosed,
+            so silhouettes do not grow, and larger holes stay holes.
         compute: draw the small splats' first pass (the blended techniques' visibility, ``flat``'s
             nearest disk) with compute shaders where the context has OpenGL 4.3
             (:mod:`~surfsplat.rendering.compute_visibility`: faster on llvmpipe); False: every splat through
@@ -223,11 +229,14 @@ class RenderOptions:
     kernel: KernelOptions = field(default_factory=KernelOptions)
     deferred: bool = False
     edl: EdlOptions | None = None
+    fill_holes: bool = True
     compute: bool = True
 
     def __post_init__(self) -> None:
-        if not isinstance(self.compute, bool):
-            raise InputError(f"render option compute must be True or False, got {self.compute!r}", argument="compute")
+        for name in ("fill_holes", "compute"):
+            if not isinstance(getattr(self, name), bool):
+                raise InputError(f"render option {name} must be True or False, got {getattr(self, name)!r}",
+                                 argument=name)
         if self.edl is not None and not isinstance(self.edl, EdlOptions):
             raise InputError(f"render option edl must be an EdlOptions or None, got {type(self.edl).__name__}",
                              argument="edl")

@@ -45,7 +45,7 @@ from ..lighting import MAX_LIGHTS, Lights
 from .context import gl_flush, headless_context, reset_headless_context
 from . import compute_visibility
 from .passes import (EDGE_COVERAGE_DEFINE, OPTIONAL_FRAME_UNIFORMS, POINT_SPLAT_PX, SIDE_TEXTURE_UNIT, FrameInputs,
-                     FramePlan, computes_first_pass, plan_frame, point_radius, point_scale)
+                     FILL_ITERATIONS, FramePlan, computes_first_pass, fill_gap, plan_frame, point_radius, point_scale)
 from .edl import apply_edl
 from .frame import Frame
 from .gpu_splats import GpuSplats, merge_ranges, ordered_buffers, radius_classes, splat_arrays
@@ -61,16 +61,17 @@ __all__ = ["GpuSplats", "Renderer", "default_renderer", "reset_default_renderer"
            "PASS_OPAQUE", "PASS_VISIBILITY", "PASS_ACCUMULATION", "POINT_SPLAT_PX", "point_radius", "point_scale"]
 
 #: Pixels drawn around each tile and cropped (fringe clipping looks at each pixel's neighbours; the
-#: edge coverage of normalize.frag at the neighbours, up to 4 sub-pixels away at K = 8, of its neighbours).
+#: edge coverage of normalize.frag at the neighbours, up to 4 sub-pixels away at K = 8, of its neighbours);
+#: a frame with the fill pass adds its gap per iteration (``passes.fill_gap``: each reads the pixels that far).
 TILE_MARGIN = 5
 #: Memory a render holds per splat (the upload's sorting and copies, the driver's buffers and one draw
 #: call's primitives; measured on llvmpipe by benchmarks/bench_render.py --memory: 31-83 B per splat,
 #: 1M and 5M splats; these add margin), per output pixel (the Frame, the image a caller writes) and per
-#: sub-pixel of a tile (the targets, 100 B with the compute passes' two images, and the read-back
-#: buffers, 24 B): :func:`render_memory`.
+#: sub-pixel of a tile (the targets, 148 B with the compute passes' two images and the fill pass's two,
+#: and the read-back buffers, 24 B): :func:`render_memory`.
 BYTES_PER_SPLAT = 160
 BYTES_PER_PIXEL = 100
-BYTES_PER_SUBPIXEL = 128
+BYTES_PER_SUBPIXEL = 176
 
 
 def render_memory(splats: int, width: int, height: int, supersample: int = 1, max_tile: int = MAX_TILE) -> int:
@@ -362,16 +363,24 @@ class Renderer:
             cover = ctx.texture(size, 4, dtype="f4")   # soft maxima of the splats' pixel coverages, distances
             side = ctx.texture(size, 2, dtype="f4")   # side and offset depth of each pixel's nearest disk
             cracks = ctx.texture(size, 2, dtype="f4")   # the same with its cracks marked (cracks.frag)
-            for tex in (accum, aux, out, depth_sum, side, cracks, cover):
+            norm_color = ctx.texture(size, 4, dtype="f4")   # normalize.frag's, where the fill pass follows
+            norm_depth = ctx.texture(size, 2, dtype="f4")
+            fill_color = ctx.texture(size, 4, dtype="f4")   # between two iterations of the fill pass
+            fill_depth = ctx.texture(size, 2, dtype="f4")
+            for tex in (accum, aux, out, depth_sum, side, cracks, cover, norm_color, norm_depth, fill_color,
+                        fill_depth):
                 tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
             self._targets = {
                 "size": size, "accum": accum, "aux": aux, "depth": depth, "out": out, "depth_sum": depth_sum,
-                "side": side, "cracks": cracks, "cover": cover,
+                "side": side, "cracks": cracks, "cover": cover, "norm_color": norm_color, "norm_depth": norm_depth,
+                "fill_color": fill_color, "fill_depth": fill_depth,
                 "fbo_visibility": ctx.framebuffer([side]),
                 "fbo_cracks": ctx.framebuffer([cracks]),
                 "fbo_accum": ctx.framebuffer([accum, aux], depth),
                 "fbo_accum_cover": ctx.framebuffer([accum, aux, cover], depth),   # with edge coverage
                 "fbo_out": ctx.framebuffer([out, depth_sum]),
+                "fbo_norm": ctx.framebuffer([norm_color, norm_depth]),
+                "fbo_fill": ctx.framebuffer([fill_color, fill_depth]),
             }
             if self.has_compute:
                 self._targets |= compute_visibility.image_targets(ctx, size)
@@ -447,12 +456,12 @@ class Renderer:
         where the first pass runs as compute shaders, the blocks of small splats split off for it."""
         quads, points = self._drawn_ranges(splats, camera, technique, options, supersample, tile)
         if not computes_first_pass(technique, options, self.has_compute):
-            return plan_frame(technique, options, quads, points)
+            return plan_frame(technique, options, quads, points, supersample=supersample)
         small = splats.small_blocks(camera, compute_visibility.COMPUTE_SPLAT_PX)
         (raster_quads, computed_quads), (raster_points, computed_points) = (splats.split_blocks(quads, small),
                                                                             splats.split_blocks(points, small))
         return plan_frame(technique, options, quads, points, computed_quads + computed_points,
-                          (raster_quads, raster_points))
+                          (raster_quads, raster_points), supersample)
 
     def draw(self, splats: GpuSplats, camera: Camera, technique: Technique | str = "ewa",
              lights: Lights = Lights(), options: RenderOptions = RenderOptions(),
@@ -545,7 +554,8 @@ class Renderer:
         self._non_finite, self._background = 0, np.asarray(background, "f4")
         camera = _with_clip_planes(camera, splats)
         big = camera.resized(camera.width * k, camera.height * k)
-        m = TILE_MARGIN   # pixels drawn around each tile and cropped: fringe clipping reads neighbours
+        # pixels drawn around each tile and cropped: the full-screen passes read neighbours
+        m = TILE_MARGIN + FILL_ITERATIONS * fill_gap(options, k)
         side = tile_side(self.ctx, k, max_tile, margin=m)
         w, h = camera.width, camera.height
         # Frame orientation (row 0 at the top): each tile's window rows are written flipped
