@@ -121,7 +121,11 @@ def page_data(plan: View, cloud: SplatCloud, technique: str, background, name: s
     if cloud.u is None or cloud.v is None or cloud.normals is None:
         raise InputError(f"{name}: the prepared model has no splat axes or normals to export")
     colors = cloud.colors if cloud.colors is not None else np.full((len(cloud), 3), 0.8, np.float32)
-    streams, header = web_format.encode(cloud.positions, cloud.normals, colors, cloud.u, cloud.v)
+    # largest first, as the desktop renderer uploads them (gpu_splats: by radius class): a frame draws the
+    # splats too large for a point as quads, a prefix, and the rest as GL_POINTS
+    order = np.argsort(-cloud.radii, kind="stable")
+    streams, header = web_format.encode(cloud.positions[order], cloud.normals[order], colors[order], cloud.u[order],
+                                        cloud.v[order])
     model = as_model(plan.model).points()
     points, direction, up, margin = auto_fit_inputs(model, plan.up)
     options, lights = RenderOptions(), Lights()
@@ -138,6 +142,8 @@ def page_data(plan: View, cloud: SplatCloud, technique: str, background, name: s
                   "u_clip_fringe": options.visibility.clip_fringe, "u_deferred": options.deferred,
                   "u_cull_backfaces": False, "u_supersample": 1.0},
         "material": [lights.ambient, lights.diffuse, lights.specular, lights.shininess],
+        "footprints": {t: {"footprint": get_technique(t).point_footprint, "min_point_px": get_technique(t).min_point_px}
+                       for t in WEB_TECHNIQUES},
         "edl": {"strength": EdlOptions().strength, "offsets": neighbour_offsets(EdlOptions().radius_px)},
     })
     return header, {key: _b64(value) for key, value in streams.items()}

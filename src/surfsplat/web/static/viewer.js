@@ -20,6 +20,8 @@
     ui: true, width: 0, height: 0
   };
   window.surfsplat = state;
+  // one full-quality frame drawn now; its time in milliseconds (the benchmark's)
+  state.redraw = function () { render(); return state.frameMs; };
 
   function fail(text) {
     state.errors.push(text);
@@ -42,7 +44,7 @@
     var n = H.count, s = DATA.streams;
     var qp = u16(s.position), qn = u16(s.normal), qa = u16(s.angle), qr = u16(s.radii);
     var pos = new Float32Array(3 * n), nrm = new Float32Array(3 * n), u = new Float32Array(3 * n),
-        v = new Float32Array(3 * n);
+        v = new Float32Array(3 * n), radius = new Float32Array(n);
     var lo = H.lo, hi = H.hi, U16 = 65535, OCT = 65534;   // format.U16, format.OCT_LEVELS
     var w0 = hi[0] - lo[0], w1 = hi[1] - lo[1], w2 = hi[2] - lo[2];
     var l0 = H.log_radius[0], lw = H.log_radius[1] - H.log_radius[0];
@@ -66,10 +68,11 @@
       var ang = qa[i] * (Math.PI / 65536), c = Math.cos(ang), sn = Math.sin(ang);
       var dx = c * b1x + sn * b2x, dy = c * b1y + sn * b2y, dz = c * b1z + sn * b2z;
       var ru = Math.pow(2, l0 + qr[2 * i] / U16 * lw), rv = Math.pow(2, l0 + qr[2 * i + 1] / U16 * lw);
+      radius[i] = Math.max(ru, rv);
       u[k] = dx * ru; u[k + 1] = dy * ru; u[k + 2] = dz * ru;
       v[k] = (y * dz - z * dy) * rv; v[k + 1] = (z * dx - x * dz) * rv; v[k + 2] = (x * dy - y * dx) * rv;
     }
-    return {position: pos, normal: nrm, u: u, v: v, color: bytes(s.color)};
+    return {position: pos, normal: nrm, u: u, v: v, color: bytes(s.color), radius: radius};
   }
 
   // ---- small float64 vector helpers ---------------------------------------------------------------
@@ -237,25 +240,77 @@
   }
 
   // ---- splats -------------------------------------------------------------------------------------
-  var splats, vao = gl.createVertexArray(), empty = gl.createVertexArray();
+  // Small splats are drawn as GL_POINTS, one vertex each (POINT_PRIMITIVE); the largest (first: export.py
+  // sorts them by radius) as quads of two triangles. No instancing: SwiftShader, Chromium's CPU WebGL,
+  // runs an instanced draw one instance at a time (a million instances took a minute a frame).
+  var QUAD_CAPACITY = 65536;   // splats that can be drawn as quads (their vertices are 6 copies)
+  var CORNERS = [-1, -1, 1, -1, -1, 1, -1, 1, 1, -1, 1, 1];
+  var splats, pointsVao = gl.createVertexArray(), quadsVao = gl.createVertexArray(), empty = gl.createVertexArray();
+  var quadCount = 0, maxPoint = gl.getParameter(gl.ALIASED_POINT_SIZE_RANGE)[1];
+  function attribute(index, array, size, type, normalized) {
+    var buf = gl.createBuffer();
+    gl.bindBuffer(gl.ARRAY_BUFFER, buf);
+    gl.bufferData(gl.ARRAY_BUFFER, array, gl.STATIC_DRAW);
+    gl.enableVertexAttribArray(index);
+    gl.vertexAttribPointer(index, size, type, normalized, 0, 0);
+  }
+  function repeated(array, width, count, Kind) {   // each of the first count rows 6 times
+    var out = new Kind(6 * width * count);
+    for (var i = 0; i < count; ++i) for (var r = 0; r < 6; ++r) for (var c = 0; c < width; ++c) out[(6 * i + r) * width + c] = array[i * width + c];
+    return out;
+  }
   function upload(decoded) {
-    gl.bindVertexArray(vao);
-    function attribute(index, array, size, type, normalized, divisor) {
-      var buf = gl.createBuffer();
-      gl.bindBuffer(gl.ARRAY_BUFFER, buf);
-      gl.bufferData(gl.ARRAY_BUFFER, array, gl.STATIC_DRAW);
-      gl.enableVertexAttribArray(index);
-      gl.vertexAttribPointer(index, size, type, normalized, 0, 0);
-      gl.vertexAttribDivisor(index, divisor);
-    }
-    attribute(0, new Float32Array([-1, -1, 1, -1, -1, 1, 1, 1]), 2, gl.FLOAT, false, 0);
-    attribute(1, decoded.position, 3, gl.FLOAT, false, 1);
-    attribute(2, decoded.normal, 3, gl.FLOAT, false, 1);
-    attribute(3, decoded.color, 3, gl.UNSIGNED_BYTE, true, 1);
-    attribute(4, decoded.u, 3, gl.FLOAT, false, 1);
-    attribute(5, decoded.v, 3, gl.FLOAT, false, 1);
-    for (var i = 6; i < ATTRIBUTES.length; ++i) gl.vertexAttrib4f(i, 0, 0, 0, 0);   // no clip lines, no normal field
+    gl.bindVertexArray(pointsVao);
+    attribute(1, decoded.position, 3, gl.FLOAT, false);
+    attribute(2, decoded.normal, 3, gl.FLOAT, false);
+    attribute(3, decoded.color, 3, gl.UNSIGNED_BYTE, true);
+    attribute(4, decoded.u, 3, gl.FLOAT, false);
+    attribute(5, decoded.v, 3, gl.FLOAT, false);
+    quadCount = Math.min(H.count, QUAD_CAPACITY);
+    gl.bindVertexArray(quadsVao);
+    var corners = new Float32Array(12 * quadCount);
+    for (var i = 0; i < quadCount; ++i) corners.set(CORNERS, 12 * i);
+    attribute(0, corners, 2, gl.FLOAT, false);
+    attribute(1, repeated(decoded.position, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
+    attribute(2, repeated(decoded.normal, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
+    attribute(3, repeated(decoded.color, 3, quadCount, Uint8Array), 3, gl.UNSIGNED_BYTE, true);
+    attribute(4, repeated(decoded.u, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
+    attribute(5, repeated(decoded.v, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
     gl.bindVertexArray(null);
+    gl.vertexAttrib2f(0, 0, 0);   // a point has no corner
+    for (i = 6; i < ATTRIBUTES.length; ++i) gl.vertexAttrib4f(i, 0, 0, 0, 0);   // no clip lines, no normal field
+  }
+
+  // passes.point_scale and point_radius: the largest radius drawn as a point in this frame (model units).
+  function pointRadius(values, technique) {
+    var fp = H.footprints[technique], px = Math.min(maxPoint, 1024), f = values.u_focal;
+    var w = values.u_viewport[0], h = values.u_viewport[1];
+    var stretch = Math.hypot(1, Math.hypot(w, h) / (2 * f)), side = px - 1, scaleR;
+    if (!fp.footprint) return 0;
+    if (fp.footprint === 'adaptive') {
+      if (fp.min_point_px * values.u_supersample > side) return 0;
+      scaleR = side / (2 * f * stretch);
+    } else {
+      if (fp.footprint === 'filtered_disk') {
+        var u = H.uniforms[technique];
+        side -= 2 * Math.sqrt(2 * u.u_cutoff[0] * u.u_prefilter[0]);
+      }
+      scaleR = Math.max(side, 0) / (2 * Math.SQRT2 * f * stretch);
+    }
+    var m = H.max_radius, lo = sub(sub(H.bounds[0], H.origin), [m, m, m]), hi = add(sub(H.bounds[1], H.origin), [m, m, m]);
+    var nearest = Infinity, view = values.u_view;
+    for (var i = 0; i < 8; ++i) {
+      var c = [(i & 1) ? hi[0] : lo[0], (i & 2) ? hi[1] : lo[1], (i & 4) ? hi[2] : lo[2]];
+      nearest = Math.min(nearest, -(view[2] * c[0] + view[6] * c[1] + view[10] * c[2] + view[14]));
+    }
+    return scaleR * Math.max(values.u_near_far[0], nearest);
+  }
+
+  // How many splats (a prefix: the largest) are larger than r.
+  function largerThan(r) {
+    var radius = splats.radius, lo = 0, hi = radius.length;
+    while (lo < hi) { var mid = (lo + hi) >> 1; if (radius[mid] > r) lo = mid + 1; else hi = mid; }
+    return lo;
   }
 
   // ---- targets ------------------------------------------------------------------------------------
@@ -316,11 +371,20 @@
     };
   }
 
-  function drawSplats(p, values) {
-    setUniforms(p, values);
-    gl.bindVertexArray(vao);
-    gl.drawArraysInstanced(gl.TRIANGLE_STRIP, 0, 4, H.count);
+  function drawSplats(name, values, frame, technique) {
+    var quads = Math.min(largerThan(pointRadius(frame, technique)), quadCount);
+    if (quads > 0) {
+      setUniforms(programs[name], values);
+      gl.bindVertexArray(quadsVao);
+      gl.drawArrays(gl.TRIANGLES, 0, 6 * quads);
+    }
+    if (quads < H.count) {
+      setUniforms(programs[name + '_points'], Object.assign({u_max_point: maxPoint}, values));
+      gl.bindVertexArray(pointsVao);
+      gl.drawArrays(gl.POINTS, quads, H.count - quads);
+    }
     gl.bindVertexArray(null);
+    state.quads = quads;
   }
   function fullscreen(p, values) {
     setUniforms(p, values);
@@ -329,11 +393,23 @@
     gl.bindVertexArray(null);
   }
 
-  function render() {
-    var w = canvas.width, h = canvas.height, t = ensureTargets(w, h), technique = state.technique;
+  var probe = new Uint8Array(4), probeFloat = new Float32Array(4);
+  // ?profile=1: wait after each pass and keep its time (state.passMs), for the benchmark
+  function mark(name) {
+    if (!state.profile) return;
+    gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.FLOAT, probeFloat);   // every pass draws into a float target
+    var now = performance.now();
+    state.passMs[name] = now - state.passStart;
+    state.passStart = now;
+  }
+  function render(technique) {
+    technique = technique || state.technique;
+    var w = canvas.width, h = canvas.height, t = ensureTargets(w, h);
     var start = performance.now();
-    writeBlocks(frameValues(state.camera, w, h));
-    var own = Object.assign({u_side: SIDE_UNIT, u_max_point: 1023}, H.uniforms[technique] || {});
+    state.passMs = {}; state.passStart = start;
+    var frame = frameValues(state.camera, w, h);
+    writeBlocks(frame);
+    var own = Object.assign({u_side: SIDE_UNIT}, H.uniforms[technique] || {});
     gl.viewport(0, 0, w, h);
     gl.disable(gl.CULL_FACE);
     gl.bindFramebuffer(gl.FRAMEBUFFER, t.fboAccum);
@@ -349,12 +425,14 @@
       gl.disable(gl.DEPTH_TEST);
       gl.enable(gl.BLEND);
       gl.blendEquation(gl.MIN);
-      drawSplats(programs.ewa_visibility, own);
+      drawSplats('ewa_visibility', own, frame, technique);
+      mark('visibility');
       // 2. cracks: the record with one-pixel cracks marked
       gl.disable(gl.BLEND);
       gl.bindFramebuffer(gl.FRAMEBUFFER, t.fboCracks);
       bindTexture(SIDE_UNIT, t.side);
       fullscreen(programs.cracks, {u_side: SIDE_UNIT});
+      mark('cracks');
       // 3. accumulation: additive blending of the weighted colours, depths and normals
       bindTexture(SIDE_UNIT, t.cracks);
       gl.bindFramebuffer(gl.FRAMEBUFFER, t.fboAccum);
@@ -362,13 +440,15 @@
       gl.enable(gl.BLEND);
       gl.blendEquation(gl.FUNC_ADD);
       gl.blendFunc(gl.ONE, gl.ONE);
-      drawSplats(programs.ewa_accumulation, own);
+      drawSplats('ewa_accumulation', own, frame, technique);
+      mark('accumulation');
     } else {
       // the one opaque pass: a plain z-buffer
       gl.enable(gl.DEPTH_TEST);
       gl.depthFunc(gl.LESS);
       gl.disable(gl.BLEND);
-      drawSplats(programs[technique], own);
+      drawSplats(technique, own, frame, technique);
+      mark('opaque');
       bindTexture(SIDE_UNIT, t.side);
     }
     // normalization (and eye-dome lighting from its depth)
@@ -391,7 +471,7 @@
       gl.bindFramebuffer(gl.FRAMEBUFFER, null);
       fullscreen(programs.normalize, normalize);
     }
-    gl.finish();
+    gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, probe);   // waits for the frame (gl.finish need not)
     state.frameMs = performance.now() - start;
     state.frames += 1;
     var error = gl.getError();
@@ -443,7 +523,7 @@
   function request() {
     if (!dirty) { dirty = true; requestAnimationFrame(tick); }
   }
-  function changed() { state.moved = true; saveUrl(); request(); }
+  function changed() { state.moved = true; lastChange = performance.now(); saveUrl(); request(); }
 
   function orbit(dx, dy) {   // radians about the world up through the target, then about the screen right
     var c = state.camera, up = unit(c.up), offset = sub(c.eye, c.target);
@@ -556,21 +636,50 @@
   });
   window.addEventListener('resize', function () { if (sizeCanvas()) request(); });
 
+  // Where a full-quality frame is slow (CPU WebGL: SwiftShader), a moving camera and the first frame are
+  // drawn with "points" (one pass, the cheapest), and the full frame follows when the camera stops.
+  var PREVIEW_MS = 250, SETTLE_MS = 300;
+  var lastFullMs = null, lastChange = 0, refineTimer = null;
+  function hudText(technique, ms, preview) {
+    hud.textContent = H.count.toLocaleString('en') + ' splats drawn \u00b7 ' + ms.toFixed(1) + ' ms/frame \u00b7 ' +
+                      technique + (state.edl ? ' + EDL' : '') + (preview ? ' (preview; full quality when still)' : '');
+  }
+  function full() {
+    refineTimer = null;
+    try { render(); } catch (e) { fail(String(e && e.message || e)); return; }
+    lastFullMs = state.frameMs;
+    hudText(state.technique, state.frameMs, false);
+    if (!state.ready) {
+      state.ready = true;
+      state.readyMs = performance.now();
+      document.body.setAttribute('data-ready', '1');
+    }
+  }
   function tick() {
     dirty = false;
     if (sizeCanvas() && !params.eye && !state.moved) home();
-    try { render(); } catch (e) { fail(String(e && e.message || e)); return; }
-    hud.textContent = H.count.toLocaleString('en') + ' splats drawn \u00b7 ' + state.frameMs.toFixed(1) + ' ms/frame \u00b7 ' +
-                      state.technique + (state.edl ? ' + EDL' : '');
-    if (!state.ready) {
-      state.ready = true;
+    var slow = lastFullMs === null || lastFullMs > PREVIEW_MS;
+    clearTimeout(refineTimer);
+    if (state.technique !== 'points' && slow) {
+      try { render('points'); } catch (e) { fail(String(e && e.message || e)); return; }
+      hudText('points', state.frameMs, true);
+      var wait = Math.max(0, SETTLE_MS - (performance.now() - lastChange));
+      refineTimer = setTimeout(function () { requestAnimationFrame(function () { setTimeout(full, 0); }); },
+                               state.ready ? wait : 0);
+    } else {
+      full();
+    }
+    if (state.firstFrameMs === null) {
       state.firstFrameMs = performance.now();
-      document.body.setAttribute('data-ready', '1');
+      document.body.setAttribute('data-first-frame', '1');
     }
   }
 
   // ---- start ----------------------------------------------------------------------------------------
   try {
+    state.profile = params.profile === '1';
+    var t0 = performance.now();
+    state.timings = {};
     if (params.ui === '0') { state.ui = false; document.body.classList.add('noui'); }
     if (params.technique && params.technique in H.uniforms) state.technique = params.technique;
     if (params.background) { var b = parseVec(params.background); if (b) state.background = b; }
@@ -578,8 +687,11 @@
     if (state.technique === 'ewa' && !floatBlend) state.technique = 'flat';
     document.body.style.background = hex(state.background);
     for (var p in SHADERS.programs) programs[p] = build(p);
+    state.timings.compile = performance.now() - t0;
     splats = decode();
+    state.timings.decode = performance.now() - t0 - state.timings.compile;
     upload(splats);
+    state.timings.upload = performance.now() - t0 - state.timings.compile - state.timings.decode;
     sizeCanvas();
     home();
     var eye = parseVec(params.eye || ''), target = parseVec(params.target || ''), up = parseVec(params.up || '');
