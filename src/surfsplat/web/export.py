@@ -33,6 +33,7 @@ from ..pipeline.framing import auto_fit_inputs
 from ..pipeline.models import as_model
 from ..rendering.edl import neighbour_offsets
 from ..rendering.frame import check_background
+from ..rendering.gpu_splats import radius_classes
 from ..rendering.options import EdlOptions, RenderOptions
 from ..rendering.techniques import get_technique
 from ..version import __version__
@@ -114,6 +115,29 @@ def exported_splats(plan: View, camera: Camera, point_budget: int | None) -> Spl
     return cloud
 
 
+def web_order(cloud: SplatCloud) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The order a page stores splats in, as the desktop renderer uploads them
+    (:func:`~surfsplat.rendering.gpu_splats.radius_classes`: by radius class, largest first, each class in
+    Morton order), with the first index and the largest radius of each class: a frame draws the classes
+    too large for a point, a prefix, as quads, and an opaque technique keeps the same splat of two at
+    one depth as the desktop."""
+    return radius_classes(cloud.radii, cloud.positions)
+
+
+def as_drawn(cloud: SplatCloud) -> SplatCloud:
+    """The splats a page draws for ``cloud``: in :func:`web_order`, through the web format and back
+    (float32, the same origin and up): what the desktop renderer draws to show what the page shows."""
+    if cloud.u is None or cloud.v is None or cloud.normals is None:
+        raise InputError("a page draws splats: this SplatCloud has no splat axes or normals")
+    order = web_order(cloud)[0]
+    colors = cloud.colors if cloud.colors is not None else np.full((len(cloud), 3), 0.8, np.float32)
+    streams, header = web_format.encode(cloud.positions[order], cloud.normals[order], colors[order],
+                                        cloud.u[order], cloud.v[order])
+    d = web_format.decode(streams, header)
+    return SplatCloud(d["positions"].astype("f4"), d["normals"].astype("f4"), d["colors"].astype("f4"),
+                      d["u"].astype("f4"), d["v"].astype("f4"), origin=cloud.origin, up=cloud.up)
+
+
 def page_data(plan: View, cloud: SplatCloud, technique: str, background, name: str) -> tuple[dict, dict]:
     """The header (everything but the streams) and the streams of a page drawing ``cloud``."""
     if len(cloud) == 0:
@@ -121,9 +145,7 @@ def page_data(plan: View, cloud: SplatCloud, technique: str, background, name: s
     if cloud.u is None or cloud.v is None or cloud.normals is None:
         raise InputError(f"{name}: the prepared model has no splat axes or normals to export")
     colors = cloud.colors if cloud.colors is not None else np.full((len(cloud), 3), 0.8, np.float32)
-    # largest first, as the desktop renderer uploads them (gpu_splats: by radius class): a frame draws the
-    # splats too large for a point as quads, a prefix, and the rest as GL_POINTS
-    order = np.argsort(-cloud.radii, kind="stable")
+    order, class_start, class_radius = web_order(cloud)
     streams, header = web_format.encode(cloud.positions[order], cloud.normals[order], colors[order], cloud.u[order],
                                         cloud.v[order])
     model = as_model(plan.model).points()
@@ -133,6 +155,7 @@ def page_data(plan: View, cloud: SplatCloud, technique: str, background, name: s
     header.update({
         "name": name, "version": __version__, "origin": np.asarray(cloud.origin, np.float64).tolist(),
         "bounds": [b.tolist() for b in cloud.bounds()], "max_radius": radius,
+        "class_start": class_start.tolist(), "class_radius": [float(r) for r in class_radius],
         "fit": fit_frame(points, direction, up, margin), "fov": defaults.FOV,
         "technique": technique, "techniques": list(WEB_TECHNIQUES), "background": list(background),
         "uniforms": {t: {k: list(np.atleast_1d(v).astype(float)) for k, v in get_technique(t).uniforms(options).items()}

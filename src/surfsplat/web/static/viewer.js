@@ -44,7 +44,7 @@
     var n = H.count, s = DATA.streams;
     var qp = u16(s.position), qn = u16(s.normal), qa = u16(s.angle), qr = u16(s.radii);
     var pos = new Float32Array(3 * n), nrm = new Float32Array(3 * n), u = new Float32Array(3 * n),
-        v = new Float32Array(3 * n), radius = new Float32Array(n);
+        v = new Float32Array(3 * n);
     var lo = H.lo, hi = H.hi, U16 = 65535, OCT = 65534;   // format.U16, format.OCT_LEVELS
     var w0 = hi[0] - lo[0], w1 = hi[1] - lo[1], w2 = hi[2] - lo[2];
     var l0 = H.log_radius[0], lw = H.log_radius[1] - H.log_radius[0];
@@ -68,11 +68,10 @@
       var ang = qa[i] * (Math.PI / 65536), c = Math.cos(ang), sn = Math.sin(ang);
       var dx = c * b1x + sn * b2x, dy = c * b1y + sn * b2y, dz = c * b1z + sn * b2z;
       var ru = Math.pow(2, l0 + qr[2 * i] / U16 * lw), rv = Math.pow(2, l0 + qr[2 * i + 1] / U16 * lw);
-      radius[i] = Math.max(ru, rv);
       u[k] = dx * ru; u[k + 1] = dy * ru; u[k + 2] = dz * ru;
       v[k] = (y * dz - z * dy) * rv; v[k + 1] = (z * dx - x * dz) * rv; v[k + 2] = (x * dy - y * dx) * rv;
     }
-    return {position: pos, normal: nrm, u: u, v: v, color: bytes(s.color), radius: radius};
+    return {position: pos, normal: nrm, u: u, v: v, color: bytes(s.color)};
   }
 
   // ---- small float64 vector helpers ---------------------------------------------------------------
@@ -241,7 +240,7 @@
 
   // ---- splats -------------------------------------------------------------------------------------
   // Small splats are drawn as GL_POINTS, one vertex each (POINT_PRIMITIVE); the largest (first: export.py
-  // sorts them by radius) as quads of two triangles. No instancing: SwiftShader, Chromium's CPU WebGL,
+  // orders them by radius class) as quads of two triangles. No instancing: SwiftShader, Chromium's CPU WebGL,
   // runs an instanced draw one instance at a time (a million instances took a minute a frame).
   var QUAD_CAPACITY = 65536;   // splats that can be drawn as quads (their vertices are 6 copies)
   var CORNERS = [-1, -1, 1, -1, -1, 1, -1, 1, 1, -1, 1, 1];
@@ -306,11 +305,11 @@
     return scaleR * Math.max(values.u_near_far[0], nearest);
   }
 
-  // How many splats (a prefix: the largest) are larger than r.
+  // GpuSplats.quad_count: the splats of every radius class whose largest radius exceeds r (a prefix).
   function largerThan(r) {
-    var radius = splats.radius, lo = 0, hi = radius.length;
-    while (lo < hi) { var mid = (lo + hi) >> 1; if (radius[mid] > r) lo = mid + 1; else hi = mid; }
-    return lo;
+    var big = 0;
+    while (big < H.class_radius.length && H.class_radius[big] > r) ++big;
+    return big === H.class_radius.length ? H.count : H.class_start[big];
   }
 
   // ---- targets ------------------------------------------------------------------------------------
@@ -318,7 +317,7 @@
   function texture(format, w, h) {
     var t = gl.createTexture();
     gl.bindTexture(gl.TEXTURE_2D, t);
-    var internal = {rg: gl.RG32F, rgba: gl.RGBA32F, depth: gl.DEPTH_COMPONENT32F}[format];
+    var internal = {rg: gl.RG32F, rgba: gl.RGBA32F, depth: gl.DEPTH_COMPONENT24}[format];   // the desktop's depth
     gl.texStorage2D(gl.TEXTURE_2D, 1, internal, w, h);
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
