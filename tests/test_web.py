@@ -185,3 +185,15 @@ def test_a_path_in_a_file_url_is_quoted(tmp_path):
     from surfsplat.web.browser import file_url
     assert file_url(tmp_path / "a b.html", "?ui=0").endswith("/a%20b.html?ui=0")
     assert Path(tmp_path / "a b.html").resolve().as_uri().startswith("file:///")
+
+
+def test_a_hierarchy_is_exported_within_the_point_budget(tmp_path):
+    cloud = torus(80, 40)
+    path = tmp_path / "torus.npz"
+    surfsplat.save_hierarchy(surfsplat.build_hierarchy(cloud), path)
+    whole = surfsplat.export(path, tmp_path / "whole")
+    assert whole.splats == len(cloud)   # within the default budget: the finest level, every point
+    cut = surfsplat.export(path, tmp_path / "cut", point_budget=500)
+    assert 0 < cut.splats <= 500
+    data = (tmp_path / "cut" / "data.js").read_text()
+    assert f'"count":{cut.splats}' in data

@@ -18,6 +18,7 @@ from surfsplat.web import export
 from surfsplat.pipeline import SourceOptions
 from surfsplat.web.browser import Browser, file_url, find_chromium
 from surfsplat.web.export import as_drawn, exported_splats
+from surfsplat.web.shaders import PROGRAMS
 
 pytestmark = [pytest.mark.browser, pytest.mark.gl,
               pytest.mark.skipif(find_chromium() is None,
@@ -71,6 +72,8 @@ def test_the_page_opens_from_a_file_url_at_the_render_default_view(browser, site
         assert np.allclose(state["camera"]["eye"], expected.eye, rtol=0, atol=1e-9)
         assert np.allclose(state["camera"]["target"], expected.target, rtol=0, atol=1e-9)
         assert f"{len(model):,} splats drawn" in state["hud"] and "ms/frame" in state["hud"]
+        # every program of shaders.js compiled and linked in the browser (a failure is an error above)
+        assert sorted(page.evaluate("surfsplat.programs")) == sorted(PROGRAMS)
         image = page.canvas()
         assert image.shape == (H, W, 3) and (image.min(axis=2) < 250).mean() > 0.1   # the torus is drawn
     finally:
@@ -122,6 +125,22 @@ def test_a_drag_orbits_the_view_and_the_address_keeps_it(browser, site):
     moved = json.loads(after_camera)
     assert np.allclose(shared["eye"], moved["eye"], rtol=1e-8) and np.allclose(shared["target"], moved["target"],
                                                                                   rtol=1e-8, atol=1e-9)
+
+
+def test_the_wheel_zooms_toward_the_target(browser, site):
+    page = opened(browser, file_url(site / "index.html"))
+    try:
+        distance = "(function (c) { return Math.hypot(c.eye[0] - c.target[0], c.eye[1] - c.target[1], " \
+                   "c.eye[2] - c.target[2]); })(surfsplat.camera)"
+        before = page.evaluate(distance)
+        page.call("Input.dispatchMouseEvent", {"type": "mouseWheel", "x": W / 2, "y": H / 2, "deltaX": 0,
+                                               "deltaY": -200})
+        page.wait_for(f"{distance} < {before}", timeout=10)
+        after = page.evaluate(distance)
+        assert after == pytest.approx(before * np.exp(-200 * 0.0015), rel=1e-6)   # viewer.js: exp(0.0015 dy)
+        assert page.collect() == []
+    finally:
+        page.close()
 
 
 def test_keys_orbit_and_switch_the_technique(browser, site):

@@ -686,6 +686,7 @@
     if (state.technique === 'ewa' && !floatBlend) state.technique = 'flat';
     document.body.style.background = hex(state.background);
     for (var p in SHADERS.programs) programs[p] = build(p);
+    state.programs = Object.keys(programs);   // every shipped program compiled and linked
     state.timings.compile = performance.now() - t0;
     splats = decode();
     state.timings.decode = performance.now() - t0 - state.timings.compile;
