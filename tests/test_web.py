@@ -197,3 +197,5 @@ def test_a_hierarchy_is_exported_within_the_point_budget(tmp_path):
     assert 0 < cut.splats <= 500
     data = (tmp_path / "cut" / "data.js").read_text()
     assert f'"count":{cut.splats}' in data
+    cloud_cut = surfsplat.export(cloud, tmp_path / "cloud", point_budget=500)   # a cloud beyond the budget too
+    assert 0 < cloud_cut.splats <= 500

@@ -105,11 +105,16 @@ def _script_json(value) -> str:
 
 def exported_splats(plan: View, camera: Camera, point_budget: int | None) -> SplatCloud:
     """The splats a page draws: the view plan's model as splats for ``camera`` (a mesh sampled for it);
-    a hierarchy's cut at ``camera`` within ``point_budget`` (its finest level where that holds it all)."""
+    a hierarchy's cut at ``camera`` within ``point_budget`` (default :data:`DEFAULT_POINT_BUDGET`; its
+    finest level where that holds it all), and so a cloud's beyond the budget (its hierarchy built)."""
     drawn = plan.sample(camera)
-    if not drawn.is_tree:
-        return drawn.points()
     budget = point_budget or DEFAULT_POINT_BUDGET
+    if not drawn.is_tree:
+        points = drawn.points()
+        if len(points) <= budget:
+            return points
+        progress.message(f"{len(points):,} splats are more than the point budget of {budget:,}: exporting the "
+                         f"cut of their hierarchy at the default view")
     tree = plan.tree(camera)
     cloud, _ = tree.cut(camera, 0.0, shading=plan.lod.shading, point_budget=budget)
     return cloud
