@@ -152,6 +152,8 @@ def test_export_command_writes_replaces_and_refuses(tmp_path, capsys):
     single = mine.read_text()
     assert "<script src=" not in single and "window.SURFSPLAT_DATA" in single and "window.SURFSPLAT_SHADERS" in single
     assert main(["export", "demo:torus", "-o", str(tmp_path / "x"), "--technique", "phong"]) == 2
+    assert main(["export", str(tmp_path / "missing.ply"), "-o", str(tmp_path / "y")]) == 2
+    assert "missing.ply" in capsys.readouterr().err and not (tmp_path / "y").exists()
 
 
 def test_export_api_checks_its_arguments(tmp_path):

@@ -143,6 +143,35 @@ def test_the_wheel_zooms_toward_the_target(browser, site):
         page.close()
 
 
+def test_a_pinch_zooms_and_one_finger_orbits(browser, site):
+    page = opened(browser, file_url(site / "index.html"))
+    try:
+        page.call("Emulation.setTouchEmulationEnabled", {"enabled": True, "maxTouchPoints": 2})
+        distance = "(function (c) { return Math.hypot(c.eye[0] - c.target[0], c.eye[1] - c.target[1], " \
+                   "c.eye[2] - c.target[2]); })(surfsplat.camera)"
+        before = page.evaluate(distance)
+
+        def touch(kind, points):
+            page.call("Input.dispatchTouchEvent", {"type": kind, "touchPoints": [
+                {"x": x, "y": y, "id": i} for i, (x, y) in enumerate(points)]})
+
+        touch("touchStart", [(W / 2 - 20, H / 2), (W / 2 + 20, H / 2)])
+        for step in range(1, 5):   # the fingers move apart: zoom in
+            touch("touchMove", [(W / 2 - 20 - 10 * step, H / 2), (W / 2 + 20 + 10 * step, H / 2)])
+        touch("touchEnd", [])
+        page.wait_for(f"{distance} < {0.9 * before}", timeout=10)
+        target = page.evaluate("JSON.stringify(surfsplat.camera.target)")
+        eye = page.evaluate("JSON.stringify(surfsplat.camera.eye)")
+        touch("touchStart", [(W / 2, H / 2)])
+        touch("touchMove", [(W / 2 + 40, H / 2)])
+        touch("touchEnd", [])
+        page.wait_for(f"JSON.stringify(surfsplat.camera.eye) !== {json.dumps(eye)}", timeout=10)
+        assert page.evaluate("JSON.stringify(surfsplat.camera.target)") == target   # an orbit keeps the target
+        assert page.collect() == []
+    finally:
+        page.close()
+
+
 def test_keys_orbit_and_switch_the_technique(browser, site):
     page = opened(browser, file_url(site / "index.html"))
     try:
