@@ -1,11 +1,26 @@
 // surfsplat web viewer: draws the splats of data.js with the programs of shaders.js (the package's GLSL
 // files composed for GLSL ES 3.00) in the passes of the desktop renderer (surfsplat.rendering.passes).
 // No build step, no network: every input is a script loaded by the page.
-(function () {
+//
+// surfsplatViewer(root, SHADERS, DATA, options) builds the viewer inside the element root (its canvas,
+// controls and HUD) and returns its state: the exported page calls it on its body (at the end of this
+// file), the notebook widget (surfsplat.web.widget) on its output cell. options: params (the page's
+// query and hash: camera, technique, ui, ...), url (keep the camera in the address), onCamera (called
+// with the camera after a move).
+function surfsplatViewer(root, SHADERS, DATA, options) {
   'use strict';
-  var DATA = window.SURFSPLAT_DATA;
-  var SHADERS = window.SURFSPLAT_SHADERS;
+  options = options || {};
   var H = DATA.header;
+  var params = options.params || {};
+  if (!document.getElementById('surfsplat-style')) {
+    var style = document.createElement('style');
+    style.id = 'surfsplat-style';
+    style.textContent = SURFSPLAT_CSS;
+    document.head.appendChild(style);
+  }
+  root.classList.add('surfsplat-root');
+  root.insertAdjacentHTML('beforeend', SURFSPLAT_MARKUP);
+  function $(id) { return root.querySelector('#' + id); }
 
   // Attribute locations, bound before linking: one vertex array serves every splat program.
   var ATTRIBUTES = ['in_corner', 'in_position', 'in_normal', 'in_color', 'in_u', 'in_v',
@@ -19,13 +34,12 @@
     camera: null, frameMs: 0, frames: 0, splats: H.count, errors: [], ready: false, firstFrameMs: null,
     ui: true, width: 0, height: 0
   };
-  window.surfsplat = state;
   // one full-quality frame drawn now; its time in milliseconds (the benchmark's)
   state.redraw = function () { render(); return state.frameMs; };
 
   function fail(text) {
     state.errors.push(text);
-    var box = document.getElementById('message');
+    var box = $('message');
     box.textContent = text;
     box.style.display = 'block';
     console.error(text);
@@ -146,11 +160,11 @@
   }
 
   // ---- GL setup -------------------------------------------------------------------------------------
-  var canvas = document.getElementById('view');
+  var canvas = $('view');
   var gl = canvas.getContext('webgl2', {antialias: false, alpha: false, depth: false, stencil: false,
                                         preserveDrawingBuffer: true, premultipliedAlpha: false});
-  if (!gl) { fail('This browser has no WebGL2: the viewer needs it.'); return; }
-  if (!gl.getExtension('EXT_color_buffer_float')) { fail('WebGL2 without EXT_color_buffer_float: float targets are needed.'); return; }
+  if (!gl) { fail('This browser has no WebGL2: the viewer needs it.'); return state; }
+  if (!gl.getExtension('EXT_color_buffer_float')) { fail('WebGL2 without EXT_color_buffer_float: float targets are needed.'); return state; }
   var floatBlend = !!gl.getExtension('EXT_float_blend');
 
   function compile(type, text, name) {
@@ -482,16 +496,6 @@
     var v = String(text).split(',').map(Number);
     return v.length === 3 && v.every(isFinite) ? v : null;
   }
-  function readParams() {
-    var out = {}, parts = (location.search.slice(1) + '&' + location.hash.slice(1)).split('&');
-    parts.forEach(function (kv) {
-      if (!kv) return;
-      var i = kv.indexOf('='), k = decodeURIComponent(i < 0 ? kv : kv.slice(0, i));
-      out[k] = i < 0 ? '' : decodeURIComponent(kv.slice(i + 1));
-    });
-    return out;
-  }
-  var params = readParams();
 
   function sizeCanvas() {
     var dpr = window.devicePixelRatio || 1;
@@ -508,7 +512,10 @@
       var c = state.camera;
       var hash = '#eye=' + fmt(c.eye) + '&target=' + fmt(c.target) + '&up=' + fmt(c.up) + '&fov=' + c.fov +
                  '&technique=' + state.technique + (state.edl !== (state.technique === 'points') ? '&edl=' + (state.edl ? 1 : 0) : '');
-      try { history.replaceState(null, '', location.pathname + location.search + hash); } catch (e) { /* file:// in some browsers */ }
+      if (options.url) {
+        try { history.replaceState(null, '', location.pathname + location.search + hash); } catch (e) { /* file:// in some browsers */ }
+      }
+      if (options.onCamera) options.onCamera({eye: c.eye.slice(), target: c.target.slice(), up: c.up.slice(), fov: c.fov});
     }, 250);
   }
 
@@ -588,7 +595,7 @@
     else handled = false;
     if (handled) { e.preventDefault(); changed(); }
   });
-  document.addEventListener('keydown', function (e) {
+  root.addEventListener('keydown', function (e) {
     if (e.target && (e.target.tagName === 'INPUT' || e.target.tagName === 'SELECT')) return;
     if (e.key === 'Home' || e.key === '0') { home(); changed(); }
     else if (e.key === 't' || e.key === 'T') { var ts = H.techniques; setTechnique(ts[(ts.indexOf(state.technique) + 1) % ts.length]); }
@@ -613,27 +620,27 @@
   }
 
   // ---- controls -------------------------------------------------------------------------------------
-  var select = document.getElementById('technique'), bg = document.getElementById('background'),
-      edlBox = document.getElementById('edl'), hud = document.getElementById('hud');
+  var select = $('technique'), bg = $('background'), edlBox = $('edl'), hud = $('hud');
   H.techniques.forEach(function (t) { var o = document.createElement('option'); o.value = o.textContent = t; select.appendChild(o); });
   function hex(c) { return '#' + c.map(function (x) { return ('0' + Math.round(Math.min(1, Math.max(0, x)) * 255).toString(16)).slice(-2); }).join(''); }
   function syncControls() { select.value = state.technique; bg.value = hex(state.background); edlBox.checked = state.edl; }
   select.addEventListener('change', function () { setTechnique(select.value); });
   bg.addEventListener('input', function () {
     var v = bg.value; state.background = [1, 3, 5].map(function (i) { return parseInt(v.substr(i, 2), 16) / 255; });
-    document.body.style.background = v;
+    root.style.background = v;
     request();
   });
   edlBox.addEventListener('change', function () { state.edl = edlBox.checked; changed(); });
-  document.getElementById('home').addEventListener('click', function () { home(); changed(); });
-  document.getElementById('screenshot').addEventListener('click', screenshot);
-  var helpButton = document.getElementById('helpbutton'), help = document.getElementById('help');
+  $('home').addEventListener('click', function () { home(); changed(); });
+  $('screenshot').addEventListener('click', screenshot);
+  var helpButton = $('helpbutton'), help = $('help');
   helpButton.addEventListener('click', function () {
     var open = help.style.display !== 'block';
     help.style.display = open ? 'block' : 'none';
     helpButton.setAttribute('aria-expanded', String(open));
   });
   window.addEventListener('resize', function () { if (sizeCanvas()) request(); });
+  if (window.ResizeObserver) new ResizeObserver(function () { if (sizeCanvas()) request(); }).observe(canvas);
 
   // Where a full-quality frame is slow (CPU WebGL: SwiftShader), a moving camera and the first frame are
   // drawn with "points" (one pass, the cheapest), and the full frame follows when the camera stops.
@@ -651,7 +658,7 @@
     if (!state.ready) {
       state.ready = true;
       state.readyMs = performance.now();
-      document.body.setAttribute('data-ready', '1');
+      root.setAttribute('data-ready', '1');
     }
   }
   function tick() {
@@ -670,7 +677,7 @@
     }
     if (state.firstFrameMs === null) {
       state.firstFrameMs = performance.now();
-      document.body.setAttribute('data-first-frame', '1');
+      root.setAttribute('data-first-frame', '1');
     }
   }
 
@@ -679,12 +686,12 @@
     state.profile = params.profile === '1';
     var t0 = performance.now();
     state.timings = {};
-    if (params.ui === '0') { state.ui = false; document.body.classList.add('noui'); }
+    if (params.ui === '0') { state.ui = false; root.classList.add('noui'); }
     if (params.technique && params.technique in H.uniforms) state.technique = params.technique;
     if (params.background) { var b = parseVec(params.background); if (b) state.background = b; }
     state.edl = params.edl !== undefined ? params.edl === '1' : state.technique === 'points';
     if (state.technique === 'ewa' && !floatBlend) state.technique = 'flat';
-    document.body.style.background = hex(state.background);
+    root.style.background = hex(state.background);
     for (var p in SHADERS.programs) programs[p] = build(p);
     state.programs = Object.keys(programs);   // every shipped program compiled and linked
     state.timings.compile = performance.now() - t0;
@@ -706,4 +713,26 @@
   } catch (e) {
     fail(String(e && e.message || e));
   }
-})();
+  return state;
+}
+
+// The viewer's style and elements (ids are looked up inside its root element only).
+var SURFSPLAT_CSS = ".surfsplat-root { position: relative; overflow: hidden; font: 13px/1.4 system-ui, sans-serif; }\n.surfsplat-root #view { display: block; width: 100%; height: 100%; touch-action: none; outline: none; }\n.surfsplat-root #view:focus-visible { outline: 2px solid #3b82f6; outline-offset: -2px; }\n.surfsplat-root .overlay { position: absolute; background: rgba(255, 255, 255, 0.85); color: #111; border-radius: 6px;\n  padding: 6px 8px; box-shadow: 0 1px 4px rgba(0, 0, 0, 0.25); }\n.surfsplat-root #panel { top: 8px; left: 8px; display: flex; gap: 8px; align-items: center; flex-wrap: wrap; max-width: 95%; }\n.surfsplat-root #panel label { display: inline-flex; gap: 4px; align-items: center; }\n.surfsplat-root #hud { bottom: 8px; left: 8px; font-variant-numeric: tabular-nums; }\n.surfsplat-root #help { bottom: 8px; right: 8px; max-width: 22em; display: none; }\n.surfsplat-root #message { top: 50%; left: 50%; transform: translate(-50%, -50%); display: none; max-width: 40em; white-space: pre-wrap; }\n.surfsplat-root.noui .overlay { display: none !important; }\n.surfsplat-root button, .surfsplat-root select, .surfsplat-root input { font: inherit; }";
+var SURFSPLAT_MARKUP = "<canvas id=\"view\" tabindex=\"0\" role=\"img\" aria-label=\"3D view: drag or arrow keys to orbit, shift to pan, wheel or +/- to zoom\"></canvas>\n<div id=\"panel\" class=\"overlay\" role=\"toolbar\" aria-label=\"viewer controls\">\n  <label>Technique <select id=\"technique\" aria-label=\"technique\"></select></label>\n  <label>Background <input id=\"background\" type=\"color\" aria-label=\"background colour\"></label>\n  <label><input id=\"edl\" type=\"checkbox\"> Eye-dome lighting</label>\n  <button id=\"home\" type=\"button\" title=\"back to the default view (Home)\">Reset view</button>\n  <button id=\"screenshot\" type=\"button\" title=\"save the picture as PNG (P)\">Screenshot</button>\n  <button id=\"helpbutton\" type=\"button\" aria-expanded=\"false\" aria-controls=\"help\">Keys</button>\n</div>\n<div id=\"hud\" class=\"overlay\" aria-live=\"off\"></div>\n<div id=\"help\" class=\"overlay\">\n  Drag: orbit. Shift+drag or right drag: pan. Wheel or pinch: zoom.<br>\n  Arrows: orbit; Shift+arrows: pan; + / -: zoom; Home or 0: default view;\n  T: next technique; E: eye-dome lighting; P: screenshot. The address holds the camera: copy it to share the view.\n</div>\n<div id=\"message\" class=\"overlay\" role=\"alert\"></div>";
+
+// The query and hash of the page's address as a dictionary (the camera, technique, ui, ...).
+function surfsplatParams() {
+  var out = {}, parts = (location.search.slice(1) + '&' + location.hash.slice(1)).split('&');
+  parts.forEach(function (kv) {
+    if (!kv) return;
+    var i = kv.indexOf('='), k = decodeURIComponent(i < 0 ? kv : kv.slice(0, i));
+    out[k] = i < 0 ? '' : decodeURIComponent(kv.slice(i + 1));
+  });
+  return out;
+}
+
+// The exported page: its scripts set the programs and the data; the viewer fills the body.
+if (typeof window !== 'undefined' && window.SURFSPLAT_DATA && window.SURFSPLAT_SHADERS && !window.surfsplat) {
+  window.surfsplat = surfsplatViewer(document.body, window.SURFSPLAT_SHADERS, window.SURFSPLAT_DATA,
+                                     {params: surfsplatParams(), url: true});
+}
