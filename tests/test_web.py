@@ -152,6 +152,8 @@ def test_export_command_writes_replaces_and_refuses(tmp_path, capsys):
     single = mine.read_text()
     assert "<script src=" not in single and "window.SURFSPLAT_DATA" in single and "window.SURFSPLAT_SHADERS" in single
     assert main(["export", "demo:torus", "-o", str(tmp_path / "x"), "--technique", "phong"]) == 2
+    assert main(["export", str(tmp_path / "missing.ply"), "-o", str(tmp_path / "y")]) == 2
+    assert "missing.ply" in capsys.readouterr().err and not (tmp_path / "y").exists()
 
 
 def test_export_api_checks_its_arguments(tmp_path):
@@ -185,3 +187,17 @@ def test_a_path_in_a_file_url_is_quoted(tmp_path):
     from surfsplat.web.browser import file_url
     assert file_url(tmp_path / "a b.html", "?ui=0").endswith("/a%20b.html?ui=0")
     assert Path(tmp_path / "a b.html").resolve().as_uri().startswith("file:///")
+
+
+def test_a_hierarchy_is_exported_within_the_point_budget(tmp_path):
+    cloud = torus(80, 40)
+    path = tmp_path / "torus.npz"
+    surfsplat.save_hierarchy(surfsplat.build_hierarchy(cloud), path)
+    whole = surfsplat.export(path, tmp_path / "whole")
+    assert whole.splats == len(cloud)   # within the default budget: the finest level, every point
+    cut = surfsplat.export(path, tmp_path / "cut", point_budget=500)
+    assert 0 < cut.splats <= 500
+    data = (tmp_path / "cut" / "data.js").read_text()
+    assert f'"count":{cut.splats}' in data
+    cloud_cut = surfsplat.export(cloud, tmp_path / "cloud", point_budget=500)   # a cloud beyond the budget too
+    assert 0 < cloud_cut.splats <= 500

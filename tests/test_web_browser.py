@@ -10,14 +10,15 @@ import numpy as np
 import pytest
 
 from surfsplat.camera import Camera
-from surfsplat.cloud import SplatCloud
 from surfsplat.metrics import psnr
 from surfsplat.pipeline import View
 from surfsplat.rendering.options import EdlOptions, RenderOptions
 from surfsplat.scenes import torus
 from surfsplat.web import export
-from surfsplat.web import format as wf
+from surfsplat.pipeline import SourceOptions
 from surfsplat.web.browser import Browser, file_url, find_chromium
+from surfsplat.web.export import as_drawn, exported_splats
+from surfsplat.web.shaders import PROGRAMS
 
 pytestmark = [pytest.mark.browser, pytest.mark.gl,
               pytest.mark.skipif(find_chromium() is None,
@@ -43,14 +44,6 @@ def site(model, tmp_path_factory):
     out = tmp_path_factory.mktemp("web") / "site"
     export(model, out)
     return out
-
-
-def decoded(cloud: SplatCloud) -> SplatCloud:
-    """The splats the page draws: the cloud through the web format."""
-    streams, header = wf.encode(cloud.positions, cloud.normals, cloud.colors, cloud.u, cloud.v)
-    d = wf.decode(streams, header)
-    return SplatCloud(d["positions"].astype("f4"), d["normals"].astype("f4"), d["colors"].astype("f4"),
-                      d["u"].astype("f4"), d["v"].astype("f4"), origin=cloud.origin, up=cloud.up)
 
 
 def camera_hash(camera: Camera, technique: str, edl: bool | None = None) -> str:
@@ -79,17 +72,19 @@ def test_the_page_opens_from_a_file_url_at_the_render_default_view(browser, site
         assert np.allclose(state["camera"]["eye"], expected.eye, rtol=0, atol=1e-9)
         assert np.allclose(state["camera"]["target"], expected.target, rtol=0, atol=1e-9)
         assert f"{len(model):,} splats drawn" in state["hud"] and "ms/frame" in state["hud"]
+        # every program of shaders.js compiled and linked in the browser (a failure is an error above)
+        assert sorted(page.evaluate("surfsplat.programs")) == sorted(PROGRAMS)
         image = page.canvas()
         assert image.shape == (H, W, 3) and (image.min(axis=2) < 250).mean() > 0.1   # the torus is drawn
     finally:
         page.close()
 
 
-# measured at 320 x 240 (SwiftShader against llvmpipe): ewa 62.1 dB, flat 43.6 dB (opaque disks' ties in depth
+# measured at 320 x 240 (SwiftShader against llvmpipe): ewa identical, flat 43.6 dB (opaque disks at one depth
 # rounded apart), points with EDL 87.0 dB
-@pytest.mark.parametrize("technique,least", [("ewa", 50.0), ("flat", 40.0), ("points", 60.0)])
+@pytest.mark.parametrize("technique,least", [("ewa", 60.0), ("flat", 40.0), ("points", 60.0)])
 def test_the_canvas_is_the_desktop_render_of_the_same_camera(browser, site, model, technique, least):
-    view = View(decoded(model))
+    view = View(as_drawn(model))
     camera = Camera(eye=(2.2, -1.1, 2.6), target=(0.1, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov=35.0, width=W, height=H)
     camera = view.camera(camera)
     options = RenderOptions(edl=EdlOptions()) if technique == "points" else None
@@ -132,6 +127,51 @@ def test_a_drag_orbits_the_view_and_the_address_keeps_it(browser, site):
                                                                                   rtol=1e-8, atol=1e-9)
 
 
+def test_the_wheel_zooms_toward_the_target(browser, site):
+    page = opened(browser, file_url(site / "index.html"))
+    try:
+        distance = "(function (c) { return Math.hypot(c.eye[0] - c.target[0], c.eye[1] - c.target[1], " \
+                   "c.eye[2] - c.target[2]); })(surfsplat.camera)"
+        before = page.evaluate(distance)
+        page.call("Input.dispatchMouseEvent", {"type": "mouseWheel", "x": W / 2, "y": H / 2, "deltaX": 0,
+                                               "deltaY": -200})
+        page.wait_for(f"{distance} < {before}", timeout=10)
+        after = page.evaluate(distance)
+        assert after == pytest.approx(before * np.exp(-200 * 0.0015), rel=1e-6)   # viewer.js: exp(0.0015 dy)
+        assert page.collect() == []
+    finally:
+        page.close()
+
+
+def test_a_pinch_zooms_and_one_finger_orbits(browser, site):
+    page = opened(browser, file_url(site / "index.html"))
+    try:
+        page.call("Emulation.setTouchEmulationEnabled", {"enabled": True, "maxTouchPoints": 2})
+        distance = "(function (c) { return Math.hypot(c.eye[0] - c.target[0], c.eye[1] - c.target[1], " \
+                   "c.eye[2] - c.target[2]); })(surfsplat.camera)"
+        before = page.evaluate(distance)
+
+        def touch(kind, points):
+            page.call("Input.dispatchTouchEvent", {"type": kind, "touchPoints": [
+                {"x": x, "y": y, "id": i} for i, (x, y) in enumerate(points)]})
+
+        touch("touchStart", [(W / 2 - 20, H / 2), (W / 2 + 20, H / 2)])
+        for step in range(1, 5):   # the fingers move apart: zoom in
+            touch("touchMove", [(W / 2 - 20 - 10 * step, H / 2), (W / 2 + 20 + 10 * step, H / 2)])
+        touch("touchEnd", [])
+        page.wait_for(f"{distance} < {0.9 * before}", timeout=10)
+        target = page.evaluate("JSON.stringify(surfsplat.camera.target)")
+        eye = page.evaluate("JSON.stringify(surfsplat.camera.eye)")
+        touch("touchStart", [(W / 2, H / 2)])
+        touch("touchMove", [(W / 2 + 40, H / 2)])
+        touch("touchEnd", [])
+        page.wait_for(f"JSON.stringify(surfsplat.camera.eye) !== {json.dumps(eye)}", timeout=10)
+        assert page.evaluate("JSON.stringify(surfsplat.camera.target)") == target   # an orbit keeps the target
+        assert page.collect() == []
+    finally:
+        page.close()
+
+
 def test_keys_orbit_and_switch_the_technique(browser, site):
     page = opened(browser, file_url(site / "index.html"))
     try:
@@ -159,3 +199,30 @@ def test_one_self_contained_file_with_ui_0_shows_no_overlay(browser, model, tmp_
         assert (page.canvas().min(axis=2) < 250).mean() > 0.1
     finally:
         page.close()
+
+
+# (file, source options, technique, least PSNR): a mesh, a CAD part (sampled small), aerial LiDAR; measured
+# at 320 x 240: 97.0, 65.5 and 87.6 dB (the same splats in the same order: the same pictures but for rounding)
+DATA = [("bunny.ply", SourceOptions(samples=30_000), "ewa", 60.0),
+        ("frag_115.ply", SourceOptions(samples=30_000), "flat", 50.0),
+        ("simple.las", None, "points", 60.0)]
+
+
+@pytest.mark.parametrize("name,options,technique,least", DATA, ids=[d[0] for d in DATA])
+def test_real_data_pages_match_the_desktop(browser, shared_data, tmp_path, name, options, technique, least):
+    source = shared_data / name
+    out = tmp_path / "site"
+    export(source, out, technique=technique, source_options=options)
+    plan = View(source, source_options=options)
+    drawn = View(as_drawn(exported_splats(plan, plan.camera(None, 1024, 1024), None)))
+    camera = plan.camera(None, W, H)
+    edl = RenderOptions(edl=EdlOptions()) if technique == "points" else None
+    reference = drawn.render(camera, technique=technique, options=edl).frame.image()
+    page = opened(browser, file_url(out / "index.html", "?ui=0"))
+    try:
+        canvas = page.canvas()
+        shown = json.loads(page.evaluate("JSON.stringify(surfsplat.camera)"))
+    finally:
+        page.close()
+    assert np.allclose(shown["eye"], camera.eye, rtol=1e-9, atol=1e-9)   # the render's default view
+    assert psnr(canvas / 255.0, reference / 255.0) >= least

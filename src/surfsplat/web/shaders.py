@@ -4,7 +4,8 @@ WebGL2 runs the desktop renderer's raster passes (``docs/guides/web.md``): the s
 the same :func:`surfsplat.rendering.shaders.compose` with :data:`~surfsplat.rendering.shaders.GLSL_ES_VERSION`
 (``#version 300 es`` and the default precisions), the same pass ids and shared constants. Each program
 is a (vertex, fragment) pair and its defines, as :mod:`surfsplat.rendering.passes` builds them for a
-frame drawn without compute shaders, with instanced quads, in one tile, without edge coverage:
+frame drawn without compute shaders, in one tile, without edge coverage (large splats as quads, the others
+as GL_POINTS: :data:`POINT_PROGRAMS`):
 
 - ``ewa``: ``ewa.vert``/``ewa.frag`` with ``PASS`` = visibility and accumulation, then ``cracks.frag``
   and ``normalize.frag`` (Guennebaud 2003: visibility splatting, accumulation, normalization);
@@ -51,6 +52,13 @@ PROGRAMS: dict[str, tuple[str, str, dict[str, object]]] = {
     "points": ("points.vert", "points.frag", {"PASS": PASS_OPAQUE}),
     "edl": ("fullscreen.vert", "edl.frag", {"EDL_NEIGHBOURS": NEIGHBOURS}),
 }
+
+#: The splat programs also built with ``POINT_PRIMITIVE`` (``<name>_points``): small splats as GL_POINTS,
+#: one vertex each, as the desktop renderer draws its small splats (``splat_primitive.glsl``).
+POINT_PROGRAMS = ("ewa_visibility", "ewa_accumulation", "flat", "points")
+for _name in POINT_PROGRAMS:
+    _vertex, _fragment, _defines = PROGRAMS[_name]
+    PROGRAMS[f"{_name}_points"] = (_vertex, _fragment, {**_defines, "POINT_PRIMITIVE": 1})
 
 #: The techniques the browser viewer draws.
 WEB_TECHNIQUES = ("ewa", "flat", "points")

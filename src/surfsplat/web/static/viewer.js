@@ -1,11 +1,26 @@
 // surfsplat web viewer: draws the splats of data.js with the programs of shaders.js (the package's GLSL
 // files composed for GLSL ES 3.00) in the passes of the desktop renderer (surfsplat.rendering.passes).
 // No build step, no network: every input is a script loaded by the page.
-(function () {
+//
+// surfsplatViewer(root, SHADERS, DATA, options) builds the viewer inside the element root (its canvas,
+// controls and HUD) and returns its state: the exported page calls it on its body (at the end of this
+// file), the notebook widget (surfsplat.web.widget) on its output cell. options: params (the page's
+// query and hash: camera, technique, ui, ...), url (keep the camera in the address), onCamera (called
+// with the camera after a move).
+function surfsplatViewer(root, SHADERS, DATA, options) {
   'use strict';
-  var DATA = window.SURFSPLAT_DATA;
-  var SHADERS = window.SURFSPLAT_SHADERS;
+  options = options || {};
   var H = DATA.header;
+  var params = options.params || {};
+  if (!document.getElementById('surfsplat-style')) {
+    var style = document.createElement('style');
+    style.id = 'surfsplat-style';
+    style.textContent = SURFSPLAT_CSS;
+    document.head.appendChild(style);
+  }
+  root.classList.add('surfsplat-root');
+  root.insertAdjacentHTML('beforeend', SURFSPLAT_MARKUP);
+  function $(id) { return root.querySelector('#' + id); }
 
   // Attribute locations, bound before linking: one vertex array serves every splat program.
   var ATTRIBUTES = ['in_corner', 'in_position', 'in_normal', 'in_color', 'in_u', 'in_v',
@@ -19,11 +34,12 @@
     camera: null, frameMs: 0, frames: 0, splats: H.count, errors: [], ready: false, firstFrameMs: null,
     ui: true, width: 0, height: 0
   };
-  window.surfsplat = state;
+  // one full-quality frame drawn now; its time in milliseconds (the benchmark's)
+  state.redraw = function () { render(); return state.frameMs; };
 
   function fail(text) {
     state.errors.push(text);
-    var box = document.getElementById('message');
+    var box = $('message');
     box.textContent = text;
     box.style.display = 'block';
     console.error(text);
@@ -144,11 +160,11 @@
   }
 
   // ---- GL setup -------------------------------------------------------------------------------------
-  var canvas = document.getElementById('view');
+  var canvas = $('view');
   var gl = canvas.getContext('webgl2', {antialias: false, alpha: false, depth: false, stencil: false,
                                         preserveDrawingBuffer: true, premultipliedAlpha: false});
-  if (!gl) { fail('This browser has no WebGL2: the viewer needs it.'); return; }
-  if (!gl.getExtension('EXT_color_buffer_float')) { fail('WebGL2 without EXT_color_buffer_float: float targets are needed.'); return; }
+  if (!gl) { fail('This browser has no WebGL2: the viewer needs it.'); return state; }
+  if (!gl.getExtension('EXT_color_buffer_float')) { fail('WebGL2 without EXT_color_buffer_float: float targets are needed.'); return state; }
   var floatBlend = !!gl.getExtension('EXT_float_blend');
 
   function compile(type, text, name) {
@@ -237,25 +253,77 @@
   }
 
   // ---- splats -------------------------------------------------------------------------------------
-  var splats, vao = gl.createVertexArray(), empty = gl.createVertexArray();
+  // Small splats are drawn as GL_POINTS, one vertex each (POINT_PRIMITIVE); the largest (first: export.py
+  // orders them by radius class) as quads of two triangles. No instancing: SwiftShader, Chromium's CPU WebGL,
+  // runs an instanced draw one instance at a time (a million instances took a minute a frame).
+  var QUAD_CAPACITY = 65536;   // splats that can be drawn as quads (their vertices are 6 copies)
+  var CORNERS = [-1, -1, 1, -1, -1, 1, -1, 1, 1, -1, 1, 1];
+  var splats, pointsVao = gl.createVertexArray(), quadsVao = gl.createVertexArray(), empty = gl.createVertexArray();
+  var quadCount = 0, maxPoint = gl.getParameter(gl.ALIASED_POINT_SIZE_RANGE)[1];
+  function attribute(index, array, size, type, normalized) {
+    var buf = gl.createBuffer();
+    gl.bindBuffer(gl.ARRAY_BUFFER, buf);
+    gl.bufferData(gl.ARRAY_BUFFER, array, gl.STATIC_DRAW);
+    gl.enableVertexAttribArray(index);
+    gl.vertexAttribPointer(index, size, type, normalized, 0, 0);
+  }
+  function repeated(array, width, count, Kind) {   // each of the first count rows 6 times
+    var out = new Kind(6 * width * count);
+    for (var i = 0; i < count; ++i) for (var r = 0; r < 6; ++r) for (var c = 0; c < width; ++c) out[(6 * i + r) * width + c] = array[i * width + c];
+    return out;
+  }
   function upload(decoded) {
-    gl.bindVertexArray(vao);
-    function attribute(index, array, size, type, normalized, divisor) {
-      var buf = gl.createBuffer();
-      gl.bindBuffer(gl.ARRAY_BUFFER, buf);
-      gl.bufferData(gl.ARRAY_BUFFER, array, gl.STATIC_DRAW);
-      gl.enableVertexAttribArray(index);
-      gl.vertexAttribPointer(index, size, type, normalized, 0, 0);
-      gl.vertexAttribDivisor(index, divisor);
-    }
-    attribute(0, new Float32Array([-1, -1, 1, -1, -1, 1, 1, 1]), 2, gl.FLOAT, false, 0);
-    attribute(1, decoded.position, 3, gl.FLOAT, false, 1);
-    attribute(2, decoded.normal, 3, gl.FLOAT, false, 1);
-    attribute(3, decoded.color, 3, gl.UNSIGNED_BYTE, true, 1);
-    attribute(4, decoded.u, 3, gl.FLOAT, false, 1);
-    attribute(5, decoded.v, 3, gl.FLOAT, false, 1);
-    for (var i = 6; i < ATTRIBUTES.length; ++i) gl.vertexAttrib4f(i, 0, 0, 0, 0);   // no clip lines, no normal field
+    gl.bindVertexArray(pointsVao);
+    attribute(1, decoded.position, 3, gl.FLOAT, false);
+    attribute(2, decoded.normal, 3, gl.FLOAT, false);
+    attribute(3, decoded.color, 3, gl.UNSIGNED_BYTE, true);
+    attribute(4, decoded.u, 3, gl.FLOAT, false);
+    attribute(5, decoded.v, 3, gl.FLOAT, false);
+    quadCount = Math.min(H.count, QUAD_CAPACITY);
+    gl.bindVertexArray(quadsVao);
+    var corners = new Float32Array(12 * quadCount);
+    for (var i = 0; i < quadCount; ++i) corners.set(CORNERS, 12 * i);
+    attribute(0, corners, 2, gl.FLOAT, false);
+    attribute(1, repeated(decoded.position, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
+    attribute(2, repeated(decoded.normal, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
+    attribute(3, repeated(decoded.color, 3, quadCount, Uint8Array), 3, gl.UNSIGNED_BYTE, true);
+    attribute(4, repeated(decoded.u, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
+    attribute(5, repeated(decoded.v, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
     gl.bindVertexArray(null);
+    gl.vertexAttrib2f(0, 0, 0);   // a point has no corner
+    for (i = 6; i < ATTRIBUTES.length; ++i) gl.vertexAttrib4f(i, 0, 0, 0, 0);   // no clip lines, no normal field
+  }
+
+  // passes.point_scale and point_radius: the largest radius drawn as a point in this frame (model units).
+  function pointRadius(values, technique) {
+    var fp = H.footprints[technique], px = Math.min(maxPoint, 1024), f = values.u_focal;
+    var w = values.u_viewport[0], h = values.u_viewport[1];
+    var stretch = Math.hypot(1, Math.hypot(w, h) / (2 * f)), side = px - 1, scaleR;
+    if (!fp.footprint) return 0;
+    if (fp.footprint === 'adaptive') {
+      if (fp.min_point_px * values.u_supersample > side) return 0;
+      scaleR = side / (2 * f * stretch);
+    } else {
+      if (fp.footprint === 'filtered_disk') {
+        var u = H.uniforms[technique];
+        side -= 2 * Math.sqrt(2 * u.u_cutoff[0] * u.u_prefilter[0]);
+      }
+      scaleR = Math.max(side, 0) / (2 * Math.SQRT2 * f * stretch);
+    }
+    var m = H.max_radius, lo = sub(sub(H.bounds[0], H.origin), [m, m, m]), hi = add(sub(H.bounds[1], H.origin), [m, m, m]);
+    var nearest = Infinity, view = values.u_view;
+    for (var i = 0; i < 8; ++i) {
+      var c = [(i & 1) ? hi[0] : lo[0], (i & 2) ? hi[1] : lo[1], (i & 4) ? hi[2] : lo[2]];
+      nearest = Math.min(nearest, -(view[2] * c[0] + view[6] * c[1] + view[10] * c[2] + view[14]));
+    }
+    return scaleR * Math.max(values.u_near_far[0], nearest);
+  }
+
+  // GpuSplats.quad_count: the splats of every radius class whose largest radius exceeds r (a prefix).
+  function largerThan(r) {
+    var big = 0;
+    while (big < H.class_radius.length && H.class_radius[big] > r) ++big;
+    return big === H.class_radius.length ? H.count : H.class_start[big];
   }
 
   // ---- targets ------------------------------------------------------------------------------------
@@ -263,7 +331,7 @@
   function texture(format, w, h) {
     var t = gl.createTexture();
     gl.bindTexture(gl.TEXTURE_2D, t);
-    var internal = {rg: gl.RG32F, rgba: gl.RGBA32F, depth: gl.DEPTH_COMPONENT32F}[format];
+    var internal = {rg: gl.RG32F, rgba: gl.RGBA32F, depth: gl.DEPTH_COMPONENT24}[format];   // the desktop's depth
     gl.texStorage2D(gl.TEXTURE_2D, 1, internal, w, h);
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
@@ -316,11 +384,20 @@
     };
   }
 
-  function drawSplats(p, values) {
-    setUniforms(p, values);
-    gl.bindVertexArray(vao);
-    gl.drawArraysInstanced(gl.TRIANGLE_STRIP, 0, 4, H.count);
+  function drawSplats(name, values, frame, technique) {
+    var quads = Math.min(largerThan(pointRadius(frame, technique)), quadCount);
+    if (quads > 0) {
+      setUniforms(programs[name], values);
+      gl.bindVertexArray(quadsVao);
+      gl.drawArrays(gl.TRIANGLES, 0, 6 * quads);
+    }
+    if (quads < H.count) {
+      setUniforms(programs[name + '_points'], Object.assign({u_max_point: maxPoint}, values));
+      gl.bindVertexArray(pointsVao);
+      gl.drawArrays(gl.POINTS, quads, H.count - quads);
+    }
     gl.bindVertexArray(null);
+    state.quads = quads;
   }
   function fullscreen(p, values) {
     setUniforms(p, values);
@@ -329,11 +406,23 @@
     gl.bindVertexArray(null);
   }
 
-  function render() {
-    var w = canvas.width, h = canvas.height, t = ensureTargets(w, h), technique = state.technique;
+  var probe = new Uint8Array(4), probeFloat = new Float32Array(4);
+  // ?profile=1: wait after each pass and keep its time (state.passMs), for the benchmark
+  function mark(name) {
+    if (!state.profile) return;
+    gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.FLOAT, probeFloat);   // every pass draws into a float target
+    var now = performance.now();
+    state.passMs[name] = now - state.passStart;
+    state.passStart = now;
+  }
+  function render(technique) {
+    technique = technique || state.technique;
+    var w = canvas.width, h = canvas.height, t = ensureTargets(w, h);
     var start = performance.now();
-    writeBlocks(frameValues(state.camera, w, h));
-    var own = Object.assign({u_side: SIDE_UNIT, u_max_point: 1023}, H.uniforms[technique] || {});
+    state.passMs = {}; state.passStart = start;
+    var frame = frameValues(state.camera, w, h);
+    writeBlocks(frame);
+    var own = Object.assign({u_side: SIDE_UNIT}, H.uniforms[technique] || {});
     gl.viewport(0, 0, w, h);
     gl.disable(gl.CULL_FACE);
     gl.bindFramebuffer(gl.FRAMEBUFFER, t.fboAccum);
@@ -349,12 +438,14 @@
       gl.disable(gl.DEPTH_TEST);
       gl.enable(gl.BLEND);
       gl.blendEquation(gl.MIN);
-      drawSplats(programs.ewa_visibility, own);
+      drawSplats('ewa_visibility', own, frame, technique);
+      mark('visibility');
       // 2. cracks: the record with one-pixel cracks marked
       gl.disable(gl.BLEND);
       gl.bindFramebuffer(gl.FRAMEBUFFER, t.fboCracks);
       bindTexture(SIDE_UNIT, t.side);
       fullscreen(programs.cracks, {u_side: SIDE_UNIT});
+      mark('cracks');
       // 3. accumulation: additive blending of the weighted colours, depths and normals
       bindTexture(SIDE_UNIT, t.cracks);
       gl.bindFramebuffer(gl.FRAMEBUFFER, t.fboAccum);
@@ -362,13 +453,15 @@
       gl.enable(gl.BLEND);
       gl.blendEquation(gl.FUNC_ADD);
       gl.blendFunc(gl.ONE, gl.ONE);
-      drawSplats(programs.ewa_accumulation, own);
+      drawSplats('ewa_accumulation', own, frame, technique);
+      mark('accumulation');
     } else {
       // the one opaque pass: a plain z-buffer
       gl.enable(gl.DEPTH_TEST);
       gl.depthFunc(gl.LESS);
       gl.disable(gl.BLEND);
-      drawSplats(programs[technique], own);
+      drawSplats(technique, own, frame, technique);
+      mark('opaque');
       bindTexture(SIDE_UNIT, t.side);
     }
     // normalization (and eye-dome lighting from its depth)
@@ -391,7 +484,7 @@
       gl.bindFramebuffer(gl.FRAMEBUFFER, null);
       fullscreen(programs.normalize, normalize);
     }
-    gl.finish();
+    gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, probe);   // waits for the frame (gl.finish need not)
     state.frameMs = performance.now() - start;
     state.frames += 1;
     var error = gl.getError();
@@ -403,16 +496,6 @@
     var v = String(text).split(',').map(Number);
     return v.length === 3 && v.every(isFinite) ? v : null;
   }
-  function readParams() {
-    var out = {}, parts = (location.search.slice(1) + '&' + location.hash.slice(1)).split('&');
-    parts.forEach(function (kv) {
-      if (!kv) return;
-      var i = kv.indexOf('='), k = decodeURIComponent(i < 0 ? kv : kv.slice(0, i));
-      out[k] = i < 0 ? '' : decodeURIComponent(kv.slice(i + 1));
-    });
-    return out;
-  }
-  var params = readParams();
 
   function sizeCanvas() {
     var dpr = window.devicePixelRatio || 1;
@@ -429,7 +512,10 @@
       var c = state.camera;
       var hash = '#eye=' + fmt(c.eye) + '&target=' + fmt(c.target) + '&up=' + fmt(c.up) + '&fov=' + c.fov +
                  '&technique=' + state.technique + (state.edl !== (state.technique === 'points') ? '&edl=' + (state.edl ? 1 : 0) : '');
-      try { history.replaceState(null, '', location.pathname + location.search + hash); } catch (e) { /* file:// in some browsers */ }
+      if (options.url) {
+        try { history.replaceState(null, '', location.pathname + location.search + hash); } catch (e) { /* file:// in some browsers */ }
+      }
+      if (options.onCamera) options.onCamera({eye: c.eye.slice(), target: c.target.slice(), up: c.up.slice(), fov: c.fov});
     }, 250);
   }
 
@@ -443,7 +529,7 @@
   function request() {
     if (!dirty) { dirty = true; requestAnimationFrame(tick); }
   }
-  function changed() { state.moved = true; saveUrl(); request(); }
+  function changed() { state.moved = true; lastChange = performance.now(); saveUrl(); request(); }
 
   function orbit(dx, dy) {   // radians about the world up through the target, then about the screen right
     var c = state.camera, up = unit(c.up), offset = sub(c.eye, c.target);
@@ -509,7 +595,7 @@
     else handled = false;
     if (handled) { e.preventDefault(); changed(); }
   });
-  document.addEventListener('keydown', function (e) {
+  root.addEventListener('keydown', function (e) {
     if (e.target && (e.target.tagName === 'INPUT' || e.target.tagName === 'SELECT')) return;
     if (e.key === 'Home' || e.key === '0') { home(); changed(); }
     else if (e.key === 't' || e.key === 'T') { var ts = H.techniques; setTechnique(ts[(ts.indexOf(state.technique) + 1) % ts.length]); }
@@ -534,52 +620,85 @@
   }
 
   // ---- controls -------------------------------------------------------------------------------------
-  var select = document.getElementById('technique'), bg = document.getElementById('background'),
-      edlBox = document.getElementById('edl'), hud = document.getElementById('hud');
+  var select = $('technique'), bg = $('background'), edlBox = $('edl'), hud = $('hud');
   H.techniques.forEach(function (t) { var o = document.createElement('option'); o.value = o.textContent = t; select.appendChild(o); });
   function hex(c) { return '#' + c.map(function (x) { return ('0' + Math.round(Math.min(1, Math.max(0, x)) * 255).toString(16)).slice(-2); }).join(''); }
   function syncControls() { select.value = state.technique; bg.value = hex(state.background); edlBox.checked = state.edl; }
   select.addEventListener('change', function () { setTechnique(select.value); });
   bg.addEventListener('input', function () {
     var v = bg.value; state.background = [1, 3, 5].map(function (i) { return parseInt(v.substr(i, 2), 16) / 255; });
-    document.body.style.background = v;
+    root.style.background = v;
     request();
   });
   edlBox.addEventListener('change', function () { state.edl = edlBox.checked; changed(); });
-  document.getElementById('home').addEventListener('click', function () { home(); changed(); });
-  document.getElementById('screenshot').addEventListener('click', screenshot);
-  var helpButton = document.getElementById('helpbutton'), help = document.getElementById('help');
+  $('home').addEventListener('click', function () { home(); changed(); });
+  $('screenshot').addEventListener('click', screenshot);
+  var helpButton = $('helpbutton'), help = $('help');
   helpButton.addEventListener('click', function () {
     var open = help.style.display !== 'block';
     help.style.display = open ? 'block' : 'none';
     helpButton.setAttribute('aria-expanded', String(open));
   });
   window.addEventListener('resize', function () { if (sizeCanvas()) request(); });
+  if (window.ResizeObserver) new ResizeObserver(function () { if (sizeCanvas()) request(); }).observe(canvas);
 
+  // Where a full-quality frame is slow (CPU WebGL: SwiftShader), a moving camera and the first frame are
+  // drawn with "points" (one pass, the cheapest), and the full frame follows when the camera stops.
+  var PREVIEW_MS = 250, SETTLE_MS = 300;
+  var lastFullMs = null, lastChange = 0, refineTimer = null;
+  function hudText(technique, ms, preview) {
+    hud.textContent = H.count.toLocaleString('en') + ' splats drawn \u00b7 ' + ms.toFixed(1) + ' ms/frame \u00b7 ' +
+                      technique + (state.edl ? ' + EDL' : '') + (preview ? ' (preview; full quality when still)' : '');
+  }
+  function full() {
+    refineTimer = null;
+    try { render(); } catch (e) { fail(String(e && e.message || e)); return; }
+    lastFullMs = state.frameMs;
+    hudText(state.technique, state.frameMs, false);
+    if (!state.ready) {
+      state.ready = true;
+      state.readyMs = performance.now();
+      root.setAttribute('data-ready', '1');
+    }
+  }
   function tick() {
     dirty = false;
     if (sizeCanvas() && !params.eye && !state.moved) home();
-    try { render(); } catch (e) { fail(String(e && e.message || e)); return; }
-    hud.textContent = H.count.toLocaleString('en') + ' splats drawn \u00b7 ' + state.frameMs.toFixed(1) + ' ms/frame \u00b7 ' +
-                      state.technique + (state.edl ? ' + EDL' : '');
-    if (!state.ready) {
-      state.ready = true;
+    var slow = lastFullMs === null || lastFullMs > PREVIEW_MS;
+    clearTimeout(refineTimer);
+    if (state.technique !== 'points' && slow) {
+      try { render('points'); } catch (e) { fail(String(e && e.message || e)); return; }
+      hudText('points', state.frameMs, true);
+      var wait = Math.max(0, SETTLE_MS - (performance.now() - lastChange));
+      refineTimer = setTimeout(function () { requestAnimationFrame(function () { setTimeout(full, 0); }); },
+                               state.ready ? wait : 0);
+    } else {
+      full();
+    }
+    if (state.firstFrameMs === null) {
       state.firstFrameMs = performance.now();
-      document.body.setAttribute('data-ready', '1');
+      root.setAttribute('data-first-frame', '1');
     }
   }
 
   // ---- start ----------------------------------------------------------------------------------------
   try {
-    if (params.ui === '0') { state.ui = false; document.body.classList.add('noui'); }
+    state.profile = params.profile === '1';
+    var t0 = performance.now();
+    state.timings = {};
+    if (params.ui === '0') { state.ui = false; root.classList.add('noui'); }
     if (params.technique && params.technique in H.uniforms) state.technique = params.technique;
     if (params.background) { var b = parseVec(params.background); if (b) state.background = b; }
     state.edl = params.edl !== undefined ? params.edl === '1' : state.technique === 'points';
     if (state.technique === 'ewa' && !floatBlend) state.technique = 'flat';
-    document.body.style.background = hex(state.background);
+    root.style.background = hex(state.background);
     for (var p in SHADERS.programs) programs[p] = build(p);
+    state.programs = Object.keys(programs);   // every shipped program compiled and linked
+    state.timings.compile = performance.now() - t0;
     splats = decode();
+    state.timings.decode = performance.now() - t0 - state.timings.compile;
     upload(splats);
+    state.timings.upload = performance.now() - t0 - state.timings.compile - state.timings.decode;
     sizeCanvas();
     home();
     var eye = parseVec(params.eye || ''), target = parseVec(params.target || ''), up = parseVec(params.up || '');
@@ -594,4 +713,26 @@
   } catch (e) {
     fail(String(e && e.message || e));
   }
-})();
+  return state;
+}
+
+// The viewer's style and elements (ids are looked up inside its root element only).
+var SURFSPLAT_CSS = ".surfsplat-root { position: relative; overflow: hidden; font: 13px/1.4 system-ui, sans-serif; }\n.surfsplat-root #view { display: block; width: 100%; height: 100%; touch-action: none; outline: none; }\n.surfsplat-root #view:focus-visible { outline: 2px solid #3b82f6; outline-offset: -2px; }\n.surfsplat-root .overlay { position: absolute; background: rgba(255, 255, 255, 0.85); color: #111; border-radius: 6px;\n  padding: 6px 8px; box-shadow: 0 1px 4px rgba(0, 0, 0, 0.25); }\n.surfsplat-root #panel { top: 8px; left: 8px; display: flex; gap: 8px; align-items: center; flex-wrap: wrap; max-width: 95%; }\n.surfsplat-root #panel label { display: inline-flex; gap: 4px; align-items: center; }\n.surfsplat-root #hud { bottom: 8px; left: 8px; font-variant-numeric: tabular-nums; }\n.surfsplat-root #help { bottom: 8px; right: 8px; max-width: 22em; display: none; }\n.surfsplat-root #message { top: 50%; left: 50%; transform: translate(-50%, -50%); display: none; max-width: 40em; white-space: pre-wrap; }\n.surfsplat-root.noui .overlay { display: none !important; }\n.surfsplat-root button, .surfsplat-root select, .surfsplat-root input { font: inherit; }";
+var SURFSPLAT_MARKUP = "<canvas id=\"view\" tabindex=\"0\" role=\"img\" aria-label=\"3D view: drag or arrow keys to orbit, shift to pan, wheel or +/- to zoom\"></canvas>\n<div id=\"panel\" class=\"overlay\" role=\"toolbar\" aria-label=\"viewer controls\">\n  <label>Technique <select id=\"technique\" aria-label=\"technique\"></select></label>\n  <label>Background <input id=\"background\" type=\"color\" aria-label=\"background colour\"></label>\n  <label><input id=\"edl\" type=\"checkbox\"> Eye-dome lighting</label>\n  <button id=\"home\" type=\"button\" title=\"back to the default view (Home)\">Reset view</button>\n  <button id=\"screenshot\" type=\"button\" title=\"save the picture as PNG (P)\">Screenshot</button>\n  <button id=\"helpbutton\" type=\"button\" aria-expanded=\"false\" aria-controls=\"help\">Keys</button>\n</div>\n<div id=\"hud\" class=\"overlay\" aria-live=\"off\"></div>\n<div id=\"help\" class=\"overlay\">\n  Drag: orbit. Shift+drag or right drag: pan. Wheel or pinch: zoom.<br>\n  Arrows: orbit; Shift+arrows: pan; + / -: zoom; Home or 0: default view;\n  T: next technique; E: eye-dome lighting; P: screenshot. The address holds the camera: copy it to share the view.\n</div>\n<div id=\"message\" class=\"overlay\" role=\"alert\"></div>";
+
+// The query and hash of the page's address as a dictionary (the camera, technique, ui, ...).
+function surfsplatParams() {
+  var out = {}, parts = (location.search.slice(1) + '&' + location.hash.slice(1)).split('&');
+  parts.forEach(function (kv) {
+    if (!kv) return;
+    var i = kv.indexOf('='), k = decodeURIComponent(i < 0 ? kv : kv.slice(0, i));
+    out[k] = i < 0 ? '' : decodeURIComponent(kv.slice(i + 1));
+  });
+  return out;
+}
+
+// The exported page: its scripts set the programs and the data; the viewer fills the body.
+if (typeof window !== 'undefined' && window.SURFSPLAT_DATA && window.SURFSPLAT_SHADERS && !window.surfsplat) {
+  window.surfsplat = surfsplatViewer(document.body, window.SURFSPLAT_SHADERS, window.SURFSPLAT_DATA,
+                                     {params: surfsplatParams(), url: true});
+}

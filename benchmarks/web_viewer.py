@@ -1,0 +1,167 @@
+"""The browser viewer (``surfsplat export``): export time, size, quantization cost, canvas against desktop,
+frame times in headless Chromium.
+
+* export: a 1 M-splat model (the torus scene at 1250 x 800) written as a folder, and 1 M raw points
+  (the same torus's centres in a PLY without normals: read, preprocessed, written), wall-clock seconds;
+* size: bytes per splat of the web format, and of the whole folder;
+* quality, on the Stanford bunny (``shared/data/bunny.ply``, sampled for the default view at 1024 px as
+  ``surfsplat render`` samples it), at 1024 x 768, for ``ewa``, ``flat`` and ``points`` with EDL:
+  the quantization cost (PSNR of the desktop render of the decoded splats against the desktop render of
+  the original ones; for ewa and flat also the drop of the PSNR against the mesh's ground truth); the
+  canvas of the exported page in headless Chromium (SwiftShader) against the desktop render of the same
+  camera: of the file (``surfsplat render``, which samples the mesh for its own camera), of the exported
+  splats, and of the decoded ones (what the page draws); and the desktop's covered pixels the canvas
+  leaves empty (holes);
+* frame times in headless Chromium at 1024 x 768 for the 1 M-splat torus opened from ``file://``: the
+  first frame (a ``points`` preview where a full frame is slow) and the first full-quality frame, ms
+  after navigation start, and a full-quality frame drawn again (median of 3).
+
+    python benchmarks/web_viewer.py [--size 1024 768] [--skip-raw]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from common import RESULTS, machine_description, write_table  # noqa: E402
+
+from surfsplat import metrics  # noqa: E402
+from surfsplat.api import render_mesh  # noqa: E402
+from surfsplat.cloud import SplatCloud  # noqa: E402
+from surfsplat.io import save_ply  # noqa: E402
+from surfsplat.pipeline import View  # noqa: E402
+from surfsplat.rendering.options import EdlOptions, RenderOptions  # noqa: E402
+from surfsplat.rendering.renderer import default_renderer  # noqa: E402
+from surfsplat.scenes import torus  # noqa: E402
+from surfsplat.web import export  # noqa: E402
+from surfsplat.web.browser import Browser, file_url  # noqa: E402
+from surfsplat.web.export import as_drawn, exported_splats  # noqa: E402
+
+BUNNY = Path(__file__).resolve().parents[2] / "shared" / "data" / "bunny.ply"
+if not BUNNY.exists():
+    BUNNY = Path("/work/shared/data/bunny.ply")
+TECHNIQUES = ("ewa", "flat", "points")
+
+
+def folder_bytes(path: Path) -> int:
+    return sum(p.stat().st_size for p in path.iterdir())
+
+
+def camera_hash(camera, technique: str) -> str:
+    vec = lambda v: ",".join(repr(float(x)) for x in v)   # noqa: E731
+    return (f"#eye={vec(camera.eye)}&target={vec(camera.target)}&up={vec(camera.up)}&fov={camera.fov}"
+            f"&technique={technique}")
+
+
+def opened(browser, url, width, height, timeout=300.0):
+    page = browser.page(url, width, height)
+    page.wait_for("document.body && document.body.getAttribute('data-ready') === '1'", timeout=timeout, poll=0.1)
+    errors = page.collect()
+    if errors:
+        raise RuntimeError("; ".join(errors))
+    return page
+
+
+def options_for(technique: str) -> RenderOptions | None:
+    return RenderOptions(edl=EdlOptions()) if technique == "points" else None
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--size", type=int, nargs=2, default=(1024, 768))
+    parser.add_argument("--skip-raw", action="store_true", help="skip the export of 1 M raw points")
+    parser.add_argument("--images", type=Path, help="also save the canvases and desktop renders here")
+    args = parser.parse_args()
+    width, height = args.size
+    work = Path(tempfile.mkdtemp(prefix="surfsplat-web-bench-"))
+    rows = []
+    try:
+        # -- export time and size ------------------------------------------------------------------
+        big = torus(1250, 800)
+        start = time.perf_counter()
+        result = export(big, work / "torus")
+        rows.append(["export 1 M splats (torus scene)", "s", round(time.perf_counter() - start, 2)])
+        rows.append(["web format", "bytes / splat", result.bytes / result.splats])
+        rows.append(["exported folder, 1 M splats", "bytes / splat", round(folder_bytes(work / "torus") / len(big), 1)])
+        if not args.skip_raw:
+            raw = work / "raw.ply"
+            save_ply(SplatCloud(big.positions, colors=big.colors, origin=big.origin, up=big.up), raw)
+            start = time.perf_counter()
+            export(raw, work / "raw")
+            rows.append(["export 1 M raw points (read, preprocess, write)", "s", round(time.perf_counter() - start, 2)])
+
+        # -- quality on the bunny --------------------------------------------------------------------
+        plan = View(BUNNY)
+        camera = plan.camera(None, width, height)
+        splats = exported_splats(plan, plan.camera(None, 1024, 1024), None)   # sampled as export samples
+        quantized = View(as_drawn(splats))
+        original = View(splats)
+        rendered = View(BUNNY)   # `surfsplat render bunny.ply` at this size: sampled for its own camera
+        mesh = render_mesh(BUNNY, camera)
+        export(BUNNY, work / "bunny")
+        with Browser() as browser:
+            for technique in TECHNIQUES:
+                desk = original.render(camera, technique=technique, options=options_for(technique)).frame
+                desk_q = quantized.render(camera, technique=technique, options=options_for(technique)).frame
+                url = file_url(work / "bunny" / "index.html", "?ui=0" + camera_hash(camera, technique))
+                page = opened(browser, url, width, height)
+                canvas = page.canvas() / 255.0
+                page.close()
+                a, q = desk.image() / 255.0, desk_q.image() / 255.0
+                name = technique + (" + EDL" if technique == "points" else "")
+                rows.append([f"quantization, {name} (bunny, {len(splats):,} splats)", "dB vs unquantized",
+                             round(metrics.psnr(q, a), 2)])
+                if technique != "points":
+                    drop = metrics.psnr(a, mesh.color) - metrics.psnr(q, mesh.color)
+                    rows.append([f"quantization, {name}", "dB lost against the mesh", round(drop, 3)])
+                own = rendered.render(camera, technique=technique, options=options_for(technique)).frame.image()
+                rows.append([f"canvas vs `surfsplat render` of the file, {name}", "dB",
+                             round(metrics.psnr(canvas, own / 255.0), 2)])
+                rows.append([f"canvas vs desktop, {name}", "dB", round(metrics.psnr(canvas, a), 2)])
+                rows.append([f"canvas vs desktop of the decoded splats, {name}", "dB",
+                             round(metrics.psnr(canvas, q), 2)])
+                holes = int(((canvas == 1.0).all(axis=2) & desk.mask).sum())
+                rows.append([f"holes: desktop pixels the canvas leaves empty, {name}", "pixels", holes])
+                if args.images:
+                    args.images.mkdir(parents=True, exist_ok=True)
+                    Image.fromarray((canvas * 255).astype(np.uint8)).save(args.images / f"canvas_{technique}.png")
+                    Image.fromarray(desk.image()).save(args.images / f"desktop_{technique}.png")
+
+            # -- frame times, 1 M splats -----------------------------------------------------------------
+            for technique in TECHNIQUES:
+                page = opened(browser, file_url(work / "torus" / "index.html", f"?technique={technique}"), width,
+                              height)
+                first, ready = json.loads(page.evaluate("JSON.stringify([surfsplat.firstFrameMs, surfsplat.readyMs])"))
+                again = [page.evaluate("surfsplat.redraw()") for _ in range(3)]
+                page.close()
+                name = technique + (" + EDL" if technique == "points" else "")
+                rows.append([f"first frame, 1 M splats, {name}", "ms after navigation", round(float(first))])
+                rows.append([f"first full-quality frame, 1 M splats, {name}", "ms after navigation",
+                             round(float(ready))])
+                rows.append([f"full-quality frame, 1 M splats, {name}", "ms (median of 3)",
+                             round(statistics.median(again))])
+            version = browser.version
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    machine = machine_description(default_renderer().ctx.info["GL_RENDERER"])
+    write_table("web_viewer", ["measure", "unit", "value"], rows,
+                f"{machine}; headless {version} (WebGL2 on SwiftShader); load average {os.getloadavg()[0]:.1f} "
+                f"at the end; {width}x{height}; `python benchmarks/web_viewer.py`")
+    print(json.dumps({"results": str(RESULTS / "web_viewer.md")}))
+
+
+if __name__ == "__main__":
+    main()
