@@ -30,7 +30,7 @@ from common import RESULTS, machine_description, markdown_table  # noqa: E402
 
 import surfsplat  # noqa: E402
 from surfsplat import RenderOptions, reference, scenes_faulty  # noqa: E402
-from surfsplat.rendering.passes import FILL_DEPTH_PX, FILL_GAP_PX  # noqa: E402
+from surfsplat.rendering.passes import FILL_DEPTH_PX, FILL_GAP_PX, FILL_ITERATIONS  # noqa: E402
 from surfsplat.rendering.renderer import default_renderer  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
@@ -50,9 +50,9 @@ def sources() -> list[tuple[str, object, str]]:
 
 
 def holes(frame) -> int:
-    """Pixels of ``frame`` the fill rule finds enclosed (at K = 1: one sub-pixel per pixel)."""
+    """Pixels of ``frame`` the fill rule (as many iterations as the fill pass runs) finds enclosed."""
     return int(reference.fill_holes(frame.color, frame.weight, frame.depth, frame.alpha, frame.camera.focal_px,
-                                    FILL_GAP_PX, FILL_DEPTH_PX)[4].sum())
+                                    FILL_GAP_PX, FILL_DEPTH_PX, FILL_ITERATIONS)[4].sum())
 
 
 def best_time(view, technique, size, options, repeat) -> tuple[object, float]:

@@ -515,7 +515,9 @@ def fill_holes(color: np.ndarray, weight: np.ndarray, depth: np.ndarray, alpha: 
 
     A pixel q lies in front of p when q is covered and p is not, or ``z_q < z_p - tau(z_p)``. Along each of
     the 4 axes (:data:`FILL_AXES`, both directions) the nearest pixel in front of p within ``gap`` steps is
-    looked for; the axis encloses p where both are found at distances adding up to at most ``gap + 1``.
+    looked for; the axis encloses p where both are found at distances adding up to at most ``gap + 1`` and
+    lie on one surface (depths within ``tau`` of the nearer: a strip of a farther surface seen between two
+    surfaces at different depths, such as the view through a bore past its rim, is no gap).
     Enclosed along at least 3 axes, p takes the inverse-distance weighted mean of color, weight, depth
     and alpha of those neighbours of enclosing axes that lie on the front surface (depth within
     ``tau(z_f)`` of the nearest, ``z_f``). Pintus et al. 2011 (enclosure, front neighbours) with the
@@ -554,7 +556,10 @@ def _fill_once(color, weight, depth, alpha, focal_px, gap, depth_px):
                 steps[j] = np.where(hit, k, steps[j])
                 found_z[j] = np.where(hit, zq, found_z[j])
                 found_c[j] = np.where(hit[..., None], cp[g + dy:g + dy + h, g + dx:g + dx + w], found_c[j])
-    axis = (steps[0::2] > 0) & (steps[1::2] > 0) & (steps[0::2] + steps[1::2] <= g + 1)   # (4, H, W)
+    near = np.minimum(found_z[0::2], found_z[1::2])
+    with np.errstate(invalid="ignore"):   # inf - inf where neither side is found
+        same = np.abs(found_z[0::2] - found_z[1::2]) <= depth_px * near / focal_px
+    axis = (steps[0::2] > 0) & (steps[1::2] > 0) & (steps[0::2] + steps[1::2] <= g + 1) & same   # (4, H, W)
     filled = (axis.sum(axis=0) >= 3) & ~(weight < 0) & (g > 0)
     enclosing = np.repeat(axis, 2, axis=0)   # (8, H, W)
     front = np.where(enclosing, found_z, np.inf).min(axis=0)

@@ -67,11 +67,11 @@ TILE_MARGIN = 5
 #: Memory a render holds per splat (the upload's sorting and copies, the driver's buffers and one draw
 #: call's primitives; measured on llvmpipe by benchmarks/bench_render.py --memory: 31-83 B per splat,
 #: 1M and 5M splats; these add margin), per output pixel (the Frame, the image a caller writes) and per
-#: sub-pixel of a tile (the targets, 148 B with the compute passes' two images and the fill pass's two,
-#: and the read-back buffers, 24 B): :func:`render_memory`.
+#: sub-pixel of a tile (the targets, 156 B with the compute passes' two images and the fill pass's two
+#: sets, and the read-back buffers, 24 B): :func:`render_memory`.
 BYTES_PER_SPLAT = 160
 BYTES_PER_PIXEL = 100
-BYTES_PER_SUBPIXEL = 176
+BYTES_PER_SUBPIXEL = 184
 
 
 def render_memory(splats: int, width: int, height: int, supersample: int = 1, max_tile: int = MAX_TILE) -> int:
@@ -365,22 +365,24 @@ class Renderer:
             cracks = ctx.texture(size, 2, dtype="f4")   # the same with its cracks marked (cracks.frag)
             norm_color = ctx.texture(size, 4, dtype="f4")   # normalize.frag's, where the fill pass follows
             norm_depth = ctx.texture(size, 2, dtype="f4")
+            norm_z = ctx.texture(size, 1, dtype="f4")   # the depth alone: what the fill pass searches
             fill_color = ctx.texture(size, 4, dtype="f4")   # between two iterations of the fill pass
             fill_depth = ctx.texture(size, 2, dtype="f4")
-            for tex in (accum, aux, out, depth_sum, side, cracks, cover, norm_color, norm_depth, fill_color,
-                        fill_depth):
+            fill_z = ctx.texture(size, 1, dtype="f4")
+            for tex in (accum, aux, out, depth_sum, side, cracks, cover, norm_color, norm_depth, norm_z, fill_color,
+                        fill_depth, fill_z):
                 tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
             self._targets = {
                 "size": size, "accum": accum, "aux": aux, "depth": depth, "out": out, "depth_sum": depth_sum,
                 "side": side, "cracks": cracks, "cover": cover, "norm_color": norm_color, "norm_depth": norm_depth,
-                "fill_color": fill_color, "fill_depth": fill_depth,
+                "norm_z": norm_z, "fill_color": fill_color, "fill_depth": fill_depth, "fill_z": fill_z,
                 "fbo_visibility": ctx.framebuffer([side]),
                 "fbo_cracks": ctx.framebuffer([cracks]),
                 "fbo_accum": ctx.framebuffer([accum, aux], depth),
                 "fbo_accum_cover": ctx.framebuffer([accum, aux, cover], depth),   # with edge coverage
                 "fbo_out": ctx.framebuffer([out, depth_sum]),
-                "fbo_norm": ctx.framebuffer([norm_color, norm_depth]),
-                "fbo_fill": ctx.framebuffer([fill_color, fill_depth]),
+                "fbo_norm": ctx.framebuffer([norm_color, norm_depth, norm_z]),
+                "fbo_fill": ctx.framebuffer([fill_color, fill_depth, fill_z]),
             }
             if self.has_compute:
                 self._targets |= compute_visibility.image_targets(ctx, size)

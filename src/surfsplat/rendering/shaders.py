@@ -63,6 +63,8 @@ PASS_OPAQUE, PASS_VISIBILITY, PASS_ACCUMULATION = 0, 1, 2
 
 #: The visibility pass's value where no disk is drawn, larger than any depth (glsl/visibility.glsl).
 NO_DEPTH = 1e37
+#: The depth the normalization and fill passes give an uncovered pixel (glsl/fill.frag).
+FILL_FAR = 1e30
 
 #: Constants shared by Python and GLSL, defined once here and injected as ``#define``
 #: into every composed shader; the GLSL files use the macro names.
@@ -80,6 +82,8 @@ SHARED_DEFINES: dict[str, int | float] = {
     "EDGE_ON_TOLERANCE": EDGE_ON_TOLERANCE,
     # renderer.py clears the visibility pass's target to it: no disk (glsl/visibility.glsl)
     "NO_DEPTH": NO_DEPTH,
+    # normalize.frag and fill.frag: the depth of an uncovered pixel
+    "FILL_FAR": FILL_FAR,
 }
 
 #: Line numbers of file k are ``k * LINE_STRIDE + line`` (a file may have fewer lines).

@@ -20,6 +20,8 @@ uniform bool u_edge_fringe;   // the technique's footprints reach beyond its dis
 // with the pixel's coverage alpha.
 layout(location = 0) out vec4 out_color;
 layout(location = 1) out vec2 out_depth;
+// The depth (FILL_FAR: uncovered or beyond the full image), for the fill pass (fill.frag) where one follows.
+layout(location = 2) out float out_z;
 
 // No disk at this offset and fewer than 3 of its 4 neighbours covered: background, not a crack
 // between clipped disks (u_side holds the record with its cracks marked: cracks.frag).
@@ -78,6 +80,7 @@ void main() {
     vec4 a = texelFetch(u_accum, px, 0);
     vec4 aux = texelFetch(u_aux, px, 0);
     out_depth = vec2(0.0);
+    out_z = FILL_FAR;
     // last resort: a non-finite accumulation (a degenerate splat) shows the background, never NaN;
     // the renderer counts these pixels (weight -1) and warns (Renderer.render)
     bool finite = !(any(isnan(a)) || any(isinf(a)) || any(isnan(aux)) || any(isinf(aux)));
@@ -95,4 +98,7 @@ void main() {
     if (!(alpha > 0.0)) { out_color = vec4(u_background, 0.0); return; }   // fringe only: empty
     out_color = vec4(mix(u_background, clamp(color, 0.0, 1.0), alpha), a.w);
     out_depth = vec2(aux.x, alpha);
+    // beyond the full image (a tile's margin): nothing, for the fill pass
+    bool inside = all(greaterThanEqual(FRAG_PX, vec2(0.0))) && all(lessThan(FRAG_PX, u_viewport));
+    out_z = inside ? aux.x / a.w : FILL_FAR;
 }
