@@ -18,7 +18,7 @@ The package is layered (``docs/architecture.md``): ``io``, ``geometry``, ``hiera
 command line (``surfsplat.cli``), the viewer (``surfsplat.viewer``) and the notebook widget drive.
 """
 
-from .api import load_model, orbit_cameras, prepare, render, render_mesh
+from .api import fit, load_model, orbit_cameras, prepare, render, render_mesh
 from .camera import Camera
 from .cloud import SplatCloud
 from .colors import ColorOptions
@@ -43,6 +43,8 @@ from .web import export
 __all__ = [
     # rendering
     "render", "prepare", "View", "RenderResult", "render_mesh", "view", "orbit_cameras", "Frame", "export",
+    # fitting splats to images (the extra diff)
+    "fit",
     # options users build
     "Camera", "CameraSpec", "Lights", "RenderOptions", "FilterOptions", "VisibilityOptions", "KernelOptions",
     "EdlOptions", "SourceOptions", "LodOptions", "ColorOptions", "MotionOptions",

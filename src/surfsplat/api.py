@@ -11,6 +11,7 @@ from __future__ import annotations
 from . import defaults, progress
 from .camera import Camera
 from .camera_path import orbit_cameras
+from .errors import InputError
 from .io import Mesh, load_mesh
 from .lighting import Lights
 from .pipeline import (CameraSpec, LodOptions, SourceOptions, View, check_coverage, check_image_size,
@@ -23,7 +24,7 @@ from .rendering.options import RenderOptions, TechniqueName
 from .rendering.renderer import default_renderer
 from .rendering.tiles import check_supersample
 
-__all__ = ["load_model", "orbit_cameras", "prepare", "render", "render_mesh", "turntable_frames"]
+__all__ = ["fit", "load_model", "orbit_cameras", "prepare", "render", "render_mesh", "turntable_frames"]
 
 
 def prepare(source, *, source_options: SourceOptions | None = None, lod: LodOptions | None = None) -> View:
@@ -113,3 +114,27 @@ def turntable_frames(view: View, cameras: list[Camera], **render_args):
     other arguments as :meth:`View.render`): a mesh is sampled once, for the first camera; a
     hierarchy is cut per frame. Progress per frame."""
     return view.frames(cameras, **render_args)
+
+
+def fit(cameras, *, init=None, images=None, device: str | None = None, **options):
+    """Fit splats to the images of a camera file by differentiable EWA splatting (needs PyTorch: the extra diff).
+
+    ``cameras``: a COLMAP text model (folder), NeRF ``transforms.json``, OpenCV JSON or surfsplat camera
+    list, whose images are found by the cameras' names (:func:`surfsplat.diff.fit.load_views`); ``init``:
+    the initial points or splats (a file, an (N, 3) array or a SplatCloud; None: the COLMAP model's
+    ``points3D.txt``); ``images``: the images' folder; ``device``: "cpu" (None), "cuda" or "mps";
+    ``options``: fields of :class:`surfsplat.diff.fit.FitOptions` (iterations, max_splats, seed, ...).
+    Returns a :class:`surfsplat.diff.fit.FitResult`: the splats (colours as seen: render them unlit),
+    the loss of every step and the time. :class:`InputError` when PyTorch is missing.
+    """
+    try:
+        import torch  # noqa: F401  (the optional extra diff)
+    except ImportError:
+        raise InputError("fitting needs PyTorch: pip install 'surfsplat[diff]'") from None
+    from .diff.fit import FitOptions, fit_files   # loads PyTorch: only when fitting
+
+    try:
+        settings = FitOptions(**options)
+    except TypeError as exc:
+        raise InputError(f"fit: {exc}") from None
+    return fit_files(cameras, init=init, images=images, options=settings, device=device)

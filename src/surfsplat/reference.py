@@ -4,20 +4,42 @@ Vectorized over splats (leading axis N) and pixels. Tests hold the GPU's
 output against these functions; the GLSL in ``rendering/glsl`` mirrors them
 line by line. Units: camera space in model units (camera looks down -z),
 window coordinates in pixels with y up and pixel centers at half-integers.
+
+The formulas of the ``ewa`` technique and of the lighting are written against the array namespace
+(:mod:`surfsplat.arrays`): given PyTorch tensors they run on PyTorch, which is how the differentiable
+renderer (:mod:`surfsplat.diff`) evaluates them, so the two cannot drift apart. Their ``camera``-free
+forms (``transform_points``, ``project_points``, ``jacobian``, ...) take the focal length and the
+principal point as numbers or tensors; the forms taking a :class:`Camera` are NumPy.
 """
 
 from __future__ import annotations
 
+from contextlib import nullcontext
+from typing import Any
+
 import numpy as np
 
+from .arrays import array_namespace, as_float, det2, dot, inv2, matrix2, norm
+from .arrays import cross as _cross
 from .camera import Camera
 from .lighting import Lights
+
+
+def _errstate(xp) -> Any:
+    """NumPy's floating-point error state silenced (division by zero, invalid), a no-op elsewhere."""
+    return np.errstate(divide="ignore", invalid="ignore") if xp is np else nullcontext()
+
+
+def transform_points(rotation, translation, points):
+    """(N, 3) points -> ``rotation @ p + translation`` (world to camera space with the view matrix's parts)."""
+    xp = array_namespace(rotation, translation, points)
+    return points @ xp.swapaxes(rotation, 0, 1) + translation
 
 
 def to_camera(camera: Camera, points: np.ndarray) -> np.ndarray:
     """(N, 3) world points -> (N, 3) camera-space points."""
     m = camera.view_matrix
-    return np.asarray(points, dtype=np.float64) @ m[:3, :3].T + m[:3, 3]
+    return transform_points(m[:3, :3], m[:3, 3], np.asarray(points, dtype=np.float64))
 
 
 def to_camera_dir(camera: Camera, vectors: np.ndarray) -> np.ndarray:
@@ -25,18 +47,32 @@ def to_camera_dir(camera: Camera, vectors: np.ndarray) -> np.ndarray:
     return np.asarray(vectors, dtype=np.float64) @ camera.view_matrix[:3, :3].T
 
 
+def project_points(p_cam, focal, principal) -> Any:
+    """(N, 3) camera-space points -> (N, 2) window pixel coordinates (x right, y up).
+
+    ``focal``: focal length in pixels; ``principal``: (cx, cy) window pixels.
+    """
+    xp = array_namespace(p_cam, focal)
+    z = -p_cam[..., 2]
+    return xp.stack([principal[0] + focal * p_cam[..., 0] / z, principal[1] + focal * p_cam[..., 1] / z], axis=-1)
+
+
 def project(camera: Camera, p_cam: np.ndarray) -> np.ndarray:
     """(N, 3) camera-space points -> (N, 2) window pixel coordinates (x right, y up)."""
-    cx, cy = camera.principal_point
-    z = -p_cam[..., 2]
-    return np.stack([cx + camera.focal_px * p_cam[..., 0] / z, cy + camera.focal_px * p_cam[..., 1] / z], axis=-1)
+    return project_points(p_cam, camera.focal_px, camera.principal_point)
+
+
+def rays_through(pixels, focal, principal) -> Any:
+    """(..., 2) window pixel coordinates -> (..., 3) camera-space ray directions with z = -1."""
+    xp = array_namespace(pixels, focal)
+    x = (pixels[..., 0] - principal[0]) / focal
+    y = (pixels[..., 1] - principal[1]) / focal
+    return xp.stack([x, y, -xp.ones_like(x)], axis=-1)
 
 
 def pixel_rays(camera: Camera, pixels: np.ndarray) -> np.ndarray:
     """(..., 2) window pixel coordinates -> (..., 3) camera-space ray directions with z = -1."""
-    cx, cy = camera.principal_point
-    f = camera.focal_px
-    return np.stack([(pixels[..., 0] - cx) / f, (pixels[..., 1] - cy) / f, -np.ones(pixels.shape[:-1])], axis=-1)
+    return rays_through(np.asarray(pixels, dtype=np.float64), camera.focal_px, camera.principal_point)
 
 
 def pixel_centers(camera: Camera) -> np.ndarray:
@@ -46,18 +82,27 @@ def pixel_centers(camera: Camera) -> np.ndarray:
     return np.stack(np.meshgrid(x, y), axis=-1)
 
 
+def jacobian(focal, p_cam, u_cam, v_cam) -> Any:
+    """(N, 2, 2) Jacobian of the projection at the splat center w.r.t. normalized (s, t).
+
+    Columns are d(pixel)/ds and d(pixel)/dt for the point ``p + s u + t v``; ``focal`` in pixels.
+    Guennebaud 2003, eq. 8 (with eta = focal / z), in window pixels, y up.
+    """
+    xp = array_namespace(p_cam, u_cam, v_cam, focal)
+    z = -p_cam[:, 2:3]
+    # d/ds [f X / z] with dz/ds = -u_z
+    du = focal * (u_cam[:, :2] * z + p_cam[:, :2] * u_cam[:, 2:3]) / z**2
+    dv = focal * (v_cam[:, :2] * z + p_cam[:, :2] * v_cam[:, 2:3]) / z**2
+    return xp.stack([du, dv], axis=-1)
+
+
 def ewa_jacobian(camera: Camera, p_cam: np.ndarray, u_cam: np.ndarray, v_cam: np.ndarray) -> np.ndarray:
     """(N, 2, 2) Jacobian of the projection at the splat center w.r.t. normalized (s, t).
 
     Columns are d(pixel)/ds and d(pixel)/dt for the point ``p + s u + t v``.
     Guennebaud 2003, eq. 8 (with eta = focal / z), in window pixels, y up.
     """
-    f = camera.focal_px
-    z = -p_cam[:, 2:3]
-    # d/ds [f X / z] with dz/ds = -u_z
-    du = f * (u_cam[:, :2] * z + p_cam[:, :2] * u_cam[:, 2:3]) / z**2
-    dv = f * (v_cam[:, :2] * z + p_cam[:, :2] * v_cam[:, 2:3]) / z**2
-    return np.stack([du, dv], axis=-1)
+    return jacobian(camera.focal_px, *(np.asarray(a, dtype=np.float64) for a in (p_cam, u_cam, v_cam)))
 
 
 def prefilter_variance(prefilter: bool) -> float:
@@ -66,7 +111,7 @@ def prefilter_variance(prefilter: bool) -> float:
     return 1.0 if prefilter else 1e-4
 
 
-def ewa_variance(jacobian: np.ndarray, cutoff: float = 1.0, prefilter: bool = True) -> np.ndarray:
+def ewa_variance(jacobian, cutoff: float = 1.0, prefilter: bool = True) -> Any:
     """(N, 2, 2) screen-space resampling variance ``J V_r J^T + H`` in pixels^2.
 
     Guennebaud 2003, eq. 6. The reconstruction variance in normalized splat
@@ -74,17 +119,34 @@ def ewa_variance(jacobian: np.ndarray, cutoff: float = 1.0, prefilter: bool = Tr
     (s^2 + t^2 = 1) is the cutoff isocontour ``0.5 x^T V_r^-1 x = c``.
     ``H = I`` (one pixel) with the prefilter, a tiny regularizer without it.
     """
-    v = jacobian @ np.swapaxes(jacobian, 1, 2) / (2.0 * cutoff)
+    xp = array_namespace(jacobian)
+    j = as_float(jacobian, xp)
+    v = j @ xp.swapaxes(j, -1, -2) / (2.0 * cutoff)
     h = prefilter_variance(prefilter)
-    return v + h * np.eye(2)
+    return matrix2(v[..., 0, 0] + h, v[..., 0, 1], v[..., 1, 0], v[..., 1, 1] + h)
 
 
-def ewa_half_extent(variance: np.ndarray, cutoff: float = 1.0) -> np.ndarray:
+def ewa_half_extent(variance, cutoff: float = 1.0) -> Any:
     """(N, 2) half-width and half-height in pixels of the tight box of ``0.5 x^T V^-1 x <= c``."""
-    return np.sqrt(2.0 * cutoff * np.stack([variance[:, 0, 0], variance[:, 1, 1]], axis=-1))
+    xp = array_namespace(variance)
+    return xp.sqrt(2.0 * cutoff * xp.stack([variance[:, 0, 0], variance[:, 1, 1]], axis=-1))
 
 
-def ewa_weight(variance: np.ndarray, jacobian: np.ndarray, offset: np.ndarray, cutoff: float = 1.0) -> np.ndarray:
+def ewa_scale(variance, jacobian, cutoff: float = 1.0) -> Any:
+    """(N,) peak weight ``|J| / (2 c sqrt|V|)`` of the resampling kernel (Guennebaud 2003, eq. 6, times pi / c):
+    1 for a magnified splat, its projected area (over pi / c) for a minified one."""
+    xp = array_namespace(variance, jacobian)
+    return xp.abs(det2(jacobian)) / (2.0 * cutoff * xp.sqrt(det2(variance)))
+
+
+def ewa_beta(conic, offset) -> Any:
+    """``beta = 0.5 x^T V^-1 x`` at pixel offsets ``offset`` (..., 2) for conics ``V^-1`` (..., 2, 2)."""
+    dx, dy = offset[..., 0], offset[..., 1]
+    return 0.5 * (conic[..., 0, 0] * dx * dx + (conic[..., 0, 1] + conic[..., 1, 0]) * dx * dy
+                  + conic[..., 1, 1] * dy * dy)
+
+
+def ewa_weight(variance, jacobian, offset, cutoff: float = 1.0) -> Any:
     """EWA resampling weight at pixel offsets from the projected center (0 beyond the cutoff).
 
     ``variance``, ``jacobian``: (N, 2, 2); ``offset``: (N, ..., 2) pixels.
@@ -92,36 +154,49 @@ def ewa_weight(variance: np.ndarray, jacobian: np.ndarray, offset: np.ndarray, c
     magnified splat has peak weight 1 (a constant factor, removed by the
     per-pixel normalization of eq. 18).
     """
-    inv = np.linalg.inv(variance)
+    xp = array_namespace(variance, jacobian, offset)
+    variance, jacobian, offset = (as_float(a, xp) for a in (variance, jacobian, offset))
     extra = offset.ndim - 2
-    inv = inv.reshape(inv.shape[:1] + (1,) * extra + (2, 2))
-    beta = 0.5 * np.einsum("...i,...ij,...j->...", offset, inv, offset)
-    scale = np.abs(np.linalg.det(jacobian)) / (2.0 * cutoff * np.sqrt(np.linalg.det(variance)))
-    w = scale.reshape(scale.shape + (1,) * extra) * np.exp(-beta)
-    return np.where(beta <= cutoff, w, 0.0)
+    inv = inv2(variance)
+    inv = inv.reshape(tuple(inv.shape[:1]) + (1,) * extra + (2, 2))
+    beta = ewa_beta(inv, offset)
+    scale = ewa_scale(variance, jacobian, cutoff)
+    w = scale.reshape(tuple(scale.shape) + (1,) * extra) * xp.exp(-beta)
+    return xp.where(beta <= cutoff, w, 0.0)
 
 
-def ray_plane_distance(rays: np.ndarray, p_cam: np.ndarray, n_cam: np.ndarray) -> np.ndarray:
+def ray_plane_distance(rays, p_cam, n_cam) -> Any:
     """Ray parameter t where ``t * ray`` meets the plane through p with normal n.
 
     Rays have z = -1, so t is also the camera-space depth (distance along -z).
     Guennebaud 2003, eq. 10/13. ``rays``: (N, ..., 3); ``p_cam``, ``n_cam``: (N, 3).
     """
+    xp = array_namespace(rays, p_cam, n_cam)
     extra = rays.ndim - 2
-    p = p_cam.reshape(p_cam.shape[:1] + (1,) * extra + (3,))
-    n = n_cam.reshape(n_cam.shape[:1] + (1,) * extra + (3,))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.sum(n * p, axis=-1) / np.sum(n * rays, axis=-1)
+    p = p_cam.reshape(tuple(p_cam.shape[:1]) + (1,) * extra + (3,))
+    n = n_cam.reshape(tuple(n_cam.shape[:1]) + (1,) * extra + (3,))
+    with _errstate(xp):
+        return xp.sum(n * p, axis=-1) / xp.sum(n * rays, axis=-1)
 
 
-def splat_coordinates(rays: np.ndarray, t: np.ndarray, p_cam: np.ndarray, u_cam: np.ndarray,
-                      v_cam: np.ndarray) -> np.ndarray:
+def splat_coordinates(rays, t, p_cam, u_cam, v_cam) -> Any:
     """Normalized (s, t) coordinates of the ray/plane hit points ``t * ray`` (u and v orthogonal)."""
+    xp = array_namespace(rays, t, p_cam, u_cam, v_cam)
     extra = rays.ndim - 2
-    shape = p_cam.shape[:1] + (1,) * extra + (3,)
+    shape = tuple(p_cam.shape[:1]) + (1,) * extra + (3,)
     q = t[..., None] * rays - p_cam.reshape(shape)
     u, v = u_cam.reshape(shape), v_cam.reshape(shape)
-    return np.stack([np.sum(q * u, -1) / np.sum(u * u, -1), np.sum(q * v, -1) / np.sum(v * v, -1)], axis=-1)
+    return xp.stack([xp.sum(q * u, axis=-1) / xp.sum(u * u, axis=-1),
+                     xp.sum(q * v, axis=-1) / xp.sum(v * v, axis=-1)], axis=-1)
+
+
+def footprint_depth(st, p_cam, u_cam, v_cam) -> Any:
+    """Camera-space depth a filter fragment at normalized (s, t) gets: that of the disk point nearest to (s, t)
+    (``footprint_depth`` in splat_fragment.glsl; (s, t) beyond the rim are pulled onto it). (M, 2), (M, 3)."""
+    xp = array_namespace(st, p_cam, u_cam, v_cam)
+    len2 = xp.sum(st * st, axis=-1, keepdims=True)
+    st = st / xp.sqrt(xp.where(len2 > 1.0, len2, 1.0))
+    return -(p_cam[..., 2] + st[..., 0] * u_cam[..., 2] + st[..., 1] * v_cam[..., 2])
 
 
 def window_depth(z: np.ndarray, near: float, far: float) -> np.ndarray:
@@ -133,44 +208,57 @@ def window_depth(z: np.ndarray, near: float, far: float) -> np.ndarray:
     return (np.asarray(z) - near) / (far - near)
 
 
-def facing_normals(n_cam: np.ndarray, p_cam: np.ndarray) -> np.ndarray:
+def facing_normals(n_cam, p_cam) -> Any:
     """Flip camera-space normals that face away from the eye (two-sided lighting)."""
-    flip = np.sum(n_cam * p_cam, axis=-1, keepdims=True) > 0
-    return np.where(flip, -n_cam, n_cam)
+    xp = array_namespace(n_cam, p_cam)
+    flip = xp.sum(n_cam * p_cam, axis=-1, keepdims=True) > 0
+    return xp.where(flip, -n_cam, n_cam)
 
 
-def shade(albedo: np.ndarray, n: np.ndarray, view: np.ndarray, light_dirs: np.ndarray, lights: Lights) -> np.ndarray:
+def shade(albedo, n, view, light_dirs, lights: Lights) -> Any:
     """Blinn-Phong color (not clamped) for unit normals ``n`` and unit ``view`` (toward the eye).
 
     ``albedo``, ``n``, ``view``: (..., 3); ``light_dirs``: (L, 3) unit, same space as ``n``.
     ``c = albedo (ka + kd sum max(0, n.l)) + ks sum max(0, n.h)^s``; normals facing away
     from ``view`` are flipped.
     """
+    xp = array_namespace(albedo, n, view, light_dirs)
     if not lights.enabled:
-        return np.asarray(albedo, dtype=np.float64)
-    n = np.where(np.sum(n * view, axis=-1, keepdims=True) < 0, -n, n)
-    diffuse = np.zeros(n.shape[:-1])
-    specular = np.zeros(n.shape[:-1])
-    for l in np.asarray(light_dirs, dtype=np.float64):  # at most 4 lights, not per point
-        diffuse += np.maximum(0.0, n @ l)
+        return as_float(albedo, xp)
+    n = xp.where(dot(n, view, keepdims=True) < 0, -n, n)
+    diffuse: Any = 0.0
+    specular: Any = 0.0
+    for l in as_float(light_dirs, xp):  # at most 4 lights, not per point
+        nl = dot(n, l)
+        diffuse = diffuse + xp.where(nl > 0, nl, 0.0)
         h = view + l
-        h /= np.maximum(np.linalg.norm(h, axis=-1, keepdims=True), 1e-30)
-        specular += np.maximum(0.0, np.sum(n * h, axis=-1)) ** lights.shininess
+        h = h / xp.clip(norm(h, keepdims=True), 1e-30, None)
+        nh = dot(n, h)
+        specular = specular + xp.where(nh > 0, nh, 0.0) ** lights.shininess
     return albedo * (lights.ambient + lights.diffuse * diffuse[..., None]) + lights.specular * specular[..., None]
 
+
+def unit(a) -> Any:
+    """Vectors over the last axis scaled to unit length."""
+    return a / norm(a, keepdims=True)
+
+
+def cross(a, b) -> Any:
+    """Cross product over the last axis of (..., 3) arrays (NumPy or PyTorch)."""
+    return _cross(a, b)
 
 
 # -- techniques "phong" and "blend": object-space kernels at the exact ray/splat hit -------------
 
-def plane_normals(normals: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+def plane_normals(normals, u, v) -> Any:
     """(N, 3) unit normals of the splats' planes, ``u x v`` turned to the side of ``normals``.
 
     The plane is spanned by the axes; ``normals`` is the center shading normal,
     which a Phong splat tilts away from the plane's (Botsch 2004, sec. 3).
     """
-    n = np.cross(u, v)
-    n = n / np.linalg.norm(n, axis=-1, keepdims=True)
-    return np.where(np.sum(n * normals, axis=-1, keepdims=True) < 0, -n, n)
+    xp = array_namespace(normals, u, v)
+    n = unit(_cross(u, v))
+    return xp.where(dot(n, normals, keepdims=True) < 0, -n, n)
 
 
 def field_normals(normals: np.ndarray, u: np.ndarray, v: np.ndarray, normal_field: np.ndarray,

@@ -20,6 +20,7 @@ from ..web.shaders import WEB_TECHNIQUES
 from . import chunked, commands
 from . import options as opt
 from .parser import Parser
+from .fit import add_fit_command
 from .view import add_view_command
 
 PROG = "surfsplat"
@@ -173,6 +174,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=commands.cmd_export)
 
     add_view_command(sub)
+    add_fit_command(sub)
     for subparser in sub.choices.values():
         _add_quiet(subparser, argparse.SUPPRESS)
     return parser

@@ -39,10 +39,13 @@ from pathlib import Path
 import numpy as np
 
 from ..camera import Camera
+from ..cloud import SplatCloud
 from ..errors import InputError, file_reader
 from .camera_file import CAMERA_FORMAT, load_camera_list
 
 COLMAP_FILES = ("cameras.txt", "images.txt")
+#: The sparse points of a COLMAP text model (``load_colmap_points``: an initial cloud for ``surfsplat fit``).
+COLMAP_POINTS = "points3D.txt"
 #: COLMAP camera models read: the number of parameters and whether they include distortion.
 COLMAP_MODELS = {"SIMPLE_PINHOLE": (3, False), "PINHOLE": (4, False), "SIMPLE_RADIAL": (4, True),
                  "RADIAL": (5, True)}
@@ -261,3 +264,28 @@ def load_cameras(path: str | os.PathLike, *, width: int | None = None,
         return load_opencv(path, data)
     raise InputError(f"{path}: not a camera file: expected a surfsplat camera, an OpenCV JSON (\"K\", \"R\", "
                      f"\"t\"), a NeRF transforms.json (\"frames\") or a COLMAP cameras.txt/images.txt")
+
+
+def load_colmap_points(folder: str | os.PathLike) -> SplatCloud:
+    """The sparse points of a COLMAP text model: ``points3D.txt`` in ``folder`` (or the file itself).
+
+    Lines ``POINT3D_ID X Y Z R G B ERROR TRACK...``: positions in world units, colours 0-255 (sRGB as
+    COLMAP stores them, read as given). InputError naming the file and line when it is malformed or empty.
+    """
+    path = Path(folder)
+    path = path / COLMAP_POINTS if path.is_dir() else path
+    rows = []
+    for n, line in _data_lines(path):
+        if not line:
+            continue
+        fields = line.split()
+        try:
+            rows.append([float(v) for v in fields[1:7]])
+            if len(fields) < 7 or not all(math.isfinite(v) for v in rows[-1]):
+                raise ValueError("expected POINT3D_ID X Y Z R G B with finite numbers")
+        except ValueError as exc:
+            raise InputError(f"{path}:{n}: {exc}", file=path, row=n - 1) from None
+    if not rows:
+        raise InputError(f"{path}: no points", file=path)
+    data = np.asarray(rows, dtype=np.float64)
+    return SplatCloud(data[:, :3], colors=np.clip(data[:, 3:6] / 255.0, 0.0, 1.0))

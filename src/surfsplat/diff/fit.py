@@ -1,0 +1,309 @@
+"""Fitting splats to images with known cameras: gradient descent through the differentiable renderer.
+
+Views: a camera file that surfsplat reads (:func:`surfsplat.io.camera_formats.load_cameras`: COLMAP text
+model, NeRF ``transforms.json``, OpenCV JSON, surfsplat's camera list) and one image per camera, found by
+the camera's name (the image file's stem) under the camera file's folder (COLMAP: also ``../images``).
+Images are taken as seen: the splats' colours are learned unlit (``Lights(enabled=False)``), and an RGBA
+image's alpha is the mask the splats' coverage is fitted to (composited over a random background each
+step, so colour cannot stand in for coverage).
+
+The initial splats: a cloud given (``init``: a file, an array or a SplatCloud, made into splats by the
+view plan: normals and radii from its neighbours) or a COLMAP model's ``points3D.txt``. Parameters:
+positions, normals and log radii (circular splats), colour and opacity logits; Adam with the position
+step decaying tenfold over the run. Every ``densify_every`` steps until ``densify_until`` of the run,
+splats whose mean position gradient is in the top ``densify_fraction`` are split in two (each with 0.7
+of the radius, half a radius apart along a random tangent direction) and splats of opacity below
+``prune_opacity`` are dropped.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from PIL import Image
+
+from .. import progress
+from ..camera import Camera
+from ..cloud import SplatCloud
+from ..errors import InputError
+from ..io.camera_formats import COLMAP_FILES, COLMAP_POINTS, load_cameras, load_colmap_points
+from ..lighting import Lights
+from ..pipeline import View
+from .render import DiffOptions, render_frame
+from .scene import DiffCamera, Splats, tangent_axes
+
+#: Image file suffixes searched for a camera's picture.
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".bmp")
+
+UNLIT = Lights(enabled=False)
+#: Adam's epsilon (the losses are means over pixels: gradients of 1e-6 and less are common).
+ADAM_EPS = 1e-15
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """Options of :func:`fit`.
+
+    Attributes:
+        iterations: optimizer steps (one view each, cycling through the views in a shuffled order).
+        position_lr: Adam step of the positions as a fraction of the initial cloud's bounding-box diagonal
+            (decays to a tenth over the run).
+        normal_lr, radius_lr, color_lr, opacity_lr: Adam steps of the unnormalized normals, log radii,
+            colour and opacity logits.
+        alpha_weight: weight of the L1 loss on the coverage where the images have alpha.
+        densify_every, densify_until, densify_fraction: split the splats with the largest mean position
+            gradient every this many steps, until this fraction of the run, this fraction of them.
+        prune_opacity: drop splats of lower opacity at each densification step.
+        max_splats: never grow beyond this many splats.
+        render: the renderer's options (soft rims and depth tests carry the gradients of the silhouettes).
+        seed: random seed (view order, background colours, split directions).
+    """
+
+    iterations: int = 1000
+    position_lr: float = 5e-4
+    normal_lr: float = 0.02
+    radius_lr: float = 0.02
+    color_lr: float = 0.05
+    opacity_lr: float = 0.05
+    alpha_weight: float = 1.0
+    densify_every: int = 100
+    densify_until: float = 0.6
+    densify_fraction: float = 0.05
+    prune_opacity: float = 0.05
+    max_splats: int = 500_000
+    render: DiffOptions = field(default_factory=lambda: DiffOptions(edge_softness=0.5, depth_softness=0.3))
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if int(self.iterations) < 1:
+            raise InputError(f"iterations must be >= 1, got {self.iterations!r}", argument="iterations")
+        for name in ("position_lr", "normal_lr", "radius_lr", "color_lr", "opacity_lr", "alpha_weight",
+                     "densify_until", "densify_fraction", "prune_opacity"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise InputError(f"{name} must be a finite number >= 0, got {value!r}", argument=name)
+        if int(self.densify_every) < 1 or int(self.max_splats) < 1:
+            raise InputError("densify_every and max_splats must be >= 1")
+
+
+@dataclass
+class FitView:
+    """One training image: its camera, (H, W, 3) colours in [0, 1] and (H, W) alpha or None (opaque)."""
+
+    camera: Camera
+    image: np.ndarray
+    alpha: np.ndarray | None = None
+    name: str = ""
+
+
+@dataclass
+class FitResult:
+    """What :func:`fit` returns: the fitted splats, the loss of every step and the time taken (seconds)."""
+
+    cloud: SplatCloud
+    losses: list[float]
+    seconds: float
+
+    def save_loss_curve(self, path: str | Path) -> Path:
+        """Write the loss curve as JSON (``{"loss": [...]}``, one value per step) and return the path."""
+        path = Path(path)
+        path.write_text(json.dumps({"loss": self.losses, "seconds": self.seconds}))
+        return path
+
+
+def read_image(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
+    """(H, W, 3) float colours in [0, 1] and the (H, W) alpha (None without an alpha channel) of an image file."""
+    try:
+        with Image.open(path) as picture:
+            has_alpha = picture.mode in ("RGBA", "LA") or "transparency" in picture.info
+            data = np.asarray(picture.convert("RGBA" if has_alpha else "RGB"), dtype=np.float64) / 255.0
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: cannot read the image: {exc}", file=path) from None
+    return (data[..., :3], data[..., 3]) if has_alpha else (data, None)
+
+
+def _image_index(folders: list[Path]) -> dict[str, Path]:
+    """Image files under ``folders`` (recursively) by their stem; the first folder wins."""
+    found: dict[str, Path] = {}
+    for folder in folders:
+        if folder.is_dir():
+            for path in sorted(folder.rglob("*")):
+                if path.suffix.lower() in IMAGE_SUFFIXES:
+                    found.setdefault(path.stem, path)
+    return found
+
+
+def load_views(cameras: str | Path, images: str | Path | None = None) -> list[FitView]:
+    """The cameras of a camera file (see :func:`~surfsplat.io.camera_formats.load_cameras`) with their images.
+
+    Each camera's image is the file whose stem is the camera's name, searched under ``images`` (if given),
+    else the camera file's folder and, for a COLMAP model, its ``images`` sibling folder. The image must
+    have the camera's size. InputError naming the camera and where it was looked for when one is missing.
+    """
+    cameras = Path(cameras)
+    named = load_cameras(cameras)
+    base = cameras if cameras.is_dir() else cameras.parent
+    folders = [Path(images)] if images is not None else [base, base.parent / "images", base / "images"]
+    index = _image_index(folders)
+    views = []
+    for name, camera in named:
+        path = index.get(name)
+        if path is None:
+            raise InputError(f"{cameras}: no image named {name!r} ({'/'.join(IMAGE_SUFFIXES)}) under "
+                             f"{', '.join(str(f) for f in folders)}", file=cameras)
+        image, alpha = read_image(path)
+        if image.shape[:2] != (camera.height, camera.width):
+            raise InputError(f"{path}: the image is {image.shape[1]}x{image.shape[0]} pixels, its camera "
+                             f"{name!r} {camera.width}x{camera.height}", file=path)
+        views.append(FitView(camera, image, alpha, name))
+    return views
+
+
+def initial_cloud(init: Any, cameras: str | Path | None = None) -> SplatCloud:
+    """The splats a fit starts from: ``init`` (a SplatCloud, an (N, 3) array or a point/splat file) or,
+    without it, the ``points3D.txt`` of the COLMAP model at ``cameras``; made into splats (normals, radii)
+    by the view plan."""
+    if init is None:
+        folder = None if cameras is None else (Path(cameras) if Path(cameras).is_dir() else Path(cameras).parent)
+        if folder is None or not (folder / COLMAP_POINTS).is_file():
+            raise InputError(f"no initial cloud: give one (--init CLOUD) or a COLMAP model with {COLMAP_POINTS} "
+                             f"beside {' and '.join(COLMAP_FILES)}")
+        init = load_colmap_points(folder)
+    cloud = View(init).sample().points()
+    if cloud.u is None or cloud.v is None or cloud.normals is None:
+        raise InputError("the initial cloud has no splats (normals and radii could not be estimated)")
+    return cloud
+
+
+def _logit(x: np.ndarray) -> np.ndarray:
+    x = np.clip(x, 1e-3, 1.0 - 1e-3)
+    return np.log(x / (1.0 - x))
+
+
+class _Params:
+    """The optimized tensors (positions, raw normals, log radii, colour and opacity logits) and their Adam."""
+
+    def __init__(self, tensors: dict[str, torch.Tensor], options: FitOptions, scale: float) -> None:
+        self.options, self.scale = options, scale
+        self.t = {k: v.detach().clone().requires_grad_(True) for k, v in tensors.items()}
+        self.grad_sum = torch.zeros(len(self.t["positions"]), dtype=self.t["positions"].dtype)
+        self.grad_count = torch.zeros_like(self.grad_sum)
+        o = options
+        lrs = {"positions": o.position_lr * scale, "normals": o.normal_lr, "log_radii": o.radius_lr,
+               "colors": o.color_lr, "opacity": o.opacity_lr}
+        self.optimizer = torch.optim.Adam([{"params": [self.t[k]], "lr": lr, "name": k} for k, lr in lrs.items()],
+                                          eps=ADAM_EPS)
+
+    def splats(self) -> Splats:
+        t = self.t
+        u, v = tangent_axes(t["normals"], torch.exp(t["log_radii"]))
+        return Splats(t["positions"], u, v, torch.sigmoid(t["colors"]), torch.sigmoid(t["opacity"]), t["normals"])
+
+    def set_position_lr(self, lr: float) -> None:
+        for group in self.optimizer.param_groups:
+            if group["name"] == "positions":
+                group["lr"] = lr
+
+
+def _densify(params: _Params, options: FitOptions, rng: np.random.Generator) -> _Params:
+    """Split the splats of the largest mean position gradient and drop the transparent ones."""
+    t = {k: v.detach() for k, v in params.t.items()}
+    n = len(t["positions"])
+    mean_grad = params.grad_sum / params.grad_count.clamp(min=1)
+    keep = torch.sigmoid(t["opacity"]) >= options.prune_opacity
+    room = max(0, options.max_splats - int(keep.sum()))
+    count = min(int(options.densify_fraction * n), room)
+    split = torch.zeros(n, dtype=torch.bool)
+    if count > 0:
+        candidates = torch.where(keep & (params.grad_count > 0), mean_grad, torch.full_like(mean_grad, -1.0))
+        order = torch.argsort(candidates, descending=True)[:count]
+        split[order[candidates[order] > 0]] = True
+    radii = torch.exp(t["log_radii"])
+    u, v = tangent_axes(t["normals"], radii)
+    angle = torch.as_tensor(rng.uniform(0, 2 * np.pi, n), dtype=radii.dtype)
+    offset = 0.5 * (torch.cos(angle)[:, None] * u + torch.sin(angle)[:, None] * v)
+    shrink = torch.where(split, torch.log(torch.tensor(0.7, dtype=radii.dtype)), torch.zeros_like(radii))
+    tensors = {k: v[keep] for k, v in t.items()}
+    tensors["positions"] = (t["positions"] + torch.where(split[:, None], offset, 0.0))[keep]
+    tensors["log_radii"] = (t["log_radii"] + shrink)[keep]
+    new = {k: v[split] for k, v in t.items()}
+    new["positions"] = (t["positions"] - offset)[split]
+    new["log_radii"] = (t["log_radii"] + shrink)[split]
+    merged = {k: torch.cat([tensors[k], new[k]]) for k in tensors}
+    return _Params(merged, options, params.scale)
+
+
+def fit(views: list[FitView], init: SplatCloud, *, options: FitOptions | None = None,
+        device: str | torch.device | None = None) -> FitResult:
+    """Fit splats, starting from ``init``, to the images of ``views`` (see the module docstring).
+
+    ``views``: :class:`FitView` (camera, image, optional alpha); ``init``: preprocessed splats
+    (:func:`initial_cloud`). ``device``: where PyTorch runs ("cpu", "cuda", "mps"; None: the CPU).
+    Returns the fitted splats (colours unlit, the ``opacity`` attribute), the loss curve and the time.
+    """
+    options = options or FitOptions()
+    if not views:
+        raise InputError("no views to fit")
+    if init.u is None or init.v is None or init.normals is None:
+        raise InputError("the initial splats need normals and tangent axes (preprocess them)")
+    start = time.perf_counter()
+    rng = np.random.default_rng(options.seed)
+    dtype = torch.float32
+    world = np.asarray(init.positions, np.float64) + np.asarray(init.origin, np.float64)
+    scale = float(np.linalg.norm(np.ptp(world, axis=0))) or 1.0
+    radii = np.sqrt(np.linalg.norm(init.u, axis=1) * np.linalg.norm(init.v, axis=1))
+    colors = init.colors if init.colors is not None else np.full((len(init), 3), 0.5)
+    initial = {"positions": world, "normals": np.asarray(init.normals, np.float64),
+               "log_radii": np.log(np.maximum(radii, 1e-12)), "colors": _logit(np.asarray(colors, np.float64)),
+               "opacity": np.full(len(init), _logit(np.array(0.9)))}
+    params = _Params({k: torch.as_tensor(np.asarray(v), dtype=dtype, device=device) for k, v in initial.items()},
+                     options, scale)
+    targets = [(DiffCamera.from_camera(v.camera, dtype, device), torch.as_tensor(v.image, dtype=dtype, device=device),
+                None if v.alpha is None else torch.as_tensor(v.alpha, dtype=dtype, device=device)) for v in views]
+    losses: list[float] = []
+    order: list[int] = []
+    iterations = int(options.iterations)
+    with progress.stage("fitting", total=iterations, unit="steps") as bar:
+        for step in range(iterations):
+            if not order:
+                order = list(rng.permutation(len(targets)))
+            camera, image, alpha = targets[order.pop()]
+            background = rng.uniform(0.0, 1.0, 3) if alpha is not None else np.ones(3)
+            frame = render_frame(params.splats(), camera, lights=UNLIT, background=tuple(background),
+                                 options=options.render)
+            bg = torch.as_tensor(background, dtype=dtype, device=image.device)
+            target = image if alpha is None else alpha[..., None] * image + (1.0 - alpha[..., None]) * bg
+            loss = torch.abs(frame.color - target).mean()
+            if alpha is not None:
+                loss = loss + options.alpha_weight * torch.abs(frame.alpha - alpha).mean()
+            params.optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            grad = params.t["positions"].grad
+            if grad is not None:
+                g = torch.linalg.vector_norm(grad.detach(), dim=1).cpu()
+                params.grad_sum += g
+                params.grad_count += (g > 0).to(g.dtype)
+            params.set_position_lr(options.position_lr * scale * 0.1 ** (step / max(iterations - 1, 1)))
+            params.optimizer.step()
+            losses.append(float(loss.detach()))
+            bar.update()
+            if ((step + 1) % int(options.densify_every) == 0 and step + 1 < options.densify_until * iterations
+                    and step + 1 < iterations):
+                params = _densify(params, options, rng)
+    with torch.no_grad():
+        cloud = params.splats().to_cloud()
+    return FitResult(cloud, losses, time.perf_counter() - start)
+
+
+def fit_files(cameras: str | Path, *, init: Any = None, images: str | Path | None = None,
+              options: FitOptions | None = None, device: str | None = None) -> FitResult:
+    """:func:`fit` to the images of a camera file (:func:`load_views`) from ``init`` or the COLMAP points."""
+    views = load_views(cameras, images)
+    return fit(views, initial_cloud(init, cameras), options=options, device=device)

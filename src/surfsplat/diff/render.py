@@ -1,0 +1,299 @@
+"""Differentiable screen-space EWA splatting (technique ``ewa``) in PyTorch.
+
+The image of :func:`render` is the OpenGL ``ewa`` technique's (``rendering/glsl/ewa.vert``,
+``ewa.frag``, ``splat_fragment.glsl``, ``normalize.frag``), with the per-splat and per-pixel formulas
+taken from :mod:`surfsplat.reference` run on tensors:
+
+- per splat (Guennebaud 2003, sec. 6): camera-space centre and axes, the Jacobian of the projection at
+  the centre (eq. 8), the resampling variance ``J V_r J^T + H`` (eq. 6), its conic, peak weight and
+  bounding box, and the Blinn-Phong colour lit at the centre (the vertex stage's lighting);
+- per (pixel, splat) pair inside the cutoff ellipse: the EWA weight, the exact ray/plane hit (s, t) and
+  its depth (footprint_depth: a fringe fragment gets the depth of the nearest disk point);
+- visibility (Guennebaud 2003, sec. 5): the depth ``D`` of the nearest disk at the pixel, offset by
+  ``epsilon`` splat radii along the ray, and a *soft* depth test: a pair blends with the factor
+  ``sigmoid((D - z) / tau)`` (``tau`` a fraction ``depth_softness`` of the splat's epsilon band) in
+  place of the hard ``z <= D``; a fringe fragment (beyond its own disk) also needs ``D <= z + 2 band``
+  (``fringe_hidden``). ``depth_softness = 0`` is the hard test.
+- coverage: the OpenGL passes show the background where no disk covers the pixel's centre. Here the
+  pixel's alpha is ``1 - prod_i (1 - o_i m_i)`` with ``m_i`` the disk's coverage smoothed over
+  ``edge_softness`` pixels across its rim (0: the hard test) and ``o_i`` the splat's opacity, so the
+  silhouette moves with the splats; the colour is the normalized blend ``sum w c / sum w``
+  (Guennebaud 2003, eq. 18), clamped to [0, 1] and composited over the background by alpha.
+
+Evaluation is vectorized and tiled: splats are binned to horizontal bands of rows by their boxes, and
+each band evaluates its (pixel, splat) pairs in batched tensor operations with the per-pixel sums as
+scatter reductions; the number of pairs a band holds is bounded (``max_pairs``), and with several bands
+and gradients each band is checkpointed, so memory is bounded by the band, not the image. Any device
+PyTorch runs on (CPU, CUDA, MPS) works: every tensor follows the splats' device.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import torch
+from torch.utils.checkpoint import checkpoint
+
+from .. import reference as ref
+from ..errors import InputError
+from ..lighting import Lights
+from .scene import DiffCamera, Splats
+
+#: Smallest depth of a drawn splat centre when the camera has no near plane (the Jacobian needs z > 0).
+MIN_DEPTH = 1e-6
+
+
+@dataclass(frozen=True)
+class DiffOptions:
+    """Options of the differentiable renderer; defaults match the OpenGL ``ewa`` technique's.
+
+    Attributes:
+        cutoff: c of ``FilterOptions`` (the kernel is cut at ``0.5 x^T V^-1 x = c``).
+        prefilter: the one-pixel EWA prefilter ``H = I``.
+        depth_epsilon: visibility offset along the rays in splat radii (``VisibilityOptions``).
+        depth_softness: width of the soft depth test, as a fraction of each splat's epsilon band (0: hard).
+        edge_softness: width in pixels over which a disk's coverage falls to 0 across its rim (0: hard).
+        min_visibility: pairs whose soft depth test passes less than this are skipped (hidden surfaces;
+            0: every pair is evaluated).
+        max_pairs: most (pixel, splat) pairs evaluated at once (a band of rows holds at most this many,
+            unless one row alone holds more).
+    """
+
+    cutoff: float = 1.0
+    prefilter: bool = True
+    depth_epsilon: float = 1.0
+    depth_softness: float = 0.1
+    edge_softness: float = 0.02
+    max_pairs: int = 4_000_000
+    min_visibility: float = 1e-4
+
+    def __post_init__(self) -> None:
+        for name in ("cutoff", "depth_epsilon", "depth_softness", "edge_softness", "min_visibility"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and value >= 0 and value == value and value != float("inf")):
+                raise InputError(f"{name} must be a finite number >= 0, got {value!r}", argument=name)
+        if self.cutoff <= 0:
+            raise InputError(f"cutoff must be > 0, got {self.cutoff!r}", argument="cutoff")
+        if int(self.max_pairs) < 1:
+            raise InputError(f"max_pairs must be >= 1, got {self.max_pairs!r}", argument="max_pairs")
+
+
+@dataclass
+class DiffFrame:
+    """The differentiable renderer's output, row 0 at the top of the image.
+
+    Attributes:
+        color: (H, W, 3) composited over the background.
+        alpha: (H, W) coverage in [0, 1].
+        depth: (H, W) weighted mean camera-space depth of the blended splats (0 where none).
+        weight: (H, W) accumulated EWA weight.
+    """
+
+    color: torch.Tensor
+    alpha: torch.Tensor
+    depth: torch.Tensor
+    weight: torch.Tensor
+
+
+# Columns of the per-splat feature table that the pairs gather in one indexing: p, u, v, n (3 each), the
+# projected centre (2), the conic V^-1 (xx, xy, yy), the peak weight, the lit colour (3), opacity, radius, rho.
+_P, _N, _CENTER = slice(0, 3), slice(9, 12), slice(12, 14)
+_COLUMNS = [3, 3, 3, 3, 2, 1, 1, 1, 1, 3, 1, 1, 1]
+
+
+def _splat_table(splats: Splats, camera: DiffCamera, lights: Lights, options: DiffOptions):
+    """Per-splat stage (the vertex shader's work): the feature table of the drawn splats and their
+    inclusive pixel boxes (x0, x1, y0, y1) in window pixels (y up)."""
+    r, f = camera.rotation, camera.focal
+    p = ref.transform_points(r, camera.translation, splats.positions)
+    u = splats.u @ r.T
+    v = splats.v @ r.T
+    plane = ref.unit(ref.cross(u, v))
+    shading = ref.unit(splats.normals @ r.T) if splats.normals is not None else plane
+    plane = torch.where(ref.dot(plane, shading, keepdims=True) < 0, -plane, plane)
+    # the side the eye sees: the plane's normal (and the shading normal) turned toward the eye
+    back = ref.dot(plane, p, keepdims=True) > 0
+    plane = torch.where(back, -plane, plane)
+    shading = torch.where(back, -shading, shading)
+    if camera.near is None:
+        near = MIN_DEPTH
+    else:
+        near = max(float(camera.near), MIN_DEPTH)
+    far = float("inf") if camera.far is None else float(camera.far)
+    z = -p[:, 2]
+    zext = torch.sqrt(u[:, 2] ** 2 + v[:, 2] ** 2)
+    with torch.no_grad():
+        keep = (z >= near) & (z - zext <= far) & (-ref.dot(plane, p) > ref.EDGE_ON_TOLERANCE * ref.norm(p))
+    idx = torch.nonzero(keep).squeeze(1)
+    p, u, v, plane, shading = p[idx], u[idx], v[idx], plane[idx], shading[idx]
+    if lights.directions is None:   # the headlight: from the target toward the eye, +z in camera space
+        light_dirs: Any = torch.tensor([[0.0, 0.0, 1.0]], dtype=p.dtype, device=p.device)
+    else:
+        light_dirs = torch.as_tensor(lights.directions, dtype=p.dtype, device=p.device) @ r.T
+    color = ref.shade(splats.colors[idx], shading, ref.unit(-p), light_dirs, lights)
+    jac = ref.jacobian(f, p, u, v)
+    var = ref.ewa_variance(jac, options.cutoff, options.prefilter)
+    conic = ref.inv2(var)
+    scale = ref.ewa_scale(var, jac, options.cutoff)
+    center = ref.project_points(p, f, camera.principal)
+    half = ref.ewa_half_extent(var, options.cutoff)
+    opacity = splats.opacity[idx] if splats.opacity is not None else torch.ones_like(scale)
+    radius = torch.maximum(ref.norm(u), ref.norm(v))
+    rho = torch.sqrt(torch.abs(ref.det2(jac)) + 1e-12)   # projected radius, pixels (geometric mean)
+    table = torch.cat([p, u, v, plane, center, conic[:, 0, 0, None], conic[:, 0, 1, None], conic[:, 1, 1, None],
+                       scale[:, None], color, opacity[:, None], radius[:, None], rho[:, None]], dim=1)
+    with torch.no_grad():
+        c, h = center.detach(), half.detach()
+        lo = torch.ceil(c - h - 0.5)
+        hi = torch.floor(c + h - 0.5)
+        limit = torch.tensor([camera.width - 1, camera.height - 1], dtype=c.dtype, device=c.device)
+        lo = torch.maximum(lo, torch.zeros_like(lo))
+        hi = torch.minimum(hi, limit)
+        ok = torch.isfinite(lo).all(dim=1) & torch.isfinite(hi).all(dim=1) & (lo <= hi).all(dim=1)
+        box = torch.where(ok[:, None], torch.cat([lo[:, :1], hi[:, :1], lo[:, 1:], hi[:, 1:]], dim=1),
+                          torch.tensor([0.0, -1.0, 0.0, -1.0], dtype=c.dtype, device=c.device)).long()
+    return table, box
+
+
+def _band_pairs(box: torch.Tensor, row0: int, row1: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(splat, x, y) of every pixel of the splats' boxes in window rows [row0, row1)."""
+    y0 = torch.clamp(box[:, 2], min=row0)
+    y1 = torch.clamp(box[:, 3], max=row1 - 1)
+    nx = (box[:, 1] - box[:, 0] + 1).clamp(min=0)
+    ny = (y1 - y0 + 1).clamp(min=0)
+    count = nx * ny
+    sid = torch.repeat_interleave(torch.arange(len(box), device=box.device), count)
+    start = torch.cumsum(count, 0) - count
+    k = torch.arange(len(sid), device=box.device) - start[sid]
+    w = nx[sid]
+    return sid, box[sid, 0] + k % w, y0[sid] + k // w
+
+
+def _pair_terms(table: torch.Tensor, sid: torch.Tensor, ix: torch.Tensor, iy: torch.Tensor, pixel: torch.Tensor,
+                npix: int, camera: DiffCamera, options: DiffOptions) -> dict[str, torch.Tensor]:
+    """The per-pair terms of pairs (splat ``sid``, window pixel ``(ix, iy)``, band pixel index ``pixel``)."""
+    dtype, device = table.dtype, table.device
+    f, principal = camera.focal, camera.principal
+    # one gather and one split: their backward is one scatter and one concatenation
+    p, u, v, n, center, cxx, cxy, cyy, scale, color, opacity, radius, rho = table[sid].split(_COLUMNS, dim=1)
+    pix = torch.stack([ix, iy], dim=1).to(dtype) + 0.5
+    beta = ref.ewa_beta(ref.matrix2(cxx[:, 0], cxy[:, 0], cxy[:, 0], cyy[:, 0]), pix - center)
+    rays = ref.rays_through(pix, f, principal)
+    hit = ref.ray_plane_distance(rays, p, n)
+    st = ref.splat_coordinates(rays, hit, p, u, v)
+    r2 = ref.dot(st, st)
+    z = ref.footprint_depth(st, p, u, v)
+    band = options.depth_epsilon * radius[:, 0] / ref.norm(rays)
+    with torch.no_grad():
+        inside = r2 <= 1.0
+    # Guennebaud 2003, sec. 5: the nearest disk's depth at the pixel, offset by epsilon along the ray
+    nearest = torch.full((npix,), float("inf"), dtype=dtype, device=device)
+    nearest = nearest.scatter_reduce(0, pixel[inside], (hit + band)[inside], "amin", include_self=True)
+    covered = torch.isfinite(nearest)
+    d = torch.where(covered, nearest, torch.zeros_like(nearest))[pixel]
+    if options.depth_softness > 0:
+        tau = options.depth_softness * band
+        vis = torch.sigmoid((d - z) / tau)
+        fringe = torch.sigmoid((z + 2.0 * band - d) / tau)
+    else:
+        vis = (z <= d).to(dtype)
+        fringe = (z + 2.0 * band >= d).to(dtype)
+    vis = torch.where(inside, vis, vis * fringe)
+    vis = torch.where(covered[pixel], vis, torch.ones_like(vis))
+    return {"beta": beta, "r2": r2, "z": z, "vis": vis, "inside": inside, "scale": scale[:, 0],
+            "color": color, "opacity": opacity[:, 0], "rho": rho[:, 0], "hit": hit}
+
+
+def _band(table: torch.Tensor, box: torch.Tensor, camera: DiffCamera, options: DiffOptions, row0: int,
+          row1: int) -> torch.Tensor:
+    """Per-pixel sums of window rows [row0, row1): (rows * W, 6) = (sum w c, sum w, sum w z, sum log(1 - o m))."""
+    width = camera.width
+    dtype, device = table.dtype, table.device
+    npix = (row1 - row0) * width
+    with torch.no_grad():
+        # the pairs inside the cutoff ellipse whose ray meets the splat's plane in front of the eye, and
+        # (those hidden far behind the nearest surface weigh nothing) whose soft depth test passes
+        sid, ix, iy = _band_pairs(box, row0, row1)
+        t = table.detach()
+        pix = torch.stack([ix, iy], dim=1).to(dtype) + 0.5
+        p, n, center = t[sid, _P], t[sid, _N], t[sid, _CENTER]
+        beta = ref.ewa_beta(ref.matrix2(t[sid, 14], t[sid, 15], t[sid, 15], t[sid, 16]), pix - center)
+        depth = ref.ray_plane_distance(ref.rays_through(pix, camera.focal.detach(), camera.principal), p, n)
+        keep = (beta <= options.cutoff) & torch.isfinite(depth) & (depth > 0)
+        sid, ix, iy = sid[keep], ix[keep], iy[keep]
+        pixel = (iy - row0) * width + ix
+        if options.min_visibility > 0:
+            terms = _pair_terms(t, sid, ix, iy, pixel, npix, camera, options)
+            keep = terms["vis"] >= options.min_visibility
+            sid, ix, iy, pixel = sid[keep], ix[keep], iy[keep], pixel[keep]
+    terms = _pair_terms(table, sid, ix, iy, pixel, npix, camera, options)
+    opacity, r2 = terms["opacity"], terms["r2"]
+    w = opacity * terms["scale"] * torch.exp(-terms["beta"]) * terms["vis"]
+    if options.edge_softness > 0:
+        rim = (1.0 - torch.sqrt(r2 + 1e-12)) * terms["rho"]   # pixels inside the rim
+        m = torch.sigmoid(rim / options.edge_softness)
+    else:
+        m = terms["inside"].to(dtype)
+    log_clear = torch.log1p(-torch.clamp(opacity * m, max=1.0 - 8.0 * torch.finfo(dtype).eps))
+    values = torch.cat([w[:, None] * terms["color"], w[:, None], (w * terms["z"])[:, None], log_clear[:, None]],
+                       dim=1)
+    return torch.zeros((npix, 6), dtype=dtype, device=device).index_add(0, pixel, values)
+
+
+def _bands(box: torch.Tensor, height: int, max_pairs: int) -> list[tuple[int, int]]:
+    """Row ranges [r0, r1) holding at most ``max_pairs`` box pixels each (a row holding more: alone)."""
+    nx = (box[:, 1] - box[:, 0] + 1).clamp(min=0)
+    per_row = torch.zeros(height + 1, dtype=torch.long, device=box.device)
+    valid = box[:, 3] >= box[:, 2]
+    per_row.index_add_(0, box[valid, 2], nx[valid])
+    per_row.index_add_(0, box[valid, 3] + 1, -nx[valid])
+    counts = torch.cumsum(per_row, 0)[:height].cpu().tolist()
+    bands, start, total = [], 0, 0
+    for row, n in enumerate(counts):   # one step per image row, not per splat
+        if total + n > max_pairs and row > start:
+            bands.append((start, row))
+            start, total = row, 0
+        total += n
+    bands.append((start, height))
+    return bands
+
+
+def render_frame(splats: Splats, camera: DiffCamera, *, lights: Lights | None = None,
+                 background=(1.0, 1.0, 1.0), options: DiffOptions | None = None) -> DiffFrame:
+    """Render ``splats`` seen by ``camera`` with EWA splatting: colour, alpha, depth and weight images.
+
+    Differentiable with respect to every tensor of ``splats`` and ``camera`` (positions, axes, colours,
+    opacity, normals; rotation, translation, focal length). ``lights``: None is the default headlight
+    and material (:class:`~surfsplat.lighting.Lights`); ``Lights(enabled=False)`` renders the albedo.
+    ``background``: RGB in [0, 1]. See the module docstring for the visibility and coverage models.
+    """
+    options = options or DiffOptions()
+    lights = lights if lights is not None else Lights()
+    if len(splats) == 0:
+        raise InputError("no splats to render")
+    table, box = _splat_table(splats, camera, lights, options)
+    height, width = camera.height, camera.width
+    bands = _bands(box, height, int(options.max_pairs))
+    parts = []
+    for row0, row1 in bands:   # one step per band of rows, not per splat
+        if len(bands) > 1 and table.requires_grad:
+            parts.append(checkpoint(_band, table, box, camera, options, row0, row1, use_reentrant=False))
+        else:
+            parts.append(_band(table, box, camera, options, row0, row1))
+    sums = torch.cat(parts, dim=0).reshape(height, width, 6).flip(0)   # window rows (y up) -> image rows
+    weight = sums[..., 3]
+    has = weight > 0
+    safe = torch.where(has, weight, torch.ones_like(weight))
+    color = torch.clamp(sums[..., :3] / safe[..., None], 0.0, 1.0)
+    depth = torch.where(has, sums[..., 4] / safe, torch.zeros_like(weight))
+    alpha = torch.where(has, -torch.expm1(sums[..., 5]), torch.zeros_like(weight))
+    bg = torch.as_tensor(background, dtype=color.dtype, device=color.device)
+    image = alpha[..., None] * color + (1.0 - alpha[..., None]) * bg
+    return DiffFrame(color=image, alpha=alpha, depth=depth, weight=weight)
+
+
+def render(splats: Splats, camera: DiffCamera, *, lights: Lights | None = None, background=(1.0, 1.0, 1.0),
+           options: DiffOptions | None = None) -> torch.Tensor:
+    """(H, W, 3) image of ``splats`` seen by ``camera`` (row 0 at the top), differentiable: see :func:`render_frame`."""
+    return render_frame(splats, camera, lights=lights, background=background, options=options).color
