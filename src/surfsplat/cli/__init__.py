@@ -161,7 +161,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("input", help="a point, splat or mesh file, a hierarchy MODEL.npz or MODEL.ssh, or demo:NAME")
     p.add_argument("-o", "--output", required=True,
                    help="output folder (index.html, viewer.js, shaders.js, data.js), or one self-contained "
-                        "page where it ends in .html")
+                        "page where it ends in .html, or a COPC file (--format copc; implied by .copc.laz)")
+    p.add_argument("--format", choices=["web", "copc"], default=None,
+                   help="web: the WebGL2 viewer; copc: a COPC 1.0 file (LAZ 1.4 octree with the splats' "
+                        "normals and axes as extra bytes) for Potree, QGIS and PDAL (default: copc where "
+                        "the output ends in .copc.laz, else web)")
     p.add_argument("--technique", default="ewa", choices=list(WEB_TECHNIQUES),
                    help="the page's first technique (switchable on the page; default ewa)")
     p.add_argument("--background", type=opt.UNIT, nargs=3, metavar=("R", "G", "B"), default=defaults.BACKGROUND,

@@ -408,10 +408,17 @@ def cmd_sample(args) -> None:
 
 def cmd_export(args) -> None:
     """``surfsplat export``: a static web viewer of a model (:func:`surfsplat.web.export`)."""
-    check_output(args.output, inputs_of(args), directory=not str(args.output).lower().endswith((".html", ".htm")))
+    copc = args.format == "copc" or (args.format is None and str(args.output).lower().endswith(".copc.laz"))
+    check_output(args.output, inputs_of(args),
+                 directory=not copc and not str(args.output).lower().endswith((".html", ".htm")))
     result = export(args.input, args.output, technique=args.technique, background=tuple(args.background),
                     source_options=opt.source_options(args), lod=opt.lod_options(args),
-                    point_budget=args.point_budget, force=args.force)
+                    point_budget=args.point_budget, force=args.force, format="copc" if copc else "web")
+    if copc:
+        progress.message(f"exported {result.splats:,} splats to COPC ({result.bytes / 1e6:.1f} MB, "
+                         f"{result.bytes / max(result.splats, 1):.1f} bytes each) in {result.seconds:.2f} s -> "
+                         f"{result.path}")
+        return
     progress.message(f"exported {result.splats:,} splats ({result.bytes / 1e6:.1f} MB of splats, "
                      f"{result.bytes / max(result.splats, 1):.0f} bytes each) in {result.seconds:.2f} s -> "
                      f"{result.path}{'' if result.path.suffix else '/index.html'}")

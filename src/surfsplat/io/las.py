@@ -5,9 +5,11 @@ Positions are the scaled coordinates (``las.x``, ``las.y``, ``las.z``, i.e.
 relative to the cloud's float64 origin (``SplatCloud.origin``). Colors come from
 the ``red green blue`` fields where the point format has them: the fields are
 16-bit, but many files store 8-bit values; :func:`rgb_scale` decides which. LAS
-has no normals. Every other dimension (``intensity``, ``classification``,
-``return_number``, ``number_of_returns``, ``gps_time``, ``scan_angle`` /
-``scan_angle_rank``, flags, ``point_source_id``, extra bytes, ...) becomes a
+has no normals, but the splat extra bytes of a file that :func:`surfsplat.io.copc.write_copc` wrote
+(``nx ny nz``, ``ux uy uz``, ``vx vy vz``) are read back as the splats' normals and tangent axes, and
+its up axis (a ``surfsplat`` VLR) as the model's up; other LAS files are z-up.
+Every other dimension (``intensity``, ``classification``, ``return_number``, ``number_of_returns``,
+``gps_time``, ``scan_angle`` / ``scan_angle_rank``, flags, ``point_source_id``, extra bytes, ...) becomes a
 named attribute (``SplatCloud.attributes``) with its own dtype (flags as uint8;
 extra-bytes arrays of several values per point are skipped).
 
@@ -34,6 +36,7 @@ from ..errors import InputError, file_reader
 from ..orientation import Z_UP
 from .atomic import memory_limit
 from .child import decoded_in_child
+from .copc import SPLAT_DIMENSIONS, UP_VLR
 
 
 class CoordinatePrecisionWarning(UserWarning):
@@ -55,6 +58,9 @@ for name in las.point_format.dimension_names:
         value = np.asarray(las[name])
         if value.ndim == 1 and value.dtype.kind in "uifb":
             out["attr:" + name] = value.astype(np.uint8) if value.dtype.kind == "b" else value
+for vlr in las.header.vlrs:
+    if vlr.user_id == "surfsplat" and vlr.record_id == 1 and len(vlr.record_data) == 24:
+        out["up"] = np.frombuffer(vlr.record_data, "<f8")
 np.savez(sys.argv[2], **out)
 """
 
@@ -132,7 +138,7 @@ def read_las(path: Path) -> SplatCloud:
     except OSError as exc:
         raise InputError(f"{source}: cannot read LAS file: {exc.strerror or exc}") from exc
     if Path(path).suffix.lower() == ".laz":
-        xyz, rgb, scales, attributes = _decode_laz(Path(path), source)
+        xyz, rgb, scales, attributes, up = _decode_laz(Path(path), source)
     else:
         try:
             las = laspy.read(source)
@@ -144,6 +150,7 @@ def read_las(path: Path) -> SplatCloud:
                 rgb = np.column_stack([np.asarray(las.red), np.asarray(las.green), np.asarray(las.blue)])
             scales = np.asarray(las.header.scales, dtype=np.float64)
             attributes = las_attributes(las)
+            up = stored_up(las.header.vlrs)
         except MemoryError:
             raise
         except Exception as exc:  # laspy.LaspyException (bad header), OSError, ValueError, ...
@@ -154,8 +161,10 @@ def read_las(path: Path) -> SplatCloud:
     if rgb is not None:
         colors = np.clip(rgb.astype(np.float64) / rgb_scale(rgb), 0.0, 1.0).astype(np.float32)
 
+    splats = splat_axes(attributes)
     # float64 world coordinates: kept as float32 positions relative to an origin near the points
-    cloud = SplatCloud(positions=xyz, colors=colors, attributes=attributes or None, up=Z_UP)   # LiDAR is z-up
+    cloud = SplatCloud(positions=xyz, colors=colors, attributes=attributes or None,
+                       up=Z_UP if up is None else up, **splats)   # LiDAR is z-up unless surfsplat said otherwise
     finite = cloud.positions[np.isfinite(cloud.positions).all(axis=1)]
     if len(finite):
         extent = np.abs(finite).max(axis=0)
@@ -166,6 +175,27 @@ def read_las(path: Path) -> SplatCloud:
                 f"{spacing.max():g} in float32 positions (the file's resolution is {scales.min():g})",
                 CoordinatePrecisionWarning, stacklevel=3)
     return cloud
+
+
+def stored_up(vlrs) -> tuple[float, float, float] | None:
+    """The model's up axis that :func:`surfsplat.io.copc.write_copc` stores (VLR user ``surfsplat``, record
+    1: three float64), or None."""
+    for vlr in vlrs:
+        if vlr.user_id == UP_VLR[0] and vlr.record_id == UP_VLR[1] and len(vlr.record_data) == 24:
+            x, y, z = struct.unpack("<3d", vlr.record_data)
+            return (x, y, z)
+    return None
+
+
+def splat_axes(attributes: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """``{"normals", "u", "v"}`` as (N, 3) float32 arrays, taken out of ``attributes``, where the file has
+    all the splat extra bytes that :func:`surfsplat.io.copc.write_copc` writes (``nx ny nz ux uy uz vx vy
+    vz``); else nothing (and ``attributes`` unchanged)."""
+    if not all(name in attributes for name in SPLAT_DIMENSIONS):
+        return {}
+    columns = [np.asarray(attributes.pop(name), dtype=np.float32) for name in SPLAT_DIMENSIONS]
+    return {"normals": np.column_stack(columns[0:3]), "u": np.column_stack(columns[3:6]),
+            "v": np.column_stack(columns[6:9])}
 
 
 #: LAS dimensions that are positions or colors, not attributes.
@@ -185,11 +215,15 @@ def las_attributes(las) -> dict[str, np.ndarray]:
     return out
 
 
-def _decode_laz(path: Path, source: str) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, dict]:
-    """``(xyz (N, 3) float64, rgb (N, 3) uint16 or None, scales (3,), attributes)`` of a LAZ file, decoded by
+def _decode_laz(path: Path, source: str) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, dict,
+                                                 tuple[float, float, float] | None]:
+    """``(xyz (N, 3) float64, rgb (N, 3) uint16 or None, scales (3,), attributes, up or None)`` of a LAZ file,
+    decoded by
     :data:`_LAZ_CHILD` in a child process (:func:`surfsplat.io.child.decoded_in_child`); its crash,
     abort, failure or hang is an InputError."""
     hint = lambda problem: " (LAZ needs a backend: `pip install lazrs`)" if "backend" in problem.lower() else ""  # noqa: E731
     with decoded_in_child(_LAZ_CHILD, Path(path), source, "LAZ file", hint=hint) as data:
         attributes = {key[5:]: data[key] for key in data.files if key.startswith("attr:")}
-        return data["xyz"], (data["rgb"] if "rgb" in data.files else None), data["scales"], attributes
+        up = tuple(float(c) for c in data["up"]) if "up" in data.files else None
+        return (data["xyz"], (data["rgb"] if "rgb" in data.files else None), data["scales"], attributes,
+                up)  # type: ignore[return-value]

@@ -27,6 +27,7 @@ from ..camera import Camera
 from ..cloud import SplatCloud
 from ..errors import InputError
 from ..io.atomic import atomic_path, check_writable
+from ..io.copc import is_surfsplat_copc, write_copc
 from ..lighting import Lights
 from ..pipeline import CameraSpec, LodOptions, SourceOptions, View, check_source
 from ..pipeline.framing import auto_fit_inputs
@@ -45,6 +46,8 @@ from .shaders import WEB_TECHNIQUES, shader_bundle
 FILES = ("index.html", "viewer.js", "shaders.js", "data.js")
 #: The generator tag of the page: what marks a file or folder as an earlier export (replaced without --force).
 GENERATOR = "surfsplat export"
+#: What :func:`export` writes: the web viewer, or a COPC file (:mod:`surfsplat.io.copc`).
+FORMATS = ("web", "copc")
 #: A hierarchy is cut to at most this many splats at the default camera unless a budget is given.
 DEFAULT_POINT_BUDGET = 5_000_000
 
@@ -204,9 +207,12 @@ def single_page(files: dict[str, str]) -> str:
 
 def export(source, output, *, technique: str = "ewa", background=defaults.BACKGROUND,
            source_options: SourceOptions | None = None, lod: LodOptions | None = None,
-           camera: CameraSpec | None = None, point_budget: int | None = None, force: bool = False) -> ExportResult:
+           camera: CameraSpec | None = None, point_budget: int | None = None, force: bool = False,
+           format: str | None = None) -> ExportResult:
     """Write a static web viewer of ``source`` to ``output``: a folder (``index.html``, ``viewer.js``,
-    ``shaders.js``, ``data.js``), or one self-contained file where ``output`` ends in ``.html``.
+    ``shaders.js``, ``data.js``), or one self-contained file where ``output`` ends in ``.html``; or,
+    with ``format="copc"`` (implied by an output ending in ``.copc.laz``), the same splats as a COPC
+    file (:func:`surfsplat.io.copc.write_copc`).
 
     Args:
         source: anything :func:`surfsplat.render` takes (a file, ``demo:NAME``, a SplatCloud, a Mesh,
@@ -218,17 +224,23 @@ def export(source, output, *, technique: str = "ewa", background=defaults.BACKGR
             ``surfsplat render``, at 1024 x 1024 pixels). The page opens at its own default view.
         point_budget: at most this many splats from a hierarchy (default 5,000,000).
         force: replace an existing file or non-empty folder that an earlier export did not write.
+        format: "web" or "copc" (None: "copc" where ``output`` ends in ``.copc.laz``, else "web").
 
     Returns:
-        :class:`ExportResult`.
+        :class:`ExportResult` (for COPC, ``bytes`` is the size of the file).
     """
     start = time.perf_counter()
+    format = format or ("copc" if str(output).lower().endswith(".copc.laz") else "web")
+    if format not in FORMATS:
+        raise InputError(f"export format {format!r} is not one of {', '.join(FORMATS)}")
     if technique not in WEB_TECHNIQUES:
         raise InputError(f"technique {technique!r} is not drawn by the web viewer; choose one of "
                          f"{', '.join(WEB_TECHNIQUES)}")
     background = tuple(float(c) for c in check_background(background))
     if point_budget is not None and not (isinstance(point_budget, (int, np.integer)) and point_budget >= 1):
         raise InputError(f"point budget must be a whole number >= 1, got {point_budget!r}")
+    if format == "copc":
+        return _export_copc(source, output, source_options, lod, camera, point_budget, force, start)
     path, single = check_export_output(output, force)
     check_source(source)
     plan = View(source, source_options=source_options, lod=lod)
@@ -251,3 +263,18 @@ def export(source, output, *, technique: str = "ewa", background=defaults.BACKGR
         written.extend(path / name for name in files)
     count = len(cloud)
     return ExportResult(path, count, count * web_format.BYTES_PER_SPLAT, time.perf_counter() - start, tuple(written))
+
+
+def _export_copc(source, output, source_options, lod, camera, point_budget, force, start) -> ExportResult:
+    """:func:`export` to a COPC file: the splats a page would draw, written by :func:`write_copc`. An existing
+    file is replaced only where surfsplat wrote it or with ``force``."""
+    path = check_writable(output)
+    if path.exists() and not force and not is_surfsplat_copc(path):
+        raise InputError(f"{path}: the file exists and was not written by surfsplat export; pass --force to "
+                         "replace it")
+    check_source(source)
+    plan = View(source, source_options=source_options, lod=lod)
+    view_camera = plan.camera(camera, defaults.CLI_IMAGE_SIZE, defaults.CLI_IMAGE_SIZE)
+    with progress.stage("exporting to COPC"):
+        result = write_copc(exported_splats(plan, view_camera, point_budget), path)
+    return ExportResult(path, result.points, result.bytes, time.perf_counter() - start, (path,))
