@@ -22,13 +22,15 @@ Positions are stored as 32-bit integers with a decimal scale: the largest power 
 of the bounding-box diagonal (1 cm for a 1 km tile; each coordinate is within half that step of the
 cloud's float64 world position ``origin + positions``, so the 3D error is at most 0.87e-5 of the
 diagonal; ``scale`` sets another step). A step of 1e-4 of the diagonal would cost 4% fewer bytes but
-move a render of the model read back from 75 dB to 46 dB PSNR against the original. Colours are 16-bit (``round(c * 65535)``). The splats are LAS 1.4 extra bytes (float32,
+move a render of the model read back from 75 dB to 46 dB PSNR against the original.
+
+Colours are 16-bit (``round(c * 65535)``). The splats are LAS 1.4 extra bytes (float32,
 :data:`SPLAT_DIMENSIONS`): unit normal ``nx ny nz`` and the two scaled tangent axes ``ux uy uz`` and
 ``vx vy vz`` (model units); :func:`surfsplat.io.las.read_las` reads them back as splats. The model's
 up axis, where known, is a VLR (user ``surfsplat``, record 1, three float64; LAS readers otherwise
-take LiDAR's +z). Attributes of
-the cloud that are LAS dimensions of the point format (``intensity``, ``classification``,
-``gps_time``, ...) fill them; other one-valued numeric attributes become extra bytes of their dtype.
+take LiDAR's +z). Attributes of the cloud that are LAS dimensions of the point format
+(``intensity``, ``classification``, ``gps_time``, ...) fill them; other one-valued numeric attributes
+become extra bytes of their dtype.
 """
 
 from __future__ import annotations
