@@ -104,7 +104,8 @@ def test_the_hierarchy_is_a_consistent_octree_of_spread_levels(written):
         xyz = np.column_stack([node["X"], node["Y"], node["Z"]]) * header.scales + header.offsets
         side = 2 * info.halfsize / 2 ** e.key.level
         corner = low + np.array([e.key.x, e.key.y, e.key.z]) * side
-        assert ((xyz >= corner) & (xyz <= corner + side)).all(), e
+        # strictly inside: node faces lie half a step between stored positions, so no rounding moves a point out
+        assert ((xyz > corner) & (xyz < corner + side)).all(), e
         if e.point_count > LEAF:   # a node that was subsampled: at most one point per cell of its grid
             cells = np.floor((xyz - corner) / side * GRID).astype(np.int64)
             assert len(np.unique(cells, axis=0)) == e.point_count, e
@@ -152,6 +153,18 @@ def test_octree_levels_place_every_point_once():
     np.testing.assert_array_equal(key, np.floor(t * cells))   # each point is inside its node
     root = level == 0
     assert root.sum() == 64   # one point per cell of the 4 x 4 x 4 grid of the root (uniform points fill it)
+
+
+def test_a_single_point_and_a_flat_cloud(tmp_path):
+    for name, positions in (("one", [[1.0, 2.0, 3.0]]), ("flat", np.c_[np.random.default_rng(3).uniform(size=(500, 2)),
+                                                                        np.zeros(500)])):
+        path = tmp_path / f"{name}.copc.laz"
+        write_copc(SplatCloud(positions=np.asarray(positions, np.float32)), path, grid=4, leaf_points=10)
+        with laspy.CopcReader.open(path) as reader:
+            points = reader.query()
+            assert reader.header.point_format.id == 6   # no colours
+        xyz = np.column_stack([points.x, points.y, points.z])
+        assert np.abs(np.sort(xyz, axis=0) - np.sort(np.asarray(positions), axis=0)).max() < 1e-5
 
 
 def test_bad_input_is_refused_clearly(tmp_path):
