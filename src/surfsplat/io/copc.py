@@ -120,8 +120,8 @@ def octree_nodes(t: np.ndarray, grid: int = DEFAULT_GRID, leaf_points: int = DEF
     """``(level (N,) int32, key (N, 3) int64)``: the octree node of each point, given its position
     ``t`` (N, 3) in the unit cube ``[0, 1]``. Level by level, a node with more than ``leaf_points``
     unplaced points keeps one per cell of a ``grid``-cubed grid (the nearest the cell centre); a node
-    with fewer, or at the deepest level (``depth_limit``, at most :func:`max_depth`), keeps them all. Every point lands in exactly one node, and a
-    node holding points has a parent holding points."""
+    with fewer, or at the deepest level (``depth_limit``, at most :func:`max_depth`), keeps them all.
+    Every point lands in exactly one node, and a node holding points has a parent holding points."""
     n = len(t)
     level = np.full(n, -1, np.int32)
     key = np.zeros((n, 3), np.int64)
