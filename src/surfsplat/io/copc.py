@@ -66,8 +66,9 @@ DEFAULT_LEAF_POINTS = 20_000
 _MAX_FINE_BITS = 20
 #: Quantization step relative to the bounding-box diagonal (at most).
 RELATIVE_STEP = 1e-5
-#: Dimensions of point formats 6 and 7 that :func:`write_copc` writes itself.
-_OWN = frozenset({"X", "Y", "Z", "red", "green", "blue", "return_number", "number_of_returns"})
+#: Dimensions of point formats 6 and 7 that :func:`write_copc` writes itself (return numbers: 1 of 1 unless
+#: the cloud's attributes give them).
+_OWN = frozenset({"X", "Y", "Z", "red", "green", "blue"})
 _EXTRA_DTYPES = (np.uint8, np.int8, np.uint16, np.int16, np.uint32, np.int32, np.uint64, np.int64,
                  np.float32, np.float64)
 
@@ -293,7 +294,8 @@ def write_copc(cloud: SplatCloud, path: str | os.PathLike, *, overwrite: bool = 
     header.offsets = offset
     header.mins, header.maxs = low, high
     header.point_count = n
-    header.number_of_points_by_return[0] = n
+    returns = np.bincount(np.clip(np.asarray(record["return_number"]), 1, 15) - 1, minlength=15)
+    header.number_of_points_by_return = returns
     others = [v for v in header.vlrs]
     info_vlr = laspy.VLR("copc", 1, "COPC info VLR", _info(center, halfsize, 2 * halfsize / grid, 0, 0, gps))
     header.vlrs.clear()
