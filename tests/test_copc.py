@@ -88,6 +88,7 @@ def test_the_hierarchy_is_a_consistent_octree_of_spread_levels(written):
     assert info.hierarchy_root_offset > header.offset_to_point_data and info.hierarchy_root_size == 32 * len(entries)
     # the info VLR is the first one: right after the 375-byte header, user "copc", record 1, 160 bytes
     assert struct.unpack_from("<16sHH", data, 375 + 2) == (b"copc".ljust(16, b"\0"), 1, 160)
+    assert lazrs.LazVlr(laszip).uses_variable_size_chunks()
     assert sum(e.point_count for e in entries) == len(cloud) and len(entries) == result.nodes
     keys = {(e.key.level, e.key.x, e.key.y, e.key.z) for e in entries}
     assert all(level == 0 or (level - 1, x >> 1, y >> 1, z >> 1) in keys for level, x, y, z in keys)
