@@ -210,3 +210,18 @@ def test_a_model_read_back_from_copc_renders_as_the_original(tmp_path):
     b = View(str(path)).render(camera).frame.image() / 255.0
     # measured: 75 dB (positions rounded to 1e-5 of the diagonal, 16-bit colours; 46 dB at 1e-4)
     assert psnr(b, a) > 60.0
+
+
+def test_a_lidar_file_keeps_its_dimensions(shared_data, tmp_path):
+    source = shared_data / "simple.las"
+    original = laspy.read(source)
+    path = tmp_path / "simple.copc.laz"
+    write_copc(load(source), path)
+    copy = laspy.read(path)
+    assert len(copy.points) == len(original.points)
+    assert list(copy.header.number_of_points_by_return[:5]) == list(original.header.number_of_points_by_return[:5])
+    key = lambda las: np.lexsort((np.asarray(las.X), np.asarray(las.Y), np.asarray(las.gps_time)))  # noqa: E731
+    a, b = key(original), key(copy)
+    np.testing.assert_allclose(np.asarray(copy.x)[b], np.asarray(original.x)[a], atol=0.5 * copy.header.scales[0])
+    for name in ("intensity", "classification", "return_number", "number_of_returns", "gps_time", "point_source_id"):
+        np.testing.assert_array_equal(np.asarray(copy[name])[b], np.asarray(original[name])[a], err_msg=name)
