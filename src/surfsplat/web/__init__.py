@@ -5,10 +5,12 @@ package's own shaders (``docs/guides/web.md``).
 - :mod:`~surfsplat.web.shaders`: the ``rendering/glsl`` files composed for GLSL ES 3.00;
 - :mod:`~surfsplat.web.framing`: the page's default view, as ``surfsplat render`` frames the model;
 - :mod:`~surfsplat.web.export`: :func:`export`, the page and its scripts;
+- :mod:`~surfsplat.web.widget`: :func:`widget`, the same viewer in a Jupyter cell (anywidget);
 - :mod:`~surfsplat.web.browser`: a small headless-Chromium driver (DevTools protocol over a pipe) that
   the tests and the benchmark open pages with.
 """
 
 from .export import ExportResult, export
+from .widget import widget
 
-__all__ = ["ExportResult", "export"]
+__all__ = ["ExportResult", "export", "widget"]

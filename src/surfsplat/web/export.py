@@ -202,6 +202,32 @@ def single_page(files: dict[str, str]) -> str:
     return files["index.html"].replace(scripts, inline)
 
 
+def check_page_args(technique: str, background, point_budget: int | None) -> tuple[float, ...]:
+    """The checked background of a page (InputError for a technique the page does not draw, a bad
+    background or point budget)."""
+    if technique not in WEB_TECHNIQUES:
+        raise InputError(f"technique {technique!r} is not drawn by the web viewer; choose one of "
+                         f"{', '.join(WEB_TECHNIQUES)}")
+    if point_budget is not None and not (isinstance(point_budget, (int, np.integer)) and point_budget >= 1):
+        raise InputError(f"point budget must be a whole number >= 1, got {point_budget!r}")
+    return tuple(float(c) for c in check_background(background))
+
+
+def page_payload(source, *, technique: str = "ewa", background=defaults.BACKGROUND,
+                 source_options: SourceOptions | None = None, lod: LodOptions | None = None,
+                 camera: CameraSpec | None = None, point_budget: int | None = None) -> tuple[dict, dict]:
+    """The header and the base64 streams of a page showing ``source`` (:func:`export`'s arguments): the
+    model prepared by the view plan, cut within the budget, quantized (what ``data.js`` holds)."""
+    background = check_page_args(technique, background, point_budget)
+    check_source(source)
+    plan = View(source, source_options=source_options, lod=lod)
+    size = defaults.CLI_IMAGE_SIZE
+    view_camera = plan.camera(camera, size, size)
+    with progress.stage("exporting for the web"):
+        cloud = exported_splats(plan, view_camera, point_budget)
+        return page_data(plan, cloud, technique, background, plan.name)
+
+
 def export(source, output, *, technique: str = "ewa", background=defaults.BACKGROUND,
            source_options: SourceOptions | None = None, lod: LodOptions | None = None,
            camera: CameraSpec | None = None, point_budget: int | None = None, force: bool = False) -> ExportResult:
@@ -216,28 +242,18 @@ def export(source, output, *, technique: str = "ewa", background=defaults.BACKGR
         source_options, lod: as :func:`surfsplat.render` takes them.
         camera: the view a mesh is sampled for and a hierarchy cut at (None: the automatic one of
             ``surfsplat render``, at 1024 x 1024 pixels). The page opens at its own default view.
-        point_budget: at most this many splats from a hierarchy (default 5,000,000).
+        point_budget: at most this many splats from a hierarchy or a cloud (default 5,000,000).
         force: replace an existing file or non-empty folder that an earlier export did not write.
 
     Returns:
         :class:`ExportResult`.
     """
     start = time.perf_counter()
-    if technique not in WEB_TECHNIQUES:
-        raise InputError(f"technique {technique!r} is not drawn by the web viewer; choose one of "
-                         f"{', '.join(WEB_TECHNIQUES)}")
-    background = tuple(float(c) for c in check_background(background))
-    if point_budget is not None and not (isinstance(point_budget, (int, np.integer)) and point_budget >= 1):
-        raise InputError(f"point budget must be a whole number >= 1, got {point_budget!r}")
+    check_page_args(technique, background, point_budget)
     path, single = check_export_output(output, force)
-    check_source(source)
-    plan = View(source, source_options=source_options, lod=lod)
-    size = defaults.CLI_IMAGE_SIZE
-    view_camera = plan.camera(camera, size, size)
-    with progress.stage("exporting for the web"):
-        cloud = exported_splats(plan, view_camera, point_budget)
-        header, streams = page_data(plan, cloud, technique, background, plan.name)
-        files = page_files(header, streams)
+    header, streams = page_payload(source, technique=technique, background=background, source_options=source_options,
+                                   lod=lod, camera=camera, point_budget=point_budget)
+    files = page_files(header, streams)
     written: list[Path] = []
     if single:
         with atomic_path(path) as temp:
@@ -249,5 +265,5 @@ def export(source, output, *, technique: str = "ewa", background=defaults.BACKGR
             for name, text in files.items():
                 (Path(temp) / name).write_text(text, encoding="utf-8")
         written.extend(path / name for name in files)
-    count = len(cloud)
+    count = int(header["count"])
     return ExportResult(path, count, count * web_format.BYTES_PER_SPLAT, time.perf_counter() - start, tuple(written))

@@ -36,6 +36,12 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   };
   // one full-quality frame drawn now; its time in milliseconds (the benchmark's)
   state.redraw = function () { render(); return state.frameMs; };
+  // move the view to a camera {eye, target, up, fov} (world units; the notebook widget's camera)
+  state.setCamera = function (c) {
+    state.camera = {eye: c.eye.slice(), target: c.target.slice(), up: c.up.slice(), fov: c.fov || H.fov};
+    state.moved = true;
+    request();
+  };
 
   function fail(text) {
     state.errors.push(text);
