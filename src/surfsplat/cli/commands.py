@@ -411,7 +411,7 @@ def cmd_export(args) -> None:
     check_output(args.output, inputs_of(args), directory=not str(args.output).lower().endswith((".html", ".htm")))
     result = export(args.input, args.output, technique=args.technique, background=tuple(args.background),
                     source_options=opt.source_options(args), lod=opt.lod_options(args),
-                    point_budget=args.point_budget, force=args.force)
+                    point_budget=args.point_budget, browser_lod=args.browser_lod, force=args.force)
     progress.message(f"exported {result.splats:,} splats ({result.bytes / 1e6:.1f} MB of splats, "
                      f"{result.bytes / max(result.splats, 1):.0f} bytes each) in {result.seconds:.2f} s -> "
                      f"{result.path}{'' if result.path.suffix else '/index.html'}")
