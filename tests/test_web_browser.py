@@ -5,6 +5,7 @@ picture of the same camera; the tests skip where no Chromium is installed (.ci/r
 from __future__ import annotations
 
 import json
+import time
 
 import numpy as np
 import pytest
@@ -16,7 +17,7 @@ from surfsplat.rendering.options import EdlOptions, RenderOptions
 from surfsplat.scenes import torus
 from surfsplat.web import export
 from surfsplat.pipeline import SourceOptions
-from surfsplat.web.browser import Browser, file_url, find_chromium
+from surfsplat.web.browser import Browser, BrowserError, file_url, find_chromium
 from surfsplat.web.export import as_drawn, exported_splats
 from surfsplat.web.shaders import PROGRAMS
 
@@ -58,6 +59,24 @@ def opened(browser, url, width=W, height=H):
     page.wait_for(READY, timeout=60)
     assert page.collect() == []
     return page
+
+
+def test_the_driver_reports_a_page_s_errors(browser, tmp_path):
+    # what "no error" in the other tests rests on: an exception, console.error and a failed load are caught
+    page_file = tmp_path / "bad.html"
+    page_file.write_text("<html><body><script>console.error('first'); setTimeout(function () { "
+                         "throw new Error('second'); }, 0);</script><script src='missing.js'></script>"
+                         "<div id='done'></div></body></html>")
+    page = browser.page(file_url(page_file), 200, 100)
+    try:
+        with pytest.raises(BrowserError, match="reported errors"):
+            page.wait_for("false", timeout=10)
+        end = time.monotonic() + 10
+        while not all(word in " | ".join(page.collect()) for word in ("first", "second", "missing.js")):
+            assert time.monotonic() < end, page.errors
+            time.sleep(0.05)
+    finally:
+        page.close()
 
 
 def test_the_page_opens_from_a_file_url_at_the_render_default_view(browser, site, model):
