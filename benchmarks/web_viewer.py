@@ -14,7 +14,9 @@ frame times in headless Chromium.
   leaves empty (holes);
 * frame times in headless Chromium at 1024 x 768 for the 1 M-splat torus opened from ``file://``: the
   first frame (a ``points`` preview where a full frame is slow) and the first full-quality frame, ms
-  after navigation start, and a full-quality frame drawn again (median of 3).
+  after navigation start, and a full-quality frame drawn again (median of 3);
+* the same torus with ``--browser-lod`` and a budget of 300,000: export time (the hierarchy built),
+  splats the page's cut draws at the default view, and its frame times.
 
     python benchmarks/web_viewer.py [--size 1024 768] [--skip-raw]
 """
@@ -54,6 +56,8 @@ BUNNY = Path(__file__).resolve().parents[2] / "shared" / "data" / "bunny.ply"
 if not BUNNY.exists():
     BUNNY = Path("/work/shared/data/bunny.ply")
 TECHNIQUES = ("ewa", "flat", "points")
+#: The point budget of the browser-LOD page.
+LOD_BUDGET = 300_000
 
 
 def folder_bytes(path: Path) -> int:
@@ -153,6 +157,20 @@ def main() -> None:
                              round(float(ready))])
                 rows.append([f"full-quality frame, 1 M splats, {name}", "ms (median of 3)",
                              round(statistics.median(again))])
+            # -- level of detail in the browser: the 1 M-splat torus's hierarchy, cut per view -----------------
+            start = time.perf_counter()
+            export(big, work / "lod", browser_lod=True, point_budget=LOD_BUDGET)
+            rows.append(["export with browser LOD (hierarchy built), 1 M splats", "s",
+                         round(time.perf_counter() - start, 2)])
+            page = opened(browser, file_url(work / "lod" / "index.html", "?technique=ewa"), width, height)
+            first, ready = json.loads(page.evaluate("JSON.stringify([surfsplat.firstFrameMs, surfsplat.readyMs])"))
+            drawn = page.evaluate("surfsplat.drawn")
+            again = [page.evaluate("surfsplat.redraw()") for _ in range(3)]
+            page.close()
+            rows.append([f"browser LOD, budget {LOD_BUDGET:,}: splats drawn at the default view", "splats", drawn])
+            rows.append(["browser LOD: first frame, ewa", "ms after navigation", round(float(first))])
+            rows.append(["browser LOD: first full-quality frame, ewa", "ms after navigation", round(float(ready))])
+            rows.append(["browser LOD: full-quality frame, ewa", "ms (median of 3)", round(statistics.median(again))])
             version = browser.version
     finally:
         shutil.rmtree(work, ignore_errors=True)

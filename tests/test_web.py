@@ -201,3 +201,9 @@ def test_a_hierarchy_is_exported_within_the_point_budget(tmp_path):
     assert f'"count":{cut.splats}' in data
     cloud_cut = surfsplat.export(cloud, tmp_path / "cloud", point_budget=500)   # a cloud beyond the budget too
     assert 0 < cloud_cut.splats <= 500
+
+
+def test_the_browser_driver_names_a_missing_browser(tmp_path):
+    from surfsplat.web.browser import Browser, BrowserError
+    with pytest.raises(BrowserError, match="no such executable"):
+        Browser(str(tmp_path / "chromium"))

@@ -5,6 +5,7 @@ picture of the same camera; the tests skip where no Chromium is installed (.ci/r
 from __future__ import annotations
 
 import json
+import time
 
 import numpy as np
 import pytest
@@ -16,7 +17,7 @@ from surfsplat.rendering.options import EdlOptions, RenderOptions
 from surfsplat.scenes import torus
 from surfsplat.web import export
 from surfsplat.pipeline import SourceOptions
-from surfsplat.web.browser import Browser, file_url, find_chromium
+from surfsplat.web.browser import Browser, BrowserError, file_url, find_chromium
 from surfsplat.web.export import as_drawn, exported_splats
 from surfsplat.web.shaders import PROGRAMS
 
@@ -58,6 +59,24 @@ def opened(browser, url, width=W, height=H):
     page.wait_for(READY, timeout=60)
     assert page.collect() == []
     return page
+
+
+def test_the_driver_reports_a_page_s_errors(browser, tmp_path):
+    # what "no error" in the other tests rests on: an exception, console.error and a failed load are caught
+    page_file = tmp_path / "bad.html"
+    page_file.write_text("<html><body><script>console.error('first'); setTimeout(function () { "
+                         "throw new Error('second'); }, 0);</script><script src='missing.js'></script>"
+                         "<div id='done'></div></body></html>")
+    page = browser.page(file_url(page_file), 200, 100)
+    try:
+        with pytest.raises(BrowserError, match="reported errors"):
+            page.wait_for("false", timeout=10)
+        end = time.monotonic() + 10
+        while not all(word in " | ".join(page.collect()) for word in ("first", "second", "missing.js")):
+            assert time.monotonic() < end, page.errors
+            time.sleep(0.05)
+    finally:
+        page.close()
 
 
 def test_the_page_opens_from_a_file_url_at_the_render_default_view(browser, site, model):
@@ -226,3 +245,34 @@ def test_real_data_pages_match_the_desktop(browser, shared_data, tmp_path, name,
         page.close()
     assert np.allclose(shown["eye"], camera.eye, rtol=1e-9, atol=1e-9)   # the render's default view
     assert psnr(canvas / 255.0, reference / 255.0) >= least
+
+
+@pytest.fixture(scope="module")
+def hierarchy_file(tmp_path_factory):
+    from surfsplat.hierarchy import build_hierarchy, save_hierarchy
+    path = tmp_path_factory.mktemp("lod") / "torus.npz"
+    save_hierarchy(build_hierarchy(torus(200, 80)), path)
+    return path
+
+
+# measured at 320 x 240: 2,000 -> 55.8 dB, 6,000 (5,997 drawn) -> 47.2 dB: the same cut as the desktop's, drawn
+# in another order (the page draws every entry of a cut as a GL_POINTS point)
+@pytest.mark.parametrize("budget", [2_000, 6_000])
+def test_the_page_cuts_a_hierarchy_within_the_budget_as_the_desktop_does(browser, hierarchy_file, tmp_path, budget):
+    from surfsplat.pipeline import LodOptions
+    out = tmp_path / "site"
+    export(hierarchy_file, out, browser_lod=True, point_budget=budget)
+    view = View(hierarchy_file, lod=LodOptions(tolerance=1.0, point_budget=budget, shading="flat"))
+    result = view.render(view.camera(None, W, H), technique="ewa")
+    page = opened(browser, file_url(out / "index.html", "?ui=0"))
+    try:
+        drawn, canvas = page.evaluate("surfsplat.drawn"), page.canvas()
+        # more budget on the page: more drawn, up to the tolerance cut
+        page.evaluate("var e = document.getElementById('budget'); e.value = 100000; "
+                      "e.dispatchEvent(new Event('change'))")
+        page.wait_for(f"surfsplat.drawn > {drawn}", timeout=20)
+        assert page.collect() == []
+    finally:
+        page.close()
+    assert drawn <= budget and drawn == result.splats   # Potree's priority, the same cut as hierarchy.lod.select
+    assert psnr(canvas / 255.0, result.frame.image() / 255.0) >= 40.0

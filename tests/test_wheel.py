@@ -29,6 +29,7 @@ def test_the_wheel_installs_and_renders_outside_the_checkout(tmp_path):
     assert [w.name for w in wheels] == [f"surfsplat-{surfsplat.__version__}-py3-none-any.whl"]
     names = set(zipfile.ZipFile(wheels[0]).namelist())
     assert "surfsplat/py.typed" in names and "surfsplat/rendering/glsl/ewa.frag" in names
+    assert {"surfsplat/web/static/index.html", "surfsplat/web/static/viewer.js"} <= names   # surfsplat export's page
     assert not any(name.startswith(("tests/", "benchmarks/")) for name in names)
 
     # a fresh environment that sees the installed dependencies but not the checkout

@@ -170,6 +170,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the page's first technique (switchable on the page; default ewa)")
     p.add_argument("--background", type=opt.UNIT, nargs=3, metavar=("R", "G", "B"), default=defaults.BACKGROUND,
                    help="the page's first background colour, components in [0, 1] (default white)")
+    p.add_argument("--browser-lod", action="store_true",
+                   help="export the whole hierarchy (a cloud's built) and let the page cut it per view: a point "
+                        "budget (--point-budget: the page's first, default 1,000,000) refined largest node first "
+                        "when the camera stops")
     p.add_argument("--force", action="store_true",
                    help="replace an existing file or non-empty folder that surfsplat export did not write "
                         "(an earlier export is always replaced)")

@@ -64,6 +64,8 @@ class Browser:
         path = executable or find_chromium()
         if path is None:
             raise BrowserError("no Chromium found (install Debian's chromium package)")
+        if not (os.path.isfile(path) and os.access(path, os.X_OK)):
+            raise BrowserError(f"{path}: no such executable")
         self.timeout = timeout
         self._profile = tempfile.mkdtemp(prefix="surfsplat-chromium-")
         to_browser, self._write = os.pipe()

@@ -12,7 +12,6 @@ self-contained file. Nothing is fetched from the internet, nothing is built.
 
 from __future__ import annotations
 
-import base64
 import html
 import json
 import time
@@ -23,24 +22,19 @@ from pathlib import Path
 import numpy as np
 
 from .. import defaults, progress
-from ..camera import Camera
-from ..cloud import SplatCloud
 from ..errors import InputError
 from ..io.atomic import atomic_path, check_writable
 from ..io.copc import is_surfsplat_copc, write_copc
-from ..lighting import Lights
 from ..pipeline import CameraSpec, LodOptions, SourceOptions, View, check_source
-from ..pipeline.framing import auto_fit_inputs
-from ..pipeline.models import as_model
-from ..rendering.edl import neighbour_offsets
 from ..rendering.frame import check_background
-from ..rendering.gpu_splats import radius_classes
-from ..rendering.options import EdlOptions, RenderOptions
-from ..rendering.techniques import get_technique
 from ..version import __version__
 from . import format as web_format
-from .framing import fit_frame
+from .page import DEFAULT_POINT_BUDGET, as_drawn, exported_splats, page_data, web_order
 from .shaders import WEB_TECHNIQUES, shader_bundle
+from .tree import tree_data
+
+__all__ = ["DEFAULT_POINT_BUDGET", "ExportResult", "as_drawn", "export", "exported_splats", "page_data",
+           "page_payload", "web_order"]
 
 #: The files of an exported folder (a folder holding only these, with our index.html, is replaced).
 FILES = ("index.html", "viewer.js", "shaders.js", "data.js")
@@ -48,8 +42,6 @@ FILES = ("index.html", "viewer.js", "shaders.js", "data.js")
 GENERATOR = "surfsplat export"
 #: What :func:`export` writes: the web viewer, or a COPC file (:mod:`surfsplat.io.copc`).
 FORMATS = ("web", "copc")
-#: A hierarchy is cut to at most this many splats at the default camera unless a budget is given.
-DEFAULT_POINT_BUDGET = 5_000_000
 
 
 @dataclass(frozen=True)
@@ -97,87 +89,9 @@ def check_export_output(output, force: bool = False) -> tuple[Path, bool]:
     return path, single
 
 
-def _b64(array: np.ndarray) -> str:
-    return base64.b64encode(np.ascontiguousarray(array).tobytes()).decode("ascii")
-
-
 def _script_json(value) -> str:
     """JSON safe inside an HTML ``<script>`` element (no ``</`` closes it)."""
     return json.dumps(value, separators=(",", ":")).replace("</", "<\\/")
-
-
-def exported_splats(plan: View, camera: Camera, point_budget: int | None) -> SplatCloud:
-    """The splats a page draws: the view plan's model as splats for ``camera`` (a mesh sampled for it);
-    a hierarchy's cut at ``camera`` within ``point_budget`` (default :data:`DEFAULT_POINT_BUDGET`; its
-    finest level where that holds it all), and so a cloud's beyond the budget (its hierarchy built)."""
-    drawn = plan.sample(camera)
-    budget = point_budget or DEFAULT_POINT_BUDGET
-    if not drawn.is_tree:
-        points = drawn.points()
-        if len(points) <= budget:
-            return points
-        progress.message(f"{len(points):,} splats are more than the point budget of {budget:,}: exporting the "
-                         f"cut of their hierarchy at the default view")
-    tree = plan.tree(camera)
-    cloud, _ = tree.cut(camera, 0.0, shading=plan.lod.shading, point_budget=budget)
-    return cloud
-
-
-def web_order(cloud: SplatCloud) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The order a page stores splats in, as the desktop renderer uploads them
-    (:func:`~surfsplat.rendering.gpu_splats.radius_classes`: by radius class, largest first, each class in
-    Morton order), with the first index and the largest radius of each class: a frame draws the classes
-    too large for a point, a prefix, as quads, and an opaque technique keeps the same splat of two at
-    one depth as the desktop."""
-    return radius_classes(cloud.radii, cloud.positions)
-
-
-def as_drawn(cloud: SplatCloud) -> SplatCloud:
-    """The splats a page draws for ``cloud``: in :func:`web_order`, through the web format and back
-    (float32, the same origin and up): what the desktop renderer draws to show what the page shows."""
-    if cloud.u is None or cloud.v is None or cloud.normals is None:
-        raise InputError("a page draws splats: this SplatCloud has no splat axes or normals")
-    order = web_order(cloud)[0]
-    colors = cloud.colors if cloud.colors is not None else np.full((len(cloud), 3), 0.8, np.float32)
-    streams, header = web_format.encode(cloud.positions[order], cloud.normals[order], colors[order],
-                                        cloud.u[order], cloud.v[order])
-    d = web_format.decode(streams, header)
-    return SplatCloud(d["positions"].astype("f4"), d["normals"].astype("f4"), d["colors"].astype("f4"),
-                      d["u"].astype("f4"), d["v"].astype("f4"), origin=cloud.origin, up=cloud.up)
-
-
-def page_data(plan: View, cloud: SplatCloud, technique: str, background, name: str) -> tuple[dict, dict]:
-    """The header (everything but the streams) and the streams of a page drawing ``cloud``."""
-    if len(cloud) == 0:
-        raise InputError(f"{name}: no splats to export")
-    if cloud.u is None or cloud.v is None or cloud.normals is None:
-        raise InputError(f"{name}: the prepared model has no splat axes or normals to export")
-    colors = cloud.colors if cloud.colors is not None else np.full((len(cloud), 3), 0.8, np.float32)
-    order, class_start, class_radius = web_order(cloud)
-    streams, header = web_format.encode(cloud.positions[order], cloud.normals[order], colors[order], cloud.u[order],
-                                        cloud.v[order])
-    model = as_model(plan.model).points()
-    points, direction, up, margin = auto_fit_inputs(model, plan.up)
-    options, lights = RenderOptions(), Lights()
-    radius = float(cloud.radii.max())
-    header.update({
-        "name": name, "version": __version__, "origin": np.asarray(cloud.origin, np.float64).tolist(),
-        "bounds": [b.tolist() for b in cloud.bounds()], "max_radius": radius,
-        "class_start": class_start.tolist(), "class_radius": [float(r) for r in class_radius],
-        "fit": fit_frame(points, direction, up, margin), "fov": defaults.FOV,
-        "technique": technique, "techniques": list(WEB_TECHNIQUES), "background": list(background),
-        "uniforms": {t: {k: list(np.atleast_1d(v).astype(float)) for k, v in get_technique(t).uniforms(options).items()}
-                     for t in WEB_TECHNIQUES},
-        "frame": {"u_depth_epsilon": options.visibility.depth_epsilon,
-                  "u_separate_sides": options.visibility.separate_sides,
-                  "u_clip_fringe": options.visibility.clip_fringe, "u_deferred": options.deferred,
-                  "u_cull_backfaces": False, "u_supersample": 1.0},
-        "material": [lights.ambient, lights.diffuse, lights.specular, lights.shininess],
-        "footprints": {t: {"footprint": get_technique(t).point_footprint, "min_point_px": get_technique(t).min_point_px}
-                       for t in WEB_TECHNIQUES},
-        "edl": {"strength": EdlOptions().strength, "offsets": neighbour_offsets(EdlOptions().radius_px)},
-    })
-    return header, {key: _b64(value) for key, value in streams.items()}
 
 
 def _static(name: str) -> str:
@@ -205,14 +119,42 @@ def single_page(files: dict[str, str]) -> str:
     return files["index.html"].replace(scripts, inline)
 
 
+def check_page_args(technique: str, background, point_budget: int | None) -> tuple[float, ...]:
+    """The checked background of a page (InputError for a technique the page does not draw, a bad
+    background or point budget)."""
+    if technique not in WEB_TECHNIQUES:
+        raise InputError(f"technique {technique!r} is not drawn by the web viewer; choose one of "
+                         f"{', '.join(WEB_TECHNIQUES)}")
+    if point_budget is not None and not (isinstance(point_budget, (int, np.integer)) and point_budget >= 1):
+        raise InputError(f"point budget must be a whole number >= 1, got {point_budget!r}")
+    return tuple(float(c) for c in check_background(background))
+
+
+def page_payload(source, *, technique: str = "ewa", background=defaults.BACKGROUND,
+                 source_options: SourceOptions | None = None, lod: LodOptions | None = None,
+                 camera: CameraSpec | None = None, point_budget: int | None = None,
+                 browser_lod: bool = False) -> tuple[dict, dict]:
+    """The header and the base64 streams of a page showing ``source`` (:func:`export`'s arguments): the
+    model prepared by the view plan, cut within the budget (or with ``browser_lod`` its whole hierarchy,
+    :mod:`surfsplat.web.tree`), quantized (what ``data.js`` holds)."""
+    background = check_page_args(technique, background, point_budget)
+    check_source(source)
+    plan = View(source, source_options=source_options, lod=lod)
+    size = defaults.CLI_IMAGE_SIZE
+    view_camera = plan.camera(camera, size, size)
+    with progress.stage("exporting for the web"):
+        if browser_lod:
+            return tree_data(plan, view_camera, technique, background, plan.name, point_budget)
+        cloud = exported_splats(plan, view_camera, point_budget)
+        return page_data(plan, cloud, technique, background, plan.name)
+
+
 def export(source, output, *, technique: str = "ewa", background=defaults.BACKGROUND,
            source_options: SourceOptions | None = None, lod: LodOptions | None = None,
-           camera: CameraSpec | None = None, point_budget: int | None = None, force: bool = False,
-           format: str | None = None) -> ExportResult:
+           camera: CameraSpec | None = None, point_budget: int | None = None, browser_lod: bool = False,
+           force: bool = False, format: str | None = None) -> ExportResult:
     """Write a static web viewer of ``source`` to ``output``: a folder (``index.html``, ``viewer.js``,
-    ``shaders.js``, ``data.js``), or one self-contained file where ``output`` ends in ``.html``; or,
-    with ``format="copc"`` (implied by an output ending in ``.copc.laz``), the same splats as a COPC
-    file (:func:`surfsplat.io.copc.write_copc`).
+    ``shaders.js``, ``data.js``), or one self-contained file where ``output`` ends in ``.html``.
 
     Args:
         source: anything :func:`surfsplat.render` takes (a file, ``demo:NAME``, a SplatCloud, a Mesh,
@@ -222,9 +164,13 @@ def export(source, output, *, technique: str = "ewa", background=defaults.BACKGR
         source_options, lod: as :func:`surfsplat.render` takes them.
         camera: the view a mesh is sampled for and a hierarchy cut at (None: the automatic one of
             ``surfsplat render``, at 1024 x 1024 pixels). The page opens at its own default view.
-        point_budget: at most this many splats from a hierarchy (default 5,000,000).
+        point_budget: at most this many splats from a hierarchy or a cloud (default 5,000,000); with
+            ``browser_lod`` the page's first budget (default 1,000,000, changed on the page).
+        browser_lod: export the whole hierarchy (a cloud's built) and let the page cut it per view: a
+            point budget in Potree's priority, refined when the camera stops (:mod:`surfsplat.web.tree`).
         force: replace an existing file or non-empty folder that an earlier export did not write.
-        format: "web" or "copc" (None: "copc" where ``output`` ends in ``.copc.laz``, else "web").
+        format: "web" or "copc" (None: "copc" where ``output`` ends in ``.copc.laz``, else "web"): a COPC
+            file (LAS 1.4 octree, :func:`surfsplat.io.copc.write_copc`) of the splats a page would draw.
 
     Returns:
         :class:`ExportResult` (for COPC, ``bytes`` is the size of the file).
@@ -233,23 +179,13 @@ def export(source, output, *, technique: str = "ewa", background=defaults.BACKGR
     format = format or ("copc" if str(output).lower().endswith(".copc.laz") else "web")
     if format not in FORMATS:
         raise InputError(f"export format {format!r} is not one of {', '.join(FORMATS)}")
-    if technique not in WEB_TECHNIQUES:
-        raise InputError(f"technique {technique!r} is not drawn by the web viewer; choose one of "
-                         f"{', '.join(WEB_TECHNIQUES)}")
-    background = tuple(float(c) for c in check_background(background))
-    if point_budget is not None and not (isinstance(point_budget, (int, np.integer)) and point_budget >= 1):
-        raise InputError(f"point budget must be a whole number >= 1, got {point_budget!r}")
+    check_page_args(technique, background, point_budget)
     if format == "copc":
         return _export_copc(source, output, source_options, lod, camera, point_budget, force, start)
     path, single = check_export_output(output, force)
-    check_source(source)
-    plan = View(source, source_options=source_options, lod=lod)
-    size = defaults.CLI_IMAGE_SIZE
-    view_camera = plan.camera(camera, size, size)
-    with progress.stage("exporting for the web"):
-        cloud = exported_splats(plan, view_camera, point_budget)
-        header, streams = page_data(plan, cloud, technique, background, plan.name)
-        files = page_files(header, streams)
+    header, streams = page_payload(source, technique=technique, background=background, source_options=source_options,
+                                   lod=lod, camera=camera, point_budget=point_budget, browser_lod=browser_lod)
+    files = page_files(header, streams)
     written: list[Path] = []
     if single:
         with atomic_path(path) as temp:
@@ -261,7 +197,7 @@ def export(source, output, *, technique: str = "ewa", background=defaults.BACKGR
             for name, text in files.items():
                 (Path(temp) / name).write_text(text, encoding="utf-8")
         written.extend(path / name for name in files)
-    count = len(cloud)
+    count = int(header["count"])
     return ExportResult(path, count, count * web_format.BYTES_PER_SPLAT, time.perf_counter() - start, tuple(written))
 
 

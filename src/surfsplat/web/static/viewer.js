@@ -36,6 +36,12 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   };
   // one full-quality frame drawn now; its time in milliseconds (the benchmark's)
   state.redraw = function () { render(); return state.frameMs; };
+  // move the view to a camera {eye, target, up, fov} (world units; the notebook widget's camera)
+  state.setCamera = function (c) {
+    state.camera = {eye: c.eye.slice(), target: c.target.slice(), up: c.up.slice(), fov: c.fov || H.fov};
+    state.moved = true;
+    request();
+  };
 
   function fail(text) {
     state.errors.push(text);
@@ -279,6 +285,14 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     attribute(3, decoded.color, 3, gl.UNSIGNED_BYTE, true);
     attribute(4, decoded.u, 3, gl.FLOAT, false);
     attribute(5, decoded.v, 3, gl.FLOAT, false);
+    if (H.lod) {   // the drawn entries: an index list chosen per view (selectCut)
+      elements = gl.createBuffer();
+      gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, elements);
+      gl.bindVertexArray(null);
+      gl.vertexAttrib2f(0, 0, 0);
+      for (var j = 6; j < ATTRIBUTES.length; ++j) gl.vertexAttrib4f(j, 0, 0, 0, 0);
+      return;
+    }
     quadCount = Math.min(H.count, QUAD_CAPACITY);
     gl.bindVertexArray(quadsVao);
     var corners = new Float32Array(12 * quadCount);
@@ -324,6 +338,76 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     var big = 0;
     while (big < H.class_radius.length && H.class_radius[big] > r) ++big;
     return big === H.class_radius.length ? H.count : H.class_start[big];
+  }
+
+  // ---- level of detail in the browser (surfsplat.web.tree): the cut of hierarchy.lod.select -----
+  var tree = null, elements = null;
+  function i32(b64) { var b = bytes(b64); return new Int32Array(b.buffer, b.byteOffset, b.length / 4); }
+  function f32(b64) { var b = bytes(b64); return new Float32Array(b.buffer, b.byteOffset, b.length / 4); }
+  function readTree() {
+    var s = DATA.streams;
+    return {childStart: i32(s.child_start), childCount: i32(s.child_count), pointStart: i32(s.point_start),
+            pointCount: i32(s.point_count), center: f32(s.center), radius: f32(s.radius), extent: f32(s.extent)};
+  }
+  // The entries to draw for a camera: the tolerance cut (a node refined while f 2 a / (|c - eye| - R) exceeds
+  // the tolerance; nodes outside the frustum dropped with their subtrees), and where it holds more than the
+  // budget, its refinements largest projected size first (a child's priority at most its parent's; ties:
+  // shallower first), the longest prefix within the budget (Schuetz 2016, sec. 3.3).
+  function selectCut(cam, w, h) {
+    var L = H.lod, T = tree, M = L.nodes, budget = Math.max(1, state.budget | 0);
+    var f = 0.5 * h / Math.tan(cam.fov * Math.PI / 360), o = H.origin;
+    var eye = sub(cam.eye, o), r = viewRows(eye, sub(cam.target, o), cam.up), nf = nearFar(cam.eye, cam.target, cam.up);
+    var sx = Math.hypot(f, w / 2), sy = Math.hypot(f, h / 2);
+    function visible(n) {
+      var c = [T.center[3 * n], T.center[3 * n + 1], T.center[3 * n + 2]], R = T.radius[n];
+      var x = dot(r[0], c) + r[3][0], y = dot(r[1], c) + r[3][1], z = -(dot(r[2], c) + r[3][2]);
+      if (z + R < nf[0] || z - R > nf[1]) return false;
+      return f * Math.abs(x) - (w / 2) * z <= R * sx && f * Math.abs(y) - (h / 2) * z <= R * sy;
+    }
+    function size(n) {
+      var d = Math.hypot(T.center[3 * n] - eye[0], T.center[3 * n + 1] - eye[1], T.center[3 * n + 2] - eye[2]) - T.radius[n];
+      return d < nf[0] ? Infinity : f * 2 * T.extent[n] / d;
+    }
+    var refined = [], base = 0, stack = [], n, k;
+    for (n = L.level_offsets[0]; n < L.level_offsets[1]; ++n) if (visible(n)) { stack.push([n, Infinity, 0]); base += 1; }
+    var total = base;
+    while (stack.length) {
+      var item = stack.pop(); n = item[0];
+      var own = size(n);
+      if (!(own > L.tolerance)) continue;
+      var p = Math.min(own, item[1]), cost;
+      if (T.childCount[n] === 0) cost = T.pointCount[n] - 1;
+      else {
+        cost = -1;
+        for (k = 0; k < T.childCount[n]; ++k) {
+          var child = T.childStart[n] + k;
+          if (visible(child)) { cost += 1; stack.push([child, p, item[2] + 1]); }
+        }
+      }
+      refined.push([p, item[2], n, cost]);
+      total += cost;
+    }
+    var open = new Uint8Array(M);
+    if (total <= budget) refined.forEach(function (x) { open[x[2]] = 1; });
+    else {
+      refined.sort(function (a, b) { return b[0] - a[0] || a[1] - b[1] || a[2] - b[2]; });
+      var sum = base;
+      for (k = 0; k < refined.length && sum + refined[k][3] <= budget; ++k) { sum += refined[k][3]; open[refined[k][2]] = 1; }
+    }
+    var out = [], todo = [];
+    for (n = L.level_offsets[0]; n < L.level_offsets[1]; ++n) if (visible(n)) todo.push(n);
+    while (todo.length) {
+      n = todo.pop();
+      if (!open[n]) { out.push(n); continue; }
+      if (T.childCount[n] === 0) { for (k = 0; k < T.pointCount[n]; ++k) out.push(M + T.pointStart[n] + k); continue; }
+      for (k = 0; k < T.childCount[n]; ++k) if (visible(T.childStart[n] + k)) todo.push(T.childStart[n] + k);
+    }
+    var list = Uint32Array.from(out);
+    gl.bindVertexArray(pointsVao);
+    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, list, gl.DYNAMIC_DRAW);
+    gl.bindVertexArray(null);
+    state.drawn = list.length;
+    return list.length;
   }
 
   // ---- targets ------------------------------------------------------------------------------------
@@ -385,6 +469,13 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   }
 
   function drawSplats(name, values, frame, technique) {
+    if (H.lod) {   // every entry of the cut as a point (node splats stay within the tolerance or the budget's)
+      setUniforms(programs[name + '_points'], Object.assign({u_max_point: maxPoint}, values));
+      gl.bindVertexArray(pointsVao);
+      gl.drawElements(gl.POINTS, state.drawn, gl.UNSIGNED_INT, 0);
+      gl.bindVertexArray(null);
+      return;
+    }
     var quads = Math.min(largerThan(pointRadius(frame, technique)), quadCount);
     if (quads > 0) {
       setUniforms(programs[name], values);
@@ -621,9 +712,20 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
 
   // ---- controls -------------------------------------------------------------------------------------
   var select = $('technique'), bg = $('background'), edlBox = $('edl'), hud = $('hud');
+  if (H.lod) {
+    $('panel').insertAdjacentHTML('beforeend', '<label>Point budget <input id="budget" type="number" min="1" ' +
+                                  'step="100000" aria-label="point budget" style="width: 8em"></label>');
+    $('budget').addEventListener('change', function () {
+      var v = Math.floor(Number($('budget').value));
+      if (v >= 1) { state.budget = v; state.lastChange = 0; changed(); }
+    });
+  }
   H.techniques.forEach(function (t) { var o = document.createElement('option'); o.value = o.textContent = t; select.appendChild(o); });
   function hex(c) { return '#' + c.map(function (x) { return ('0' + Math.round(Math.min(1, Math.max(0, x)) * 255).toString(16)).slice(-2); }).join(''); }
-  function syncControls() { select.value = state.technique; bg.value = hex(state.background); edlBox.checked = state.edl; }
+  function syncControls() {
+    select.value = state.technique; bg.value = hex(state.background); edlBox.checked = state.edl;
+    if (H.lod) $('budget').value = state.budget;
+  }
   select.addEventListener('change', function () { setTechnique(select.value); });
   bg.addEventListener('input', function () {
     var v = bg.value; state.background = [1, 3, 5].map(function (i) { return parseInt(v.substr(i, 2), 16) / 255; });
@@ -647,12 +749,12 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   var PREVIEW_MS = 250, SETTLE_MS = 300;
   var lastFullMs = null, lastChange = 0, refineTimer = null;
   function hudText(technique, ms, preview) {
-    hud.textContent = H.count.toLocaleString('en') + ' splats drawn \u00b7 ' + ms.toFixed(1) + ' ms/frame \u00b7 ' +
+    hud.textContent = (H.lod ? state.drawn : H.count).toLocaleString('en') + ' splats drawn \u00b7 ' + ms.toFixed(1) + ' ms/frame \u00b7 ' +
                       technique + (state.edl ? ' + EDL' : '') + (preview ? ' (preview; full quality when still)' : '');
   }
   function full() {
     refineTimer = null;
-    try { render(); } catch (e) { fail(String(e && e.message || e)); return; }
+    try { if (H.lod) selectCut(state.camera, canvas.width, canvas.height); render(); } catch (e) { fail(String(e && e.message || e)); return; }
     lastFullMs = state.frameMs;
     hudText(state.technique, state.frameMs, false);
     if (!state.ready) {
@@ -696,6 +798,10 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     state.programs = Object.keys(programs);   // every shipped program compiled and linked
     state.timings.compile = performance.now() - t0;
     splats = decode();
+    if (H.lod) {
+      tree = readTree();
+      state.budget = Number(params.budget) >= 1 ? Math.floor(Number(params.budget)) : H.lod.budget;
+    }
     state.timings.decode = performance.now() - t0 - state.timings.compile;
     upload(splats);
     state.timings.upload = performance.now() - t0 - state.timings.compile - state.timings.decode;
@@ -707,6 +813,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
                       fov: Number(params.fov) > 0 ? Number(params.fov) : H.fov};
       state.moved = true;
     }
+    if (H.lod) selectCut(state.camera, canvas.width, canvas.height);
     syncControls();
     dirty = false;
     request();

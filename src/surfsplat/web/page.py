@@ -1,0 +1,113 @@
+"""What an exported page draws: the splats the view plan gives for the page (:func:`exported_splats`), in
+the desktop renderer's order (:func:`web_order`), quantized, with everything the viewer needs to draw them
+as ``surfsplat render`` does (:func:`page_data`: the default view's fit, near/far, uniforms, material)."""
+
+from __future__ import annotations
+
+import base64
+
+import numpy as np
+
+from .. import defaults, progress
+from ..camera import Camera
+from ..cloud import SplatCloud
+from ..errors import InputError
+from ..lighting import Lights
+from ..pipeline import View
+from ..pipeline.framing import auto_fit_inputs
+from ..pipeline.models import as_model
+from ..rendering.edl import neighbour_offsets
+from ..rendering.gpu_splats import radius_classes
+from ..rendering.options import EdlOptions, RenderOptions
+from ..rendering.techniques import get_technique
+from ..version import __version__
+from . import format as web_format
+from .framing import fit_frame
+from .shaders import WEB_TECHNIQUES
+
+#: A hierarchy is cut to at most this many splats at the default camera unless a budget is given.
+DEFAULT_POINT_BUDGET = 5_000_000
+
+
+def _b64(array: np.ndarray) -> str:
+    """The bytes of an array as base64 text."""
+    return base64.b64encode(np.ascontiguousarray(array).tobytes()).decode("ascii")
+
+
+def exported_splats(plan: View, camera: Camera, point_budget: int | None) -> SplatCloud:
+    """The splats a page draws: the view plan's model as splats for ``camera`` (a mesh sampled for it);
+    a hierarchy's cut at ``camera`` within ``point_budget`` (default :data:`DEFAULT_POINT_BUDGET`; its
+    finest level where that holds it all), and so a cloud's beyond the budget (its hierarchy built)."""
+    drawn = plan.sample(camera)
+    budget = point_budget or DEFAULT_POINT_BUDGET
+    if not drawn.is_tree:
+        points = drawn.points()
+        if len(points) <= budget:
+            return points
+        progress.message(f"{len(points):,} splats are more than the point budget of {budget:,}: exporting the "
+                         f"cut of their hierarchy at the default view")
+    tree = plan.tree(camera)
+    cloud, _ = tree.cut(camera, 0.0, shading=plan.lod.shading, point_budget=budget)
+    return cloud
+
+
+def web_order(cloud: SplatCloud) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The order a page stores splats in, as the desktop renderer uploads them
+    (:func:`~surfsplat.rendering.gpu_splats.radius_classes`: by radius class, largest first, each class in
+    Morton order), with the first index and the largest radius of each class: a frame draws the classes
+    too large for a point, a prefix, as quads, and an opaque technique keeps the same splat of two at
+    one depth as the desktop."""
+    return radius_classes(cloud.radii, cloud.positions)
+
+
+def as_drawn(cloud: SplatCloud) -> SplatCloud:
+    """The splats a page draws for ``cloud``: in :func:`web_order`, through the web format and back
+    (float32, the same origin and up): what the desktop renderer draws to show what the page shows."""
+    if cloud.u is None or cloud.v is None or cloud.normals is None:
+        raise InputError("a page draws splats: this SplatCloud has no splat axes or normals")
+    order = web_order(cloud)[0]
+    colors = cloud.colors if cloud.colors is not None else np.full((len(cloud), 3), 0.8, np.float32)
+    streams, header = web_format.encode(cloud.positions[order], cloud.normals[order], colors[order],
+                                        cloud.u[order], cloud.v[order])
+    d = web_format.decode(streams, header)
+    return SplatCloud(d["positions"].astype("f4"), d["normals"].astype("f4"), d["colors"].astype("f4"),
+                      d["u"].astype("f4"), d["v"].astype("f4"), origin=cloud.origin, up=cloud.up)
+
+
+def page_data(plan: View, cloud: SplatCloud, technique: str, background, name: str,
+              ordered: bool = True) -> tuple[dict, dict]:
+    """The header (everything but the streams) and the streams of a page drawing ``cloud`` (in
+    :func:`web_order` where ``ordered``, else as it is: the entries of a browser LOD tree)."""
+    if len(cloud) == 0:
+        raise InputError(f"{name}: no splats to export")
+    if cloud.u is None or cloud.v is None or cloud.normals is None:
+        raise InputError(f"{name}: the prepared model has no splat axes or normals to export")
+    colors = cloud.colors if cloud.colors is not None else np.full((len(cloud), 3), 0.8, np.float32)
+    if ordered:
+        order, class_start, class_radius = web_order(cloud)
+    else:
+        order, class_start, class_radius = np.arange(len(cloud)), np.zeros(1, np.int64), np.full(1, np.inf)
+    streams, header = web_format.encode(cloud.positions[order], cloud.normals[order], colors[order], cloud.u[order],
+                                        cloud.v[order])
+    model = as_model(plan.model).points()
+    points, direction, up, margin = auto_fit_inputs(model, plan.up)
+    options, lights = RenderOptions(), Lights()
+    radius = float(cloud.radii.max())
+    header.update({
+        "name": name, "version": __version__, "origin": np.asarray(cloud.origin, np.float64).tolist(),
+        "bounds": [b.tolist() for b in cloud.bounds()], "max_radius": radius,
+        "class_start": class_start.tolist(), "class_radius": [min(float(r), 3e38) for r in class_radius],
+        "fit": fit_frame(points, direction, up, margin), "fov": defaults.FOV,
+        "technique": technique, "techniques": list(WEB_TECHNIQUES), "background": list(background),
+        "uniforms": {t: {k: list(np.atleast_1d(v).astype(float)) for k, v in get_technique(t).uniforms(options).items()}
+                     for t in WEB_TECHNIQUES},
+        "frame": {"u_depth_epsilon": options.visibility.depth_epsilon,
+                  "u_separate_sides": options.visibility.separate_sides,
+                  "u_clip_fringe": options.visibility.clip_fringe, "u_deferred": options.deferred,
+                  "u_cull_backfaces": False, "u_supersample": 1.0},
+        "material": [lights.ambient, lights.diffuse, lights.specular, lights.shininess],
+        "footprints": {t: {"footprint": get_technique(t).point_footprint, "min_point_px": get_technique(t).min_point_px}
+                       for t in WEB_TECHNIQUES},
+        "edl": {"strength": EdlOptions().strength, "offsets": neighbour_offsets(EdlOptions().radius_px)},
+    })
+    return header, {key: _b64(value) for key, value in streams.items()}
