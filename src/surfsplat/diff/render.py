@@ -178,7 +178,8 @@ def _pair_terms(table: torch.Tensor, sid: torch.Tensor, ix: torch.Tensor, iy: to
     # one gather and one split: their backward is one scatter and one concatenation
     p, u, v, n, center, cxx, cxy, cyy, scale, color, opacity, radius, rho = table[sid].split(_COLUMNS, dim=1)
     pix = torch.stack([ix, iy], dim=1).to(dtype) + 0.5
-    beta = ref.ewa_beta(ref.matrix2(cxx[:, 0], cxy[:, 0], cxy[:, 0], cyy[:, 0]), pix - center)
+    offset = pix - center
+    beta = ref.conic_beta(cxx[:, 0], cxy[:, 0], cyy[:, 0], offset[:, 0], offset[:, 1])
     rays = ref.rays_through(pix, f, principal)
     hit = ref.ray_plane_distance(rays, p, n)
     st = ref.splat_coordinates(rays, hit, p, u, v)
@@ -218,7 +219,8 @@ def _band(table: torch.Tensor, box: torch.Tensor, camera: DiffCamera, options: D
         t = table.detach()
         pix = torch.stack([ix, iy], dim=1).to(dtype) + 0.5
         p, n, center = t[sid, _P], t[sid, _N], t[sid, _CENTER]
-        beta = ref.ewa_beta(ref.matrix2(t[sid, 14], t[sid, 15], t[sid, 15], t[sid, 16]), pix - center)
+        offset = pix - center
+        beta = ref.conic_beta(t[sid, 14], t[sid, 15], t[sid, 16], offset[:, 0], offset[:, 1])
         depth = ref.ray_plane_distance(ref.rays_through(pix, camera.focal.detach(), camera.principal), p, n)
         keep = (beta <= options.cutoff) & torch.isfinite(depth) & (depth > 0)
         sid, ix, iy = sid[keep], ix[keep], iy[keep]
