@@ -131,3 +131,10 @@ def test_fit_names_a_missing_image_and_a_missing_initial_cloud(scene, tmp_path):
         load_views(tmp_path / "cameras.json")
     with pytest.raises(InputError, match="no initial cloud"):
         initial_cloud(None, tmp_path / "cameras.json")
+    # a COLMAP model's points3D.txt beside the cameras is the initial cloud: splats with its colours
+    points = scenes.sphere(300).positions
+    (tmp_path / "points3D.txt").write_text("".join(f"{i} {x} {y} {z} 200 100 50 0.5\n"
+                                                   for i, (x, y, z) in enumerate(points)))
+    cloud = initial_cloud(None, tmp_path / "cameras.json")
+    assert len(cloud) == 300 and cloud.u is not None
+    np.testing.assert_allclose(cloud.colors[0], [200 / 255, 100 / 255, 50 / 255], atol=1e-6)

@@ -54,8 +54,8 @@ class DiffOptions:
         depth_epsilon: visibility offset along the rays in splat radii (``VisibilityOptions``).
         depth_softness: width of the soft depth test, as a fraction of each splat's epsilon band (0: hard).
         edge_softness: width in pixels over which a disk's coverage falls to 0 across its rim (0: hard).
-        min_visibility: pairs whose soft depth test passes less than this are skipped (hidden surfaces;
-            0: every pair is evaluated).
+        min_visibility: with gradients, pairs whose soft depth test passes less than this are left out of
+            the differentiable pass (hidden surfaces: their weight is below it; 0: every pair is kept).
         max_pairs: most (pixel, splat) pairs evaluated at once (a band of rows holds at most this many,
             unless one row alone holds more).
     """
@@ -212,6 +212,7 @@ def _band(table: torch.Tensor, box: torch.Tensor, camera: DiffCamera, options: D
     width = camera.width
     dtype, device = table.dtype, table.device
     npix = (row1 - row0) * width
+    differentiable = torch.is_grad_enabled() and table.requires_grad
     with torch.no_grad():
         # the pairs inside the cutoff ellipse whose ray meets the splat's plane in front of the eye, and
         # (those hidden far behind the nearest surface weigh nothing) whose soft depth test passes
@@ -225,7 +226,7 @@ def _band(table: torch.Tensor, box: torch.Tensor, camera: DiffCamera, options: D
         keep = (beta <= options.cutoff) & torch.isfinite(depth) & (depth > 0)
         sid, ix, iy = sid[keep], ix[keep], iy[keep]
         pixel = (iy - row0) * width + ix
-        if options.min_visibility > 0:
+        if options.min_visibility > 0 and differentiable:
             terms = _pair_terms(t, sid, ix, iy, pixel, npix, camera, options)
             keep = terms["vis"] >= options.min_visibility
             sid, ix, iy, pixel = sid[keep], ix[keep], iy[keep], pixel[keep]
