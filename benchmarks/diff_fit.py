@@ -100,7 +100,11 @@ def main() -> None:
     points += rng.normal(size=points.shape) * args.noise * diagonal
     init = initial_cloud(points)
     start = time.perf_counter()
-    result = fit(train, init, options=FitOptions(iterations=args.iterations, max_splats=200_000))
+    def log(step: int, loss: float, splats: int) -> None:
+        if step % 100 == 0 or step == args.iterations - 1:
+            print(f"step {step}: loss {loss:.4f}, {splats:,} splats, {time.perf_counter() - start:.0f} s", flush=True)
+
+    result = fit(train, init, options=FitOptions(iterations=args.iterations, max_splats=200_000), on_step=log)
     seconds = time.perf_counter() - start
 
     dense = sample_mesh(mesh, 2_000_000, seed=2)

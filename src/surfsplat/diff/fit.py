@@ -23,7 +23,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 import torch
@@ -241,11 +241,13 @@ def _densify(params: _Params, options: FitOptions, rng: np.random.Generator) -> 
 
 
 def fit(views: list[FitView], init: SplatCloud, *, options: FitOptions | None = None,
-        device: str | torch.device | None = None) -> FitResult:
+        device: str | torch.device | None = None, on_step: Callable[[int, float, int], None] | None = None
+        ) -> FitResult:
     """Fit splats, starting from ``init``, to the images of ``views`` (see the module docstring).
 
     ``views``: :class:`FitView` (camera, image, optional alpha); ``init``: preprocessed splats
     (:func:`initial_cloud`). ``device``: where PyTorch runs ("cpu", "cuda", "mps"; None: the CPU).
+    ``on_step(step, loss, splats)``: called after every step (a log, a plot).
     Returns the fitted splats (colours unlit, the ``opacity`` attribute), the loss curve and the time.
     """
     options = options or FitOptions()
@@ -294,6 +296,8 @@ def fit(views: list[FitView], init: SplatCloud, *, options: FitOptions | None = 
             params.optimizer.step()
             losses.append(float(loss.detach()))
             bar.update()
+            if on_step is not None:
+                on_step(step, losses[-1], len(params.t["positions"]))
             if ((step + 1) % int(options.densify_every) == 0 and step + 1 < options.densify_until * iterations
                     and step + 1 < iterations):
                 params = _densify(params, options, rng)

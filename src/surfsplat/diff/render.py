@@ -176,7 +176,8 @@ def _pair_terms(table: torch.Tensor, sid: torch.Tensor, ix: torch.Tensor, iy: to
     dtype, device = table.dtype, table.device
     f, principal = camera.focal, camera.principal
     # one gather and one split: their backward is one scatter and one concatenation
-    p, u, v, n, center, cxx, cxy, cyy, scale, color, opacity, radius, rho = table[sid].split(_COLUMNS, dim=1)
+    rows = torch.index_select(table, 0, sid)
+    p, u, v, n, center, cxx, cxy, cyy, scale, color, opacity, radius, rho = rows.split(_COLUMNS, dim=1)
     pix = torch.stack([ix, iy], dim=1).to(dtype) + 0.5
     offset = pix - center
     beta = ref.conic_beta(cxx[:, 0], cxy[:, 0], cyy[:, 0], offset[:, 0], offset[:, 1])
@@ -218,10 +219,11 @@ def _band(table: torch.Tensor, box: torch.Tensor, camera: DiffCamera, options: D
         # (those hidden far behind the nearest surface weigh nothing) whose soft depth test passes
         sid, ix, iy = _band_pairs(box, row0, row1)
         t = table.detach()
+        rows = torch.index_select(t[:, :17], 0, sid)   # one gather; the columns below are views
         pix = torch.stack([ix, iy], dim=1).to(dtype) + 0.5
-        p, n, center = t[sid, _P], t[sid, _N], t[sid, _CENTER]
+        p, n, center = rows[:, _P], rows[:, _N], rows[:, _CENTER]
         offset = pix - center
-        beta = ref.conic_beta(t[sid, 14], t[sid, 15], t[sid, 16], offset[:, 0], offset[:, 1])
+        beta = ref.conic_beta(rows[:, 14], rows[:, 15], rows[:, 16], offset[:, 0], offset[:, 1])
         depth = ref.ray_plane_distance(ref.rays_through(pix, camera.focal.detach(), camera.principal), p, n)
         keep = (beta <= options.cutoff) & torch.isfinite(depth) & (depth > 0)
         sid, ix, iy = sid[keep], ix[keep], iy[keep]
