@@ -96,9 +96,9 @@ def test_forward_image_matches_opengl_ewa():
         frame = render_frame(splats, cam)
         hard = render_frame(splats, cam, options=DiffOptions(edge_softness=0.0, depth_softness=0.0))
     image = frame.color.numpy()
-    # measured 38.9 dB (soft rims of 0.02 px: the silhouette pixels differ), 57 dB with the hard tests
-    assert metrics.psnr(image, gl.color) >= 36.0
-    assert metrics.psnr(hard.color.numpy(), gl.color) >= 50.0
+    # measured (float32) 42.4 dB: soft rims of 0.02 px, the silhouette pixels differ; 143 dB with the hard tests
+    assert metrics.psnr(image, gl.color) >= 39.0
+    assert metrics.psnr(hard.color.numpy(), gl.color) >= 80.0
     # no hole, no spill: the covered pixels are OpenGL's exactly with hard rims
     assert np.array_equal(hard.alpha.numpy() > 0.5, gl.alpha > 0.5)
     assert int(((frame.alpha.numpy() > 0.5) != (gl.alpha > 0.5)).sum()) <= 0.005 * (gl.alpha > 0.5).sum()
