@@ -16,7 +16,7 @@ lights. For 256 x 256 and 512 x 512 pixels:
   positions, axes, colours, opacity and focal length (median of 3 after a warm-up), with 1 and 2 CPU
   threads (``torch.set_num_threads``).
 
-    python benchmarks/diff_render.py [--images /tmp/diff_render] [--bunny PATH]
+    python benchmarks/diff_render.py [--images /tmp/diff_render] [--bunny PATH] [--threads 1 2]
 
 Writes benchmarks/results/diff_render.md and .json; PNGs (OpenGL | diff | 10x difference) to ``--images``.
 """
@@ -69,7 +69,7 @@ def timed(fn, repeats: int = 3) -> float:
     return statistics.median(times)
 
 
-def run_case(name: str, cloud, size: int, images: Path) -> list:
+def run_case(name: str, cloud, size: int, images: Path, threads: tuple[int, ...]) -> list:
     view = surfsplat.prepare(cloud)
     camera = view.camera(None, size, size)
     gl = view.render(camera, technique="ewa").frame
@@ -100,8 +100,8 @@ def run_case(name: str, cloud, size: int, images: Path) -> list:
         render_frame(params, grad_cam).color.sum().backward()
 
     times = []
-    for threads in THREADS:
-        torch.set_num_threads(threads)
+    for count in threads:
+        torch.set_num_threads(count)
         times += [round(timed(forward), 3), round(timed(forward_backward), 3)]
     return [name, f"{size}x{size}", len(cloud), round(metrics.psnr(image, gl.color), 2),
             round(metrics.psnr(image, gl.color, mask=inner), 2), round(metrics.psnr(hard.color.numpy(), gl.color), 2),
@@ -113,15 +113,18 @@ def main() -> None:
     parser.add_argument("--images", type=Path, default=Path("/tmp/diff_render"))
     parser.add_argument("--bunny", type=Path, default=DEFAULT_BUNNY)
     parser.add_argument("--splats", type=int, default=100_000)
+    parser.add_argument("--threads", type=int, nargs="+", default=list(THREADS),
+                        help="PyTorch CPU thread counts to time with (default 1 2)")
     args = parser.parse_args()
+    threads = tuple(args.threads)
     args.images.mkdir(parents=True, exist_ok=True)
     cases = [("sphere", scenes.sphere(args.splats, color="bands"))]
     if args.bunny.exists():
         cases.append(("bunny", bunny(args.bunny, args.splats)))
-    rows = [run_case(name, cloud, size, args.images) for name, cloud in cases for size in (256, 512)]
+    rows = [run_case(name, cloud, size, args.images, threads) for name, cloud in cases for size in (256, 512)]
     columns = ["scene", "pixels", "splats", "PSNR dB", "PSNR inside dB", "PSNR hard dB", "holes", "rim pixels"]
-    for threads in THREADS:
-        columns += [f"forward s ({threads} thr.)", f"forward+backward s ({threads} thr.)"]
+    for count in threads:
+        columns += [f"forward s ({count} thr.)", f"forward+backward s ({count} thr.)"]
     machine = machine_description() + f", torch {torch.__version__}"
     write_table("diff_render", columns, rows, machine)
     print("command: python benchmarks/diff_render.py " + " ".join(sys.argv[1:]))
