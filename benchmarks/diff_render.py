@@ -9,13 +9,14 @@ lights. For 256 x 256 and 512 x 512 pixels:
 - PSNR of the differentiable forward image (float32, default ``DiffOptions``) against the OpenGL frame
   (``surfsplat.render(cloud, camera, technique="ewa")``), over the whole image and inside OpenGL's
   silhouette eroded by 2 px; the same with hard rims and hard depth tests (``edge_softness = 0``,
-  ``depth_softness = 0``); holes: pixels OpenGL covers that the differentiable image leaves below
-  alpha 0.5; spill: the reverse;
+  ``depth_softness = 0``); holes: pixels inside OpenGL's silhouette eroded by 1 px that the
+  differentiable image leaves below alpha 0.5; rim pixels: pixels covered (alpha >= 0.5) in one image
+  and not in the other;
 - time of one forward pass without gradients, and of a forward + backward pass with gradients to
-  positions, axes, colours, opacity and focal length (median of 3 after a warm-up), on the CPU threads
-  PyTorch is given (``torch.get_num_threads()``).
+  positions, axes, colours, opacity and focal length (median of 3 after a warm-up), with 1 and 2 CPU
+  threads (``torch.set_num_threads``).
 
-    python benchmarks/diff_render.py [--images /tmp/diff_render] [--bunny PATH]
+    python benchmarks/diff_render.py [--images /tmp/diff_render] [--bunny PATH] [--threads 1 2]
 
 Writes benchmarks/results/diff_render.md and .json; PNGs (OpenGL | diff | 10x difference) to ``--images``.
 """
@@ -42,6 +43,9 @@ from surfsplat.diff import DiffCamera, DiffOptions, Splats, render_frame  # noqa
 from surfsplat.geometry.sampling import surface_splats  # noqa: E402
 from surfsplat.io import load_mesh  # noqa: E402
 
+#: PyTorch CPU threads the times are taken with (on a machine other processes share, one thread can be the
+#: faster: OpenMP's barriers wait for descheduled threads).
+THREADS = (1, 2)
 DEFAULT_BUNNY = Path(__file__).resolve().parents[2] / "shared" / "data" / "bunny.ply"
 
 
@@ -65,7 +69,7 @@ def timed(fn, repeats: int = 3) -> float:
     return statistics.median(times)
 
 
-def run_case(name: str, cloud, size: int, images: Path) -> list:
+def run_case(name: str, cloud, size: int, images: Path, threads: tuple[int, ...]) -> list:
     view = surfsplat.prepare(cloud)
     camera = view.camera(None, size, size)
     gl = view.render(camera, technique="ewa").frame
@@ -77,8 +81,8 @@ def run_case(name: str, cloud, size: int, images: Path) -> list:
     image = soft.color.numpy()
     covered = gl.alpha > 0.5
     inner = metrics.erode(covered, 2)
-    holes = int((covered & (soft.alpha.numpy() < 0.5)).sum())
-    spill = int((~covered & (soft.alpha.numpy() >= 0.5)).sum())
+    holes = int((metrics.erode(covered, 1) & (soft.alpha.numpy() < 0.5)).sum())
+    rim = int((covered & (soft.alpha.numpy() < 0.5)).sum() + (~covered & (soft.alpha.numpy() >= 0.5)).sum())
     strip = np.concatenate([gl.color, image, np.clip(np.abs(gl.color - image) * 10, 0, 1)], axis=1)
     picture = label((strip * 255).round().astype(np.uint8), f"{name} {size}: OpenGL | diff | 10x difference")
     Image.fromarray(picture).save(images / f"{name}_{size}.png")
@@ -95,9 +99,13 @@ def run_case(name: str, cloud, size: int, images: Path) -> list:
     def forward_backward():
         render_frame(params, grad_cam).color.sum().backward()
 
+    times = []
+    for count in threads:
+        torch.set_num_threads(count)
+        times += [round(timed(forward), 3), round(timed(forward_backward), 3)]
     return [name, f"{size}x{size}", len(cloud), round(metrics.psnr(image, gl.color), 2),
             round(metrics.psnr(image, gl.color, mask=inner), 2), round(metrics.psnr(hard.color.numpy(), gl.color), 2),
-            holes, spill, round(timed(forward), 3), round(timed(forward_backward), 3)]
+            holes, rim, *times]
 
 
 def main() -> None:
@@ -105,15 +113,19 @@ def main() -> None:
     parser.add_argument("--images", type=Path, default=Path("/tmp/diff_render"))
     parser.add_argument("--bunny", type=Path, default=DEFAULT_BUNNY)
     parser.add_argument("--splats", type=int, default=100_000)
+    parser.add_argument("--threads", type=int, nargs="+", default=list(THREADS),
+                        help="PyTorch CPU thread counts to time with (default 1 2)")
     args = parser.parse_args()
+    threads = tuple(args.threads)
     args.images.mkdir(parents=True, exist_ok=True)
     cases = [("sphere", scenes.sphere(args.splats, color="bands"))]
     if args.bunny.exists():
         cases.append(("bunny", bunny(args.bunny, args.splats)))
-    rows = [run_case(name, cloud, size, args.images) for name, cloud in cases for size in (256, 512)]
-    columns = ["scene", "pixels", "splats", "PSNR dB", "PSNR inside dB", "PSNR hard dB", "holes", "spill",
-               "forward s", "forward+backward s"]
-    machine = machine_description() + f", torch {torch.__version__}, {torch.get_num_threads()} threads"
+    rows = [run_case(name, cloud, size, args.images, threads) for name, cloud in cases for size in (256, 512)]
+    columns = ["scene", "pixels", "splats", "PSNR dB", "PSNR inside dB", "PSNR hard dB", "holes", "rim pixels"]
+    for count in threads:
+        columns += [f"forward s ({count} thr.)", f"forward+backward s ({count} thr.)"]
+    machine = machine_description() + f", torch {torch.__version__}"
     write_table("diff_render", columns, rows, machine)
     print("command: python benchmarks/diff_render.py " + " ".join(sys.argv[1:]))
 

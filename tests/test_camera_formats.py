@@ -172,3 +172,21 @@ def test_malformed_colmap_names_the_file(tmp_path):
     (tmp_path / "images.txt").unlink()
     with pytest.raises(InputError, match="images.txt"):
         load_cameras(tmp_path / "cameras.txt")
+
+
+def test_colmap_points_are_read_with_their_colours_and_bad_lines_named(tmp_path):
+    from surfsplat.io.camera_formats import load_colmap_points
+
+    (tmp_path / "points3D.txt").write_text(
+        "# 3D point list with one line of data per point:\n"
+        "1 0.5 -1.25 3.0 255 128 0 0.7 1 2 3 4\n"
+        "2 1e-3 2 -4 0 0 255 1.2\n")
+    cloud = load_colmap_points(tmp_path)
+    np.testing.assert_allclose(cloud.positions, [[0.5, -1.25, 3.0], [1e-3, 2.0, -4.0]], rtol=1e-6)
+    np.testing.assert_allclose(cloud.colors, [[1.0, 128 / 255, 0.0], [0.0, 0.0, 1.0]], rtol=1e-6)
+    (tmp_path / "points3D.txt").write_text("1 0.5 -1.25 3.0 255 128 0 0.7\n2 1 2 nan 0 0 0 1\n")
+    with pytest.raises(InputError, match=r"points3D.txt:2"):
+        load_colmap_points(tmp_path / "points3D.txt")
+    (tmp_path / "points3D.txt").write_text("# nothing\n")
+    with pytest.raises(InputError, match="no points"):
+        load_colmap_points(tmp_path)

@@ -4,6 +4,8 @@ gradients (gradcheck in float64 for every parameter group)."""
 
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 import pytest
 
@@ -16,9 +18,20 @@ torch = pytest.importorskip("torch")
 
 from surfsplat.diff import DiffCamera, DiffOptions, Splats, render, render_frame, tangent_axes  # noqa: E402
 
+render_module = importlib.import_module("surfsplat.diff.render")   # the package's render is the function
+
 pytestmark = pytest.mark.torch
 
 F64 = torch.float64
+
+
+@pytest.fixture(autouse=True)
+def one_thread():
+    """Small tensors: one thread (OpenMP's barriers cost more than they bring, the more on a busy machine)."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
 
 
 def random_splats(n: int, seed: int = 0):
@@ -83,9 +96,9 @@ def test_forward_image_matches_opengl_ewa():
         frame = render_frame(splats, cam)
         hard = render_frame(splats, cam, options=DiffOptions(edge_softness=0.0, depth_softness=0.0))
     image = frame.color.numpy()
-    # measured 38.9 dB (soft rims of 0.02 px: the silhouette pixels differ), 57 dB with the hard tests
-    assert metrics.psnr(image, gl.color) >= 36.0
-    assert metrics.psnr(hard.color.numpy(), gl.color) >= 50.0
+    # measured (float32) 42.4 dB: soft rims of 0.02 px, the silhouette pixels differ; 143 dB with the hard tests
+    assert metrics.psnr(image, gl.color) >= 39.0
+    assert metrics.psnr(hard.color.numpy(), gl.color) >= 80.0
     # no hole, no spill: the covered pixels are OpenGL's exactly with hard rims
     assert np.array_equal(hard.alpha.numpy() > 0.5, gl.alpha > 0.5)
     assert int(((frame.alpha.numpy() > 0.5) != (gl.alpha > 0.5)).sum()) <= 0.005 * (gl.alpha > 0.5).sum()
@@ -114,10 +127,12 @@ def test_visibility_hides_the_farther_of_two_surfaces_and_blends_coincident_ones
     red, blue = (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)
     radius = 1.0 / 24 * 0.75
     # a red square in front of a blue one 3 radii behind: the blue splats' soft depth factor is
-    # sigmoid((D - z) / tau) = sigmoid(-2 band / (0.1 band)) = sigmoid(-20) = 2.1e-9 at most
+    # sigmoid((D - z) / tau) = sigmoid(-2 band / (0.1 band)) = sigmoid(-20) = 2.1e-9
     image = render(merged(square(0.0, red), square(-3 * radius, blue)), camera, lights=unlit).numpy()
     centre = image[14:34, 14:34]
-    assert np.abs(centre - red).max() < 2.1e-9
+    hidden = 1.0 / (1.0 + np.exp(20.0))
+    assert np.median(centre[..., 2]) == pytest.approx(hidden, rel=0.1)
+    assert np.abs(centre - red).max() < 4 * hidden
     # the same squares within a tenth of a band: both blend, half and half (equal weights; a few pixels on
     # the cutoff ellipse of one splat and not of its twin, whose footprint is 0.3% smaller, differ)
     image = render(merged(square(0.0, red), square(-0.1 * radius, blue)), camera, lights=unlit).numpy()
@@ -194,7 +209,9 @@ def test_tiles_give_the_image_of_one_pass_and_the_same_gradients():
     splats.positions.requires_grad_(True)
     one = render(splats, camera)
     (g_one,) = torch.autograd.grad(one.sum(), splats.positions)
-    many = render(splats, camera, options=DiffOptions(max_pairs=500))
+    table, box = render_module._splat_table(splats, camera, Lights(), DiffOptions())
+    assert len(render_module._bands(box, camera.height, 1500)) >= 3
+    many = render(splats, camera, options=DiffOptions(max_pairs=1500))
     (g_many,) = torch.autograd.grad(many.sum(), splats.positions)
     torch.testing.assert_close(many, one, rtol=1e-12, atol=1e-12)
     torch.testing.assert_close(g_many, g_one, rtol=1e-9, atol=1e-12)

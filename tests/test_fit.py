@@ -86,11 +86,11 @@ def test_fit_improves_held_out_views(scene):
     before = held_out_psnr(init, test)
     result = fit(train, init, options=FitOptions(iterations=200, densify_every=50))
     after = held_out_psnr(result.cloud, test)
-    # measured: 12.2 dB (grey noisy splats) -> 23.4 dB after 200 steps
+    # measured: 12.2 dB (grey noisy splats) -> 22.8 dB after 200 steps
     assert after >= before + 8.0 and after >= 21.0
     assert len(result.losses) == 200
     assert np.mean(result.losses[-20:]) < 0.3 * np.mean(result.losses[:5])
-    # the fitted centres stay near the truth's surface, the unit sphere (measured: median 0.036 off it; the
+    # the fitted centres stay near the truth's surface, the unit sphere (measured: median 0.024 off it; the
     # noisy input 0.013: splats larger than the truth's, tangent at the silhouette, are pulled inward)
     radius = np.linalg.norm(np.asarray(result.cloud.positions, np.float64), axis=1)
     assert np.median(np.abs(radius - 1.0)) < 0.05
@@ -131,3 +131,10 @@ def test_fit_names_a_missing_image_and_a_missing_initial_cloud(scene, tmp_path):
         load_views(tmp_path / "cameras.json")
     with pytest.raises(InputError, match="no initial cloud"):
         initial_cloud(None, tmp_path / "cameras.json")
+    # a COLMAP model's points3D.txt beside the cameras is the initial cloud: splats with its colours
+    points = scenes.sphere(300).positions
+    (tmp_path / "points3D.txt").write_text("".join(f"{i} {x} {y} {z} 200 100 50 0.5\n"
+                                                   for i, (x, y, z) in enumerate(points)))
+    cloud = initial_cloud(None, tmp_path / "cameras.json")
+    assert len(cloud) == 300 and cloud.u is not None
+    np.testing.assert_allclose(cloud.colors[0], [200 / 255, 100 / 255, 50 / 255], atol=1e-6)

@@ -141,9 +141,14 @@ def ewa_scale(variance, jacobian, cutoff: float = 1.0) -> Any:
 
 def ewa_beta(conic, offset) -> Any:
     """``beta = 0.5 x^T V^-1 x`` at pixel offsets ``offset`` (..., 2) for conics ``V^-1`` (..., 2, 2)."""
-    dx, dy = offset[..., 0], offset[..., 1]
-    return 0.5 * (conic[..., 0, 0] * dx * dx + (conic[..., 0, 1] + conic[..., 1, 0]) * dx * dy
-                  + conic[..., 1, 1] * dy * dy)
+    return conic_beta(conic[..., 0, 0], 0.5 * (conic[..., 0, 1] + conic[..., 1, 0]), conic[..., 1, 1],
+                      offset[..., 0], offset[..., 1])
+
+
+def conic_beta(xx, xy, yy, dx, dy) -> Any:
+    """``beta = 0.5 x^T V^-1 x`` from the entries ``(xx, xy, yy)`` of the symmetric conic ``V^-1`` and the
+    offset ``(dx, dy)`` in pixels (the fragment shader's form, ewa.frag)."""
+    return 0.5 * (xx * dx * dx + 2.0 * xy * dx * dy + yy * dy * dy)
 
 
 def ewa_weight(variance, jacobian, offset, cutoff: float = 1.0) -> Any:

@@ -9,11 +9,11 @@ step, so colour cannot stand in for coverage).
 
 The initial splats: a cloud given (``init``: a file, an array or a SplatCloud, made into splats by the
 view plan: normals and radii from its neighbours) or a COLMAP model's ``points3D.txt``. Parameters:
-positions, normals and log radii (circular splats), colour and opacity logits; Adam with the position
-step decaying tenfold over the run. Every ``densify_every`` steps until ``densify_until`` of the run,
-splats whose mean position gradient is in the top ``densify_fraction`` are split in two (each with 0.7
-of the radius, half a radius apart along a random tangent direction) and splats of opacity below
-``prune_opacity`` are dropped.
+positions, normals and log radii (circular splats), colour and opacity logits; Adam with the steps of
+the geometry (positions, normals, radii) decaying tenfold over the run. Every ``densify_every`` steps
+until ``densify_until`` of the run, splats whose mean position gradient is in the top
+``densify_fraction`` are split in two (each with 0.7 of the radius, half a radius apart along a random
+tangent direction) and splats of opacity below ``prune_opacity`` are dropped.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 import torch
@@ -54,7 +54,7 @@ class FitOptions:
     Attributes:
         iterations: optimizer steps (one view each, cycling through the views in a shuffled order).
         position_lr: Adam step of the positions as a fraction of the initial cloud's bounding-box diagonal
-            (decays to a tenth over the run).
+            (the steps of positions, normals and radii decay to a tenth over the run).
         normal_lr, radius_lr, color_lr, opacity_lr: Adam steps of the unnormalized normals, log radii,
             colour and opacity logits.
         alpha_weight: weight of the L1 loss on the coverage where the images have alpha.
@@ -67,8 +67,8 @@ class FitOptions:
     """
 
     iterations: int = 1000
-    position_lr: float = 5e-4
-    normal_lr: float = 0.02
+    position_lr: float = 2e-4
+    normal_lr: float = 0.005
     radius_lr: float = 0.02
     color_lr: float = 0.05
     opacity_lr: float = 0.05
@@ -198,6 +198,7 @@ class _Params:
         o = options
         lrs = {"positions": o.position_lr * scale, "normals": o.normal_lr, "log_radii": o.radius_lr,
                "colors": o.color_lr, "opacity": o.opacity_lr}
+        self.geometry = {k: lrs[k] for k in ("positions", "normals", "log_radii")}
         self.optimizer = torch.optim.Adam([{"params": [self.t[k]], "lr": lr, "name": k} for k, lr in lrs.items()],
                                           eps=ADAM_EPS)
 
@@ -206,10 +207,11 @@ class _Params:
         u, v = tangent_axes(t["normals"], torch.exp(t["log_radii"]))
         return Splats(t["positions"], u, v, torch.sigmoid(t["colors"]), torch.sigmoid(t["opacity"]), t["normals"])
 
-    def set_position_lr(self, lr: float) -> None:
+    def set_decay(self, factor: float) -> None:
+        """Scale the steps of the geometry (positions, normals, radii) by ``factor`` of their initial size."""
         for group in self.optimizer.param_groups:
-            if group["name"] == "positions":
-                group["lr"] = lr
+            if group["name"] in self.geometry:
+                group["lr"] = self.geometry[group["name"]] * factor
 
 
 def _densify(params: _Params, options: FitOptions, rng: np.random.Generator) -> _Params:
@@ -241,11 +243,13 @@ def _densify(params: _Params, options: FitOptions, rng: np.random.Generator) -> 
 
 
 def fit(views: list[FitView], init: SplatCloud, *, options: FitOptions | None = None,
-        device: str | torch.device | None = None) -> FitResult:
+        device: str | torch.device | None = None, on_step: Callable[[int, float, int], None] | None = None
+        ) -> FitResult:
     """Fit splats, starting from ``init``, to the images of ``views`` (see the module docstring).
 
     ``views``: :class:`FitView` (camera, image, optional alpha); ``init``: preprocessed splats
     (:func:`initial_cloud`). ``device``: where PyTorch runs ("cpu", "cuda", "mps"; None: the CPU).
+    ``on_step(step, loss, splats)``: called after every step (a log, a plot).
     Returns the fitted splats (colours unlit, the ``opacity`` attribute), the loss curve and the time.
     """
     options = options or FitOptions()
@@ -290,10 +294,12 @@ def fit(views: list[FitView], init: SplatCloud, *, options: FitOptions | None = 
                 g = torch.linalg.vector_norm(grad.detach(), dim=1).cpu()
                 params.grad_sum += g
                 params.grad_count += (g > 0).to(g.dtype)
-            params.set_position_lr(options.position_lr * scale * 0.1 ** (step / max(iterations - 1, 1)))
+            params.set_decay(0.1 ** (step / max(iterations - 1, 1)))
             params.optimizer.step()
             losses.append(float(loss.detach()))
             bar.update()
+            if on_step is not None:
+                on_step(step, losses[-1], len(params.t["positions"]))
             if ((step + 1) % int(options.densify_every) == 0 and step + 1 < options.densify_until * iterations
                     and step + 1 < iterations):
                 params = _densify(params, options, rng)

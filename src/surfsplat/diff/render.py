@@ -13,7 +13,8 @@ taken from :mod:`surfsplat.reference` run on tensors:
   ``epsilon`` splat radii along the ray, and a *soft* depth test: a pair blends with the factor
   ``sigmoid((D - z) / tau)`` (``tau`` a fraction ``depth_softness`` of the splat's epsilon band) in
   place of the hard ``z <= D``; a fringe fragment (beyond its own disk) also needs ``D <= z + 2 band``
-  (``fringe_hidden``). ``depth_softness = 0`` is the hard test.
+  (``fringe_hidden``). ``depth_softness = 0`` is the hard test. With ``separate_sides`` (the default,
+  as ``VisibilityOptions``) only the splats seen from the same side as the nearest disk blend.
 - coverage: the OpenGL passes show the background where no disk covers the pixel's centre. Here the
   pixel's alpha is ``1 - prod_i (1 - o_i m_i)`` with ``m_i`` the disk's coverage smoothed over
   ``edge_softness`` pixels across its rim (0: the hard test) and ``o_i`` the splat's opacity, so the
@@ -54,8 +55,10 @@ class DiffOptions:
         depth_epsilon: visibility offset along the rays in splat radii (``VisibilityOptions``).
         depth_softness: width of the soft depth test, as a fraction of each splat's epsilon band (0: hard).
         edge_softness: width in pixels over which a disk's coverage falls to 0 across its rim (0: hard).
-        min_visibility: pairs whose soft depth test passes less than this are skipped (hidden surfaces;
-            0: every pair is evaluated).
+        separate_sides: a pixel blends only the splats seen from the side (front or back of their
+            normals) of its nearest one (``VisibilityOptions.separate_sides``).
+        min_visibility: with gradients, pairs whose soft depth test passes less than this are left out of
+            the differentiable pass (hidden surfaces: their weight is below it; 0: every pair is kept).
         max_pairs: most (pixel, splat) pairs evaluated at once (a band of rows holds at most this many,
             unless one row alone holds more).
     """
@@ -67,6 +70,7 @@ class DiffOptions:
     edge_softness: float = 0.02
     max_pairs: int = 4_000_000
     min_visibility: float = 1e-4
+    separate_sides: bool = True
 
     def __post_init__(self) -> None:
         for name in ("cutoff", "depth_epsilon", "depth_softness", "edge_softness", "min_visibility"):
@@ -99,7 +103,7 @@ class DiffFrame:
 # Columns of the per-splat feature table that the pairs gather in one indexing: p, u, v, n (3 each), the
 # projected centre (2), the conic V^-1 (xx, xy, yy), the peak weight, the lit colour (3), opacity, radius, rho.
 _P, _N, _CENTER = slice(0, 3), slice(9, 12), slice(12, 14)
-_COLUMNS = [3, 3, 3, 3, 2, 1, 1, 1, 1, 3, 1, 1, 1]
+_COLUMNS = [3, 3, 3, 3, 2, 1, 1, 1, 1, 3, 1, 1, 1, 1]
 
 
 def _splat_table(splats: Splats, camera: DiffCamera, lights: Lights, options: DiffOptions):
@@ -142,7 +146,8 @@ def _splat_table(splats: Splats, camera: DiffCamera, lights: Lights, options: Di
     radius = torch.maximum(ref.norm(u), ref.norm(v))
     rho = torch.sqrt(torch.abs(ref.det2(jac)) + 1e-12)   # projected radius, pixels (geometric mean)
     table = torch.cat([p, u, v, plane, center, conic[:, 0, 0, None], conic[:, 0, 1, None], conic[:, 1, 1, None],
-                       scale[:, None], color, opacity[:, None], radius[:, None], rho[:, None]], dim=1)
+                       scale[:, None], color, opacity[:, None], radius[:, None], rho[:, None],
+                       back[idx].to(p.dtype)], dim=1)
     with torch.no_grad():
         c, h = center.detach(), half.detach()
         lo = torch.ceil(c - h - 0.5)
@@ -176,9 +181,11 @@ def _pair_terms(table: torch.Tensor, sid: torch.Tensor, ix: torch.Tensor, iy: to
     dtype, device = table.dtype, table.device
     f, principal = camera.focal, camera.principal
     # one gather and one split: their backward is one scatter and one concatenation
-    p, u, v, n, center, cxx, cxy, cyy, scale, color, opacity, radius, rho = table[sid].split(_COLUMNS, dim=1)
+    rows = torch.index_select(table, 0, sid)
+    p, u, v, n, center, cxx, cxy, cyy, scale, color, opacity, radius, rho, back = rows.split(_COLUMNS, dim=1)
     pix = torch.stack([ix, iy], dim=1).to(dtype) + 0.5
-    beta = ref.ewa_beta(ref.matrix2(cxx[:, 0], cxy[:, 0], cxy[:, 0], cyy[:, 0]), pix - center)
+    offset = pix - center
+    beta = ref.conic_beta(cxx[:, 0], cxy[:, 0], cyy[:, 0], offset[:, 0], offset[:, 1])
     rays = ref.rays_through(pix, f, principal)
     hit = ref.ray_plane_distance(rays, p, n)
     st = ref.splat_coordinates(rays, hit, p, u, v)
@@ -188,10 +195,20 @@ def _pair_terms(table: torch.Tensor, sid: torch.Tensor, ix: torch.Tensor, iy: to
     with torch.no_grad():
         inside = r2 <= 1.0
     # Guennebaud 2003, sec. 5: the nearest disk's depth at the pixel, offset by epsilon along the ray
-    nearest = torch.full((npix,), float("inf"), dtype=dtype, device=device)
-    nearest = nearest.scatter_reduce(0, pixel[inside], (hit + band)[inside], "amin", include_self=True)
-    covered = torch.isfinite(nearest)
-    d = torch.where(covered, nearest, torch.zeros_like(nearest))[pixel]
+    # for each side of the splats (seen from the front, from the back) apart: the side the eye sees
+    # nearest is the pixel's (visibility.glsl's record), and with separate sides only it blends
+    offset_depth = hit + band
+    with torch.no_grad():
+        from_back = back[:, 0] > 0.5
+    nearest = []
+    for side in (~from_back, from_back):
+        sel = inside & side
+        start = torch.full((npix,), float("inf"), dtype=dtype, device=device)
+        nearest.append(start.scatter_reduce(0, pixel[sel], offset_depth[sel], "amin", include_self=True))
+    pixel_back = nearest[1] < nearest[0]
+    nearest_depth = torch.minimum(nearest[0], nearest[1])
+    covered = torch.isfinite(nearest_depth)
+    d = torch.where(covered, nearest_depth, torch.zeros_like(nearest_depth))[pixel]
     if options.depth_softness > 0:
         tau = options.depth_softness * band
         vis = torch.sigmoid((d - z) / tau)
@@ -200,6 +217,8 @@ def _pair_terms(table: torch.Tensor, sid: torch.Tensor, ix: torch.Tensor, iy: to
         vis = (z <= d).to(dtype)
         fringe = (z + 2.0 * band >= d).to(dtype)
     vis = torch.where(inside, vis, vis * fringe)
+    if options.separate_sides:
+        vis = torch.where(pixel_back[pixel] == from_back, vis, torch.zeros_like(vis))
     vis = torch.where(covered[pixel], vis, torch.ones_like(vis))
     return {"beta": beta, "r2": r2, "z": z, "vis": vis, "inside": inside, "scale": scale[:, 0],
             "color": color, "opacity": opacity[:, 0], "rho": rho[:, 0], "hit": hit}
@@ -211,19 +230,22 @@ def _band(table: torch.Tensor, box: torch.Tensor, camera: DiffCamera, options: D
     width = camera.width
     dtype, device = table.dtype, table.device
     npix = (row1 - row0) * width
+    differentiable = torch.is_grad_enabled() and table.requires_grad
     with torch.no_grad():
         # the pairs inside the cutoff ellipse whose ray meets the splat's plane in front of the eye, and
         # (those hidden far behind the nearest surface weigh nothing) whose soft depth test passes
         sid, ix, iy = _band_pairs(box, row0, row1)
         t = table.detach()
+        rows = torch.index_select(t[:, :17], 0, sid)   # one gather; the columns below are views
         pix = torch.stack([ix, iy], dim=1).to(dtype) + 0.5
-        p, n, center = t[sid, _P], t[sid, _N], t[sid, _CENTER]
-        beta = ref.ewa_beta(ref.matrix2(t[sid, 14], t[sid, 15], t[sid, 15], t[sid, 16]), pix - center)
+        p, n, center = rows[:, _P], rows[:, _N], rows[:, _CENTER]
+        offset = pix - center
+        beta = ref.conic_beta(rows[:, 14], rows[:, 15], rows[:, 16], offset[:, 0], offset[:, 1])
         depth = ref.ray_plane_distance(ref.rays_through(pix, camera.focal.detach(), camera.principal), p, n)
         keep = (beta <= options.cutoff) & torch.isfinite(depth) & (depth > 0)
         sid, ix, iy = sid[keep], ix[keep], iy[keep]
         pixel = (iy - row0) * width + ix
-        if options.min_visibility > 0:
+        if options.min_visibility > 0 and differentiable:
             terms = _pair_terms(t, sid, ix, iy, pixel, npix, camera, options)
             keep = terms["vis"] >= options.min_visibility
             sid, ix, iy, pixel = sid[keep], ix[keep], iy[keep], pixel[keep]
