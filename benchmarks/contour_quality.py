@@ -166,12 +166,12 @@ def silhouette_rows(sizes: list[int]) -> list[list]:
         if name == "detailed surface":
             continue
         mesh = load_mesh(source) if isinstance(source, Path) else source
-        view = surfsplat.prepare(mesh)
         for size in sizes:
+            view = surfsplat.prepare(mesh)   # sampled for this size (a View samples for its first camera)
             camera = view.camera(None, size, size)
             mesh1 = surfsplat.render_mesh(mesh, camera, lights=unlit, supersample=1).alpha.sum()
             mesh4 = surfsplat.render_mesh(mesh, camera, lights=unlit, supersample=4).alpha.sum()
-            for variant in ("default", "no fill", "edge coverage"):
+            for variant in ("default", "edge coverage"):
                 splat = view.render(camera, lights=unlit, options=VARIANTS[variant]).frame.alpha.sum()
                 rows.append([name, size, variant, round(float(mesh1)), round(float(mesh4)), round(float(splat)),
                              round(float(100 * (splat / mesh1 - 1)), 2), round(float(100 * (splat / mesh4 - 1)), 2)])

@@ -1,4 +1,5 @@
-"""Screen-space hole filling (``RenderOptions.fill_holes``): the default pictures with and without it.
+"""The default pictures before and after a change of the defaults (``--compare``): hole filling
+(``RenderOptions.fill_holes``, the default) or edge coverage (``VisibilityOptions.edge_coverage``).
 
 Each source is rendered as ``surfsplat render`` renders it by default (automatic camera, headlight, ``ewa``
 unless named; a mesh sampled for the view), once with ``fill_holes=False`` and once with the fill, at
@@ -7,9 +8,9 @@ fill rule finds enclosed: :func:`surfsplat.reference.fill_holes` on the frame) b
 largest color change, and the time of a frame with and without the fill pass (best of ``--repeat``).
 PNGs of both and of the changed pixels (red) go to ``--images`` (not the repo).
 
-    python benchmarks/hole_filling.py [--size 512] [--images /tmp/hole_filling]
+    python benchmarks/hole_filling.py [--size 512] [--images /tmp/hole_filling] [--compare fill]
 
-Writes benchmarks/results/hole_filling.md and .json.
+Writes benchmarks/results/hole_filling.md and .json (``--compare edge-coverage``: edge_coverage_default.md).
 """
 
 from __future__ import annotations
@@ -29,11 +30,17 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import RESULTS, machine_description, markdown_table  # noqa: E402
 
 import surfsplat  # noqa: E402
-from surfsplat import RenderOptions, reference, scenes_faulty  # noqa: E402
+from surfsplat import RenderOptions, VisibilityOptions, reference, scenes_faulty  # noqa: E402
 from surfsplat.rendering.passes import FILL_DEPTH_PX, FILL_GAP_PX, FILL_ITERATIONS  # noqa: E402
 from surfsplat.rendering.renderer import default_renderer  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+#: ``--compare``: (results name, options before, options after, what changes).
+COMPARISONS = {
+    "fill": ("hole_filling", RenderOptions(fill_holes=False), RenderOptions(fill_holes=True), "the hole filling"),
+    "edge-coverage": ("edge_coverage_default", RenderOptions(visibility=VisibilityOptions(edge_coverage=False)),
+                      RenderOptions(visibility=VisibilityOptions(edge_coverage=True)), "edge coverage"),
+}
 
 
 def sources() -> list[tuple[str, object, str]]:
@@ -66,31 +73,37 @@ def main() -> None:
     parser.add_argument("--size", type=int, default=512)
     parser.add_argument("--repeat", type=int, default=2)
     parser.add_argument("--images", type=Path, default=Path("/tmp/hole_filling"))
+    parser.add_argument("--compare", choices=list(COMPARISONS), default="fill")
     args = parser.parse_args()
+    name, before, after, what = COMPARISONS[args.compare]
     args.images.mkdir(parents=True, exist_ok=True)
     rows = []
-    for name, source, technique in sources():
+    for source_name, source, technique in sources():
         view = surfsplat.prepare(source)
-        off, t_off = best_time(view, technique, args.size, RenderOptions(fill_holes=False), args.repeat)
-        on, t_on = best_time(view, technique, args.size, RenderOptions(fill_holes=True), args.repeat)
+        off, t_off = best_time(view, technique, args.size, before, args.repeat)
+        on, t_on = best_time(view, technique, args.size, after, args.repeat)
+        off, t_off2 = best_time(view, technique, args.size, before, args.repeat)   # alternated: a shared machine
+        t_off = min(t_off, t_off2)
         diff = np.abs(on.color - off.color).max(axis=-1)
         changed = diff > 0
-        slug = name.replace(" ", "_")
+        slug = f"{args.compare}_{source_name.replace(' ', '_')}"
         for frame, tag in ((off, "off"), (on, "on")):
             Image.fromarray((np.clip(frame.color, 0, 1) * 255 + 0.5).astype(np.uint8)).save(
                 args.images / f"{slug}_{tag}.png")
         marked = (np.clip(off.color, 0, 1) * 255 + 0.5).astype(np.uint8)
         marked[changed] = (255, 0, 0)
         Image.fromarray(marked).save(args.images / f"{slug}_changed.png")
-        rows.append([name, technique, int(changed.sum()), holes(off), holes(on), round(float(diff.max()), 3),
-                     int(np.count_nonzero(off.alpha > 0)), int(np.count_nonzero(on.alpha > 0)),
-                     round(t_off * 1000), round(t_on * 1000)])
+        visible = int(np.count_nonzero(diff > 1 / 255))
+        rows.append([source_name, technique, int(changed.sum()), visible, holes(off), holes(on),
+                     round(float(diff.max()), 3), int(np.count_nonzero(off.alpha > 0)),
+                     int(np.count_nonzero(on.alpha > 0)), round(t_off * 1000), round(t_on * 1000)])
         print(rows[-1], flush=True)
-    columns = ["source", "technique", "pixels changed", "holes before", "holes after", "max change",
-               "covered before", "covered after", "frame ms off", "frame ms on"]
+    columns = ["source", "technique", "pixels changed", "by > 1/255", "holes before", "holes after", "max change",
+               "covered before", "covered after", "frame ms before", "frame ms after"]
     machine = machine_description(default_renderer().ctx.info["GL_RENDERER"])
-    save("hole_filling", machine, "python benchmarks/hole_filling.py " + shlex.join(sys.argv[1:]), columns, rows,
-         f"Default pictures at {args.size}x{args.size} (automatic camera, headlight), without and with the fill.")
+    save(name, machine, "python benchmarks/hole_filling.py " + shlex.join(sys.argv[1:]), columns, rows,
+         f"Default pictures at {args.size}x{args.size} (automatic camera, headlight), before and after {what}. "
+         "Holes: pixels the fill rule finds enclosed (its gaps of up to 3 px).")
 
 
 def save(name: str, machine: str, command: str, columns: list[str], rows: list[list], note: str) -> None:

@@ -597,8 +597,8 @@ FILL_AXES = ((1, 0), (0, 1), (1, 1), (1, -1))
 
 
 def fill_holes(color: np.ndarray, weight: np.ndarray, depth: np.ndarray, alpha: np.ndarray, focal_px: float,
-               gap: int = 3, depth_px: float = 24.0, iterations: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray,
-                                                                                  np.ndarray, np.ndarray]:
+               gap: int = 3, depth_px: float = 24.0, iterations: int = 1,
+               reach: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Screen-space hole filling (``glsl/fill.frag``): ``(color, weight, depth, alpha, filled)`` of an image.
 
     ``color`` (H, W, C), ``weight`` (H, W; > 0 where covered, < 0 marks a non-finite pixel, left alone),
@@ -611,7 +611,9 @@ def fill_holes(color: np.ndarray, weight: np.ndarray, depth: np.ndarray, alpha: 
     looked for; the axis encloses p where both are found at distances adding up to at most ``gap + 1`` and
     lie on one surface (depths within ``tau`` of the nearer: a strip of a farther surface seen between two
     surfaces at different depths, such as the view through a bore past its rim, is no gap).
-    Enclosed along at least 3 axes, p takes the inverse-distance weighted mean of color, weight, depth
+    Enclosed along exactly 3, the 4th axis must enclose p too within ``reach`` (default ``3 gap``: a
+    crack of up to that length, not a slit or bay opening into the background beyond a silhouette).
+    Then p takes the inverse-distance weighted mean of color, weight, depth
     and alpha of those neighbours of enclosing axes that lie on the front surface (depth within
     ``tau(z_f)`` of the nearest, ``z_f``). Pintus et al. 2011 (enclosure, front neighbours) with the
     bounded gap of Marroquim et al. 2007. ``iterations``: the rule applied that many times, each on the last
@@ -619,13 +621,24 @@ def fill_holes(color: np.ndarray, weight: np.ndarray, depth: np.ndarray, alpha: 
     """
     filled = np.zeros(np.shape(weight), bool)
     for _ in range(int(iterations)):
-        color, weight, depth, alpha, once = _fill_once(color, weight, depth, alpha, focal_px, gap, depth_px)
+        color, weight, depth, alpha, once = _fill_once(color, weight, depth, alpha, focal_px, gap, depth_px,
+                                                       3 * int(gap) if reach is None else int(reach))
         filled |= once
     return color, weight, depth, alpha, filled
 
 
-def _fill_once(color, weight, depth, alpha, focal_px, gap, depth_px):
+def _fill_once(color, weight, depth, alpha, focal_px, gap, depth_px, reach):
     """One iteration of :func:`fill_holes`."""
+    steps, found_z, found_c, axis = _enclosure(color, weight, depth, alpha, focal_px, gap, depth_px)
+    long_axis = _enclosure(color, weight, depth, alpha, focal_px, reach, depth_px)[3] if reach > gap else axis
+    count = axis.sum(axis=0)
+    filled = ((count == 4) | ((count == 3) & (long_axis.sum(axis=0) == 4))) & ~(weight < 0) & (gap > 0)
+    return _fill_from(color, weight, depth, alpha, focal_px, depth_px, steps, found_z, found_c, axis, filled)
+
+
+def _enclosure(color, weight, depth, alpha, focal_px, gap, depth_px):
+    """Per direction the nearest pixel in front within ``gap`` (steps, depth, channels) and the axes that
+    enclose each pixel ((4, H, W) bool)."""
     h, w = weight.shape
     covered = weight > 0
     z = np.where(covered, depth, np.inf).astype(np.float64)
@@ -653,7 +666,11 @@ def _fill_once(color, weight, depth, alpha, focal_px, gap, depth_px):
     with np.errstate(invalid="ignore"):   # inf - inf where neither side is found
         same = np.abs(found_z[0::2] - found_z[1::2]) <= depth_px * near / focal_px
     axis = (steps[0::2] > 0) & (steps[1::2] > 0) & (steps[0::2] + steps[1::2] <= g + 1) & same   # (4, H, W)
-    filled = (axis.sum(axis=0) >= 3) & ~(weight < 0) & (g > 0)
+    return steps, found_z, found_c, axis
+
+
+def _fill_from(color, weight, depth, alpha, focal_px, depth_px, steps, found_z, found_c, axis, filled):
+    """The image with the ``filled`` pixels taken from their enclosing axes' front surface."""
     enclosing = np.repeat(axis, 2, axis=0)   # (8, H, W)
     front = np.where(enclosing, found_z, np.inf).min(axis=0)
     with np.errstate(invalid="ignore"):   # inf - inf where nothing encloses the pixel

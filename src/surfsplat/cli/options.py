@@ -253,10 +253,11 @@ def add_render_options(p: argparse.ArgumentParser, *, window: bool = False) -> N
                    help="ewa/perspective: draw the papers' full prefiltered footprints, also beyond the surface over "
                         "the background and farther surfaces (default: they end at the surface: thinner, sharper "
                         "silhouettes and fold crests)")
-    p.add_argument("--edge-coverage", action="store_true",
+    p.add_argument("--edge-coverage", action=argparse.BooleanOptionalAction,
+                   default=default(VisibilityOptions, "edge_coverage"),
                    help="antialias silhouettes over the background without supersampling: a rim pixel's alpha is "
                         "the area of it the splats' disks cover (ewa/perspective both sides of the rim, blend/phong "
-                        "its inner side; best with splats of a pixel or more)")
+                        "its inner side; default %(default)s)")
     p.add_argument("--fill-holes", action=argparse.BooleanOptionalAction, default=default(RenderOptions, "fill_holes"),
                    help="fill holes of up to 3 pixels between the pixels of the front surface in screen space "
                         "(depth-aware: never from a surface behind; silhouettes do not grow; default %(default)s)")

@@ -75,6 +75,11 @@ MAX_FILL_GAP = 12
 #: viewing ray changes by across the widest gap): a hole's pixels showing a surface farther behind are
 #: filled from the front surface around them; a valley of one surface is left as it is.
 FILL_DEPTH_PX = 24.0
+#: How much longer than the gap a crack may run along the one axis that does not enclose a pixel enclosed
+#: along the 3 others (``fill.frag``'s FILL_REACH = this times the gap): a crack of up to 9 pixels (at
+#: K = 1) is closed; a slit or bay opening into the background beyond a silhouette is not (frag's jagged
+#: scan border: 16 pixels of real background slits were filled with 3 axes alone).
+FILL_REACH_FACTOR = 3
 #: Passes of the ``fill`` rule, each on the last one's pixels (a later pass fills the pixels only the
 #: earlier ones' fills enclose). One: on the default 512 x 512 pictures of the bunny, the CAD part, frag,
 #: the LAS sample, the torus and a faulty scan, further passes filled more only among the faulty scan's
@@ -89,6 +94,11 @@ def fill_depth(gap: int) -> float:
     """The ``fill`` pass's depth tolerance in the sub-pixels of a frame filling gaps of ``gap`` sub-pixels:
     :data:`FILL_DEPTH_PX` scaled as the gap (the same slopes at any supersampling)."""
     return FILL_DEPTH_PX * gap / FILL_GAP_PX
+
+
+def fill_reach(gap: int) -> int:
+    """The farthest the ``fill`` pass looks along a pixel's 4th axis, sub-pixels (:data:`FILL_REACH_FACTOR`)."""
+    return FILL_REACH_FACTOR * int(gap)
 
 
 def fill_gap(options: RenderOptions, supersample: int = 1) -> int:
@@ -400,7 +410,7 @@ class FillPass:
         ctx, targets = renderer.ctx, frame.targets
         ctx.disable(moderngl.BLEND)
         ctx.disable(moderngl.DEPTH_TEST)
-        vao = renderer._fullscreen_pass("fill.frag", {"FILL_GAP": int(self.gap)})
+        vao = renderer._fullscreen_pass("fill.frag", {"FILL_GAP": int(self.gap), "FILL_REACH": fill_reach(self.gap)})
         renderer.set_uniforms(vao.program, {"u_norm_color": NORM_COLOR_UNIT, "u_norm_depth": NORM_DEPTH_UNIT,
                                             "u_norm_z": NORM_Z_UNIT, "u_fill_depth": fill_depth(self.gap)})
         pairs = ("norm", "fill")   # ping-pong: norm -> fill -> norm ... -> the output

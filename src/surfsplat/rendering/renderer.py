@@ -45,7 +45,8 @@ from ..lighting import MAX_LIGHTS, Lights
 from .context import gl_flush, headless_context, reset_headless_context
 from . import compute_visibility
 from .passes import (EDGE_COVERAGE_DEFINE, OPTIONAL_FRAME_UNIFORMS, POINT_SPLAT_PX, SIDE_TEXTURE_UNIT, FrameInputs,
-                     FILL_ITERATIONS, FramePlan, computes_first_pass, fill_gap, plan_frame, point_radius, point_scale)
+                     FILL_ITERATIONS, FramePlan, computes_first_pass, fill_gap, fill_reach, plan_frame, point_radius,
+                     point_scale)
 from .edl import apply_edl
 from .frame import Frame
 from .gpu_splats import GpuSplats, merge_ranges, ordered_buffers, radius_classes, splat_arrays
@@ -62,7 +63,7 @@ __all__ = ["GpuSplats", "Renderer", "default_renderer", "reset_default_renderer"
 
 #: Pixels drawn around each tile and cropped (fringe clipping looks at each pixel's neighbours; the
 #: edge coverage of normalize.frag at the neighbours, up to 4 sub-pixels away at K = 8, of its neighbours);
-#: a frame with the fill pass adds its gap per iteration (``passes.fill_gap``: each reads the pixels that far).
+#: a frame with the fill pass adds its reach per iteration (``passes.fill_reach``: it reads the pixels that far).
 TILE_MARGIN = 5
 #: Memory a render holds per splat (the upload's sorting and copies, the driver's buffers and one draw
 #: call's primitives; measured on llvmpipe by benchmarks/bench_render.py --memory: 31-83 B per splat,
@@ -557,7 +558,7 @@ class Renderer:
         camera = _with_clip_planes(camera, splats)
         big = camera.resized(camera.width * k, camera.height * k)
         # pixels drawn around each tile and cropped: the full-screen passes read neighbours
-        m = TILE_MARGIN + FILL_ITERATIONS * fill_gap(options, k)
+        m = TILE_MARGIN + FILL_ITERATIONS * fill_reach(fill_gap(options, k))
         side = tile_side(self.ctx, k, max_tile, margin=m)
         w, h = camera.width, camera.height
         # Frame orientation (row 0 at the top): each tile's window rows are written flipped

@@ -3,9 +3,11 @@
 // no splat covers it or the splats covering it lie behind the surface around it; it is filled when the
 // surface around it encloses it: along at least 3 of the 4 axes (horizontal, vertical, both diagonals)
 // the nearest pixels on both sides that lie in front of it (any covered pixel, for an uncovered one)
-// leave a gap of at most u_fill_gap pixels between them (their distances add up to at most
-// u_fill_gap + 1) and lie on one surface (depths within the tolerance: a strip of a farther surface
-// seen between two surfaces at different depths, e.g. through a bore past its rim, is no gap). It takes
+// leave a gap of at most FILL_GAP pixels between them (their distances add up to at most
+// FILL_GAP + 1) and lie on one surface (depths within the tolerance: a strip of a farther surface
+// seen between two surfaces at different depths, e.g. through a bore past its rim, is no gap), and
+// along the 4th axis too within FILL_REACH pixels (a crack of that length at most: a slit that opens
+// into the background beyond a silhouette, a bay, is not closed). It takes
 // the depth, color, weight and coverage of the front surface among those neighbours (those within the
 // tolerance of the nearest), each weighted by the inverse of its distance along its axis. A hole in a
 // surface is enclosed; the background beyond a silhouette (convex or concave: a corner encloses it
@@ -53,10 +55,25 @@ int search(ivec2 dir, out float zq) {
     return found;
 }
 
+// search() up to FILL_REACH pixels, stopping at the first pixel found (only the few pixels enclosed
+// along exactly 3 axes look this far).
+int reach(ivec2 dir, out float zq) {
+    ivec2 hi = textureSize(u_norm_z, 0) - 1;
+    zq = FILL_FAR;
+    for (int k = 1; k <= FILL_REACH; ++k) {
+        float z = texelFetch(u_norm_z, clamp(texel + dir * k, ivec2(0), hi), 0).r;
+        if (z < limit) {
+            zq = z;
+            return k;
+        }
+    }
+    return 0;
+}
+
 // Whether the pixels found on both sides of an axis enclose the fragment: a gap of at most FILL_GAP
 // pixels between them, both on one surface.
-bool encloses(int a, int b, float za, float zb) {
-    return a > 0 && b > 0 && a + b <= FILL_GAP + 1 && abs(za - zb) <= tolerance(min(za, zb));
+bool encloses(int a, int b, float za, float zb, int gap) {
+    return a > 0 && b > 0 && a + b <= gap + 1 && abs(za - zb) <= tolerance(min(za, zb));
 }
 
 void main() {
@@ -79,13 +96,21 @@ void main() {
     if (steps[0] > 0) steps[1] = search(DIRS[1], zs[1]);
     if (steps[2] > 0) steps[3] = search(DIRS[3], zs[3]);
     bool axis[4];
-    axis[0] = encloses(steps[0], steps[1], zs[0], zs[1]);
-    axis[1] = encloses(steps[2], steps[3], zs[2], zs[3]);
+    axis[0] = encloses(steps[0], steps[1], zs[0], zs[1], FILL_GAP);
+    axis[1] = encloses(steps[2], steps[3], zs[2], zs[3], FILL_GAP);
     if (!axis[0] && !axis[1]) return;
     for (int i = 4; i < 8; ++i) steps[i] = search(DIRS[i], zs[i]);
-    axis[2] = encloses(steps[4], steps[5], zs[4], zs[5]);
-    axis[3] = encloses(steps[6], steps[7], zs[6], zs[7]);
-    if (int(axis[0]) + int(axis[1]) + int(axis[2]) + int(axis[3]) < 3) return;
+    axis[2] = encloses(steps[4], steps[5], zs[4], zs[5], FILL_GAP);
+    axis[3] = encloses(steps[6], steps[7], zs[6], zs[7], FILL_GAP);
+    int enclosed = int(axis[0]) + int(axis[1]) + int(axis[2]) + int(axis[3]);
+    if (enclosed < 3) return;
+    if (enclosed == 3) {   // a crack along the 4th axis: closed there within FILL_REACH, or open (a bay)
+        int open = !axis[0] ? 0 : !axis[1] ? 1 : !axis[2] ? 2 : 3;
+        float za, zb;
+        int a = reach(DIRS[2 * open], za);
+        int b = reach(DIRS[2 * open + 1], zb);
+        if (!encloses(a, b, za, zb, FILL_REACH)) return;
+    }
     float front = FILL_FAR;
     for (int i = 0; i < 8; ++i)
         if (axis[i / 2]) front = min(front, zs[i]);
