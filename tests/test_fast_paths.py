@@ -2,7 +2,7 @@
 
 ``kth_distance`` (the k-th neighbour distance that sizes the circles of mesh samples) against the
 last column of ``knn``'s distances (a SciPy cKDTree query of k + 1 points, the point dropped), on
-random, duplicated, planar, collinear and minimal clouds.
+random, clustered, duplicated, planar, collinear and minimal clouds.
 """
 
 from __future__ import annotations
@@ -24,7 +24,9 @@ def _clouds():
     grid = np.stack(np.meshgrid(np.arange(20.0), np.arange(20.0), [0.0]), axis=-1).reshape(-1, 3)  # ties
     line = np.outer(rng.random(2000), [1.0, 2.0, -0.5])              # collinear
     same = np.zeros((50, 3))                                          # all one point
-    return {"random": random, "duplicates": dup, "many duplicates": many, "planar": planar, "grid": grid,
+    # a dense cluster and sparse points far beyond twice the median k-th distance (queried again)
+    clustered = np.concatenate([1e-3 * rng.normal(size=(4000, 3)), rng.normal(size=(600, 3))])
+    return {"clustered": clustered, "random": random, "duplicates": dup, "many duplicates": many, "planar": planar, "grid": grid,
             "collinear": line, "coincident": same}
 
 

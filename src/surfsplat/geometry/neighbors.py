@@ -22,6 +22,11 @@ LEAFSIZE = 16
 #: Points per cKDTree query call (bounded temporaries).
 QUERY_CHUNK = 65536
 
+#: :func:`kth_distance`: points sampled for the median k-th distance, and the factor on that median
+#: that bounds the search (points with fewer neighbours within it are queried again, unbounded).
+KTH_SAMPLE = 2048
+KTH_BOUND = 2.0
+
 
 def as_points(positions, name: str = "positions") -> np.ndarray:
     """(N, 3) float64 C-contiguous copy/view of ``positions``; InputError if malformed."""
@@ -160,12 +165,21 @@ def kth_distance(positions, k: int) -> np.ndarray:
     perm = spatial_order(points)
     ordered = points[perm]
     tree = kdtree(ordered)
+    # a search radius of twice the median k-th distance of a sample prunes the tree walk (~20% less
+    # time on mesh samples); the few points without k + 1 points within it are queried again, unbounded
+    sample = tree.query(ordered[::max(1, n // KTH_SAMPLE)], k=[k + 1], workers=-1)[0][:, 0]
+    bound = KTH_BOUND * float(np.median(sample))
+    if not bound > 0:
+        bound = np.inf
     out = np.empty(n, dtype=np.float32)
     step = 4 * QUERY_CHUNK  # (chunk, 1) results: small
     for start in range(0, n, step):
         stop = min(n, start + step)
-        dist, _ = tree.query(ordered[start:stop], k=[k + 1], workers=-1)
-        out[perm[start:stop]] = dist[:, 0]
+        dist = tree.query(ordered[start:stop], k=[k + 1], workers=-1, distance_upper_bound=bound)[0][:, 0]
+        far = np.flatnonzero(np.isinf(dist))
+        if len(far):
+            dist[far] = tree.query(ordered[start + far], k=[k + 1], workers=-1)[0][:, 0]
+        out[perm[start:stop]] = dist
     return out
 
 

@@ -98,7 +98,7 @@ _GAP_CHUNK = 1024
 
 #: Neighbours (the nearest) that :func:`_cell_vertices` tests every circumcircle against first; the
 #: others only test the circles none of these lies in.
-_VERTEX_FIRST = 8
+_VERTEX_FIRST = 4
 
 #: Relative growth of the Pajarola factor f so that the farthest neighbour,
 #: which lies exactly on the ellipse, stays inside after float32 rounding.
