@@ -26,8 +26,8 @@ def _clouds():
     same = np.zeros((50, 3))                                          # all one point
     # a dense cluster and sparse points far beyond twice the median k-th distance (queried again)
     clustered = np.concatenate([1e-3 * rng.normal(size=(4000, 3)), rng.normal(size=(600, 3))])
-    return {"clustered": clustered, "random": random, "duplicates": dup, "many duplicates": many, "planar": planar, "grid": grid,
-            "collinear": line, "coincident": same}
+    return {"clustered": clustered, "random": random, "duplicates": dup, "many duplicates": many,
+            "planar": planar, "grid": grid, "collinear": line, "coincident": same}
 
 
 @pytest.mark.parametrize("name", list(_clouds()))
