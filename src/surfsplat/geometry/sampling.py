@@ -36,7 +36,7 @@ from ..errors import InputError
 from ..io.atomic import memory_limit
 from ..io.mesh import Mesh
 from ..io.surface import AUTO, resolve_sharp_angle, shading_normals, weld, with_shading_normals
-from .neighbors import knn
+from .neighbors import kth_distance
 from .preprocess import preprocess
 from .sharp import check_sharp_angle, mesh_clip_lines, mesh_features
 from .splats import CIRCLE_COVERAGE, circular_splats
@@ -184,8 +184,9 @@ def _circles(cloud: SplatCloud, k: int, name: str) -> SplatCloud:
     n = len(cloud)
     if n < 2:
         raise InputError(f"{name}: needs at least 2 samples to size the splats, got {n}")
-    dist, _ = knn(cloud.positions, min(int(k), n - 1))
-    u, v = circular_splats(cloud.normals, dist, coverage=CIRCLE_COVERAGE)
+    # only h_k, the k-th distance, sizes a circle (the row maximum of knn's distances)
+    h_k = kth_distance(cloud.positions, min(int(k), n - 1))
+    u, v = circular_splats(cloud.normals, h_k[:, None], coverage=CIRCLE_COVERAGE)
     return cloud.replace(u=u, v=v).validated(name)
 
 
