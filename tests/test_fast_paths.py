@@ -57,3 +57,23 @@ def test_circles_from_kth_distance_equal_circles_from_knn():
     u1, v1 = circular_splats(normals, kth_distance(pts, 8)[:, None])
     np.testing.assert_array_equal(u0, u1)
     np.testing.assert_array_equal(v0, v1)
+
+
+def test_clip_lines_searched_in_spatial_order_are_the_same():
+    import trimesh
+
+    from surfsplat.geometry.neighbors import spatial_order
+    from surfsplat.geometry.sampling import _circles, _samples
+    from surfsplat.geometry.sharp import mesh_clip_lines
+    from surfsplat.io import Mesh
+
+    box = trimesh.creation.box(extents=(2.0, 1.0, 0.5))
+    mesh = Mesh(box.vertices, box.faces[2:])                           # open: one side has a hole
+    cloud, face = _samples(mesh, 20_000, 4, False, None, "box")
+    splats = _circles(cloud, 8, "box")
+    order = spatial_order(splats.positions)
+    plain = mesh_clip_lines(mesh, face, splats.positions, splats.u, splats.v, 30.0, boundaries=True)
+    fast = mesh_clip_lines(mesh, face, splats.positions, splats.u, splats.v, 30.0, boundaries=True, order=order)
+    assert (plain[:, 0, 2] != 1.0).sum() > 1000                        # many splats are clipped
+    np.testing.assert_array_equal(plain, fast)
+    np.testing.assert_array_equal(_circles(cloud, 8, "box", order).u, splats.u)

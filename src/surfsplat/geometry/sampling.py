@@ -36,7 +36,7 @@ from ..errors import InputError
 from ..io.atomic import memory_limit
 from ..io.mesh import Mesh
 from ..io.surface import AUTO, resolve_sharp_angle, shading_normals, weld, with_shading_normals
-from .neighbors import kth_distance
+from .neighbors import kth_distance, spatial_order
 from .preprocess import preprocess
 from .sharp import check_sharp_angle, mesh_clip_lines, mesh_features
 from .splats import CIRCLE_COVERAGE, circular_splats
@@ -174,18 +174,19 @@ def sample_mesh(mesh: Mesh, n: int, *, seed: int = 0, sharp_angle: float | None 
     return _splats_with_clip_lines(mesh, cloud, face, sharp_angle, k, shape, coverage, "sample_mesh")
 
 
-def _circles(cloud: SplatCloud, k: int, name: str) -> SplatCloud:
+def _circles(cloud: SplatCloud, k: int, name: str, order: np.ndarray | None = None) -> SplatCloud:
     """Circular splats of radius ``CIRCLE_COVERAGE * h_k`` in the planes normal to the samples' normals
     (Guennebaud 2003 eq. 7, :func:`surfsplat.geometry.splats.circular_splats`), ``k`` clamped to n - 1.
 
     Samples of a surface need none of the rules for raw scans that :func:`preprocess` applies
     (duplicates, outliers, scan lines, size bounds): every sample is kept, one splat per sample.
+    ``order``: the samples' :func:`~surfsplat.geometry.neighbors.spatial_order`, if computed already.
     """
     n = len(cloud)
     if n < 2:
         raise InputError(f"{name}: needs at least 2 samples to size the splats, got {n}")
     # only h_k, the k-th distance, sizes a circle (the row maximum of knn's distances)
-    h_k = kth_distance(cloud.positions, min(int(k), n - 1))
+    h_k = kth_distance(cloud.positions, min(int(k), n - 1), order=order)
     u, v = circular_splats(cloud.normals, h_k[:, None], coverage=CIRCLE_COVERAGE)
     return cloud.replace(u=u, v=v).validated(name)
 
@@ -198,8 +199,10 @@ def _splats_with_clip_lines(mesh: Mesh, cloud: SplatCloud, face: np.ndarray, sha
     edges sharper than ``sharp_angle`` and, with ``boundaries``, at the open boundary edges (None
     without a sharp angle when there is no boundary either)."""
     n = len(cloud)
+    # one spatial order of the samples for the neighbour search and the search for nearby edges
+    order = spatial_order(cloud.positions) if shape is None and n >= 2 else None
     if shape is None:
-        splats = _circles(cloud, k, name)
+        splats = _circles(cloud, k, name, order)
     else:
         # samples of a surface: no duplicates to merge or outliers to drop (one splat per sample)
         splats = preprocess(cloud, k=k, shape=shape, coverage=coverage, source=name, outliers="keep",
@@ -212,7 +215,8 @@ def _splats_with_clip_lines(mesh: Mesh, cloud: SplatCloud, face: np.ndarray, sha
     if sharp_angle is None and len(features.edges) == 0:
         return splats
     with progress.stage("clip lines at sharp edges", n):
-        lines = mesh_clip_lines(mesh, face, splats.positions, splats.u, splats.v, sharp_angle, features=features)
+        lines = mesh_clip_lines(mesh, face, splats.positions, splats.u, splats.v, sharp_angle, features=features,
+                                order=order)
     return splats.replace(clip_lines=lines)
 
 

@@ -175,7 +175,8 @@ def _edge_points(vertices: np.ndarray, edges: np.ndarray, spacing: float) -> tup
 
 
 def mesh_clip_lines(mesh, face, positions, u, v, sharp_angle: float | None, *,
-                    features: MeshFeatures | None = None, boundaries: bool = False) -> np.ndarray:
+                    features: MeshFeatures | None = None, boundaries: bool = False,
+                    order: np.ndarray | None = None) -> np.ndarray:
     """Exact clip lines for splats sampled on a mesh, from the faces across its sharp edges.
 
     Zwicker 2004, section 5: the line is the intersection of the splat's plane
@@ -213,6 +214,10 @@ def mesh_clip_lines(mesh, face, positions, u, v, sharp_angle: float | None, *,
         boundaries: also cut splats at the mesh's open boundary edges (the
             plane through the edge, perpendicular to its face; see the module
             docstring), so they do not reach past the surface's outline.
+        order: optional (N,) permutation that puts the splats in a spatially
+            coherent order (:func:`surfsplat.geometry.neighbors.spatial_order`):
+            the search for nearby edges visits them in it (about half the time
+            for 2 M random samples); the lines are the same.
 
     Returns:
         (N, 2, 3) float32 clip lines in normalized ``(s, t)``; ``(0, 0, 1)``
@@ -228,7 +233,7 @@ def mesh_clip_lines(mesh, face, positions, u, v, sharp_angle: float | None, *,
     if n == 0 or len(feat.edges) == 0:
         return lines
     radius = np.sqrt(np.maximum(np.einsum("ij,ij->i", u, u), np.einsum("ij,ij->i", v, v)))
-    pairs = _splat_edge_pairs(feat, pts, radius)
+    pairs = _splat_edge_pairs(feat, pts, radius, order)
     if pairs is None:
         return lines
     row, e = pairs
@@ -267,13 +272,13 @@ def mesh_clip_lines(mesh, face, positions, u, v, sharp_angle: float | None, *,
     return lines
 
 
-def _splat_edge_pairs(feat: MeshFeatures, pts: np.ndarray, radius: np.ndarray):
+def _splat_edge_pairs(feat: MeshFeatures, pts: np.ndarray, radius: np.ndarray, order: np.ndarray | None = None):
     """Candidate (splat, sharp edge) pairs ``(row, e)``: edges with a point near the splat; None if none.
 
     ``pts`` (N, 3) float64 splat centers and ``radius`` (N,) their largest
     semi-axes, model units. The candidates come from a k-d tree over points
     spaced half the median radius along the sharp edges; each pair is listed
-    once, sorted by splat.
+    once, sorted by splat. ``order``: a spatially coherent order of the splats to query them in, or None.
     """
     n = len(pts)
     spacing = 0.5 * float(np.median(radius))
@@ -284,8 +289,15 @@ def _splat_edge_pairs(feat: MeshFeatures, pts: np.ndarray, radius: np.ndarray):
     tree = cKDTree(epts)
     # every point of an edge is within spacing / 2 of one of its edge points
     reach = radius + 0.5 * spacing
-    near, _ = tree.query(pts, k=1, distance_upper_bound=float(reach.max()), workers=-1)
-    rows = np.flatnonzero(near < reach)
+    bound = float(reach.max())
+    if order is None:
+        near, _ = tree.query(pts, k=1, distance_upper_bound=bound, workers=-1)
+        rows = np.flatnonzero(near < reach)
+    else:
+        near, _ = tree.query(pts[order], k=1, distance_upper_bound=bound, workers=-1)
+        hit = np.zeros(n, dtype=bool)
+        hit[order] = near < reach[order]
+        rows = np.flatnonzero(hit)
     if len(rows) == 0:
         return None
     k = min(_EDGE_CANDIDATES, len(epts))
