@@ -193,7 +193,7 @@ def _pair_terms(table: torch.Tensor, sid: torch.Tensor, ix: torch.Tensor, iy: to
     z = ref.footprint_depth(st, p, u, v)
     band = options.depth_epsilon * radius[:, 0] / ref.norm(rays)
     with torch.no_grad():
-        inside = r2 <= 1.0
+        inside = (r2 <= 1.0) & (hit > 0)   # a ray meeting the plane behind the eye does not hit the disk
     # Guennebaud 2003, sec. 5: the nearest disk's depth at the pixel, offset by epsilon along the ray
     # for each side of the splats (seen from the front, from the back) apart: the side the eye sees
     # nearest is the pixel's (visibility.glsl's record), and with separate sides only it blends
@@ -236,19 +236,22 @@ def _band(table: torch.Tensor, box: torch.Tensor, camera: DiffCamera, options: D
         # (those hidden far behind the nearest surface weigh nothing) whose soft depth test passes
         sid, ix, iy = _band_pairs(box, row0, row1)
         t = table.detach()
-        rows = torch.index_select(t[:, :17], 0, sid)   # one gather; the columns below are views
-        pix = torch.stack([ix, iy], dim=1).to(dtype) + 0.5
-        p, n, center = rows[:, _P], rows[:, _N], rows[:, _CENTER]
-        offset = pix - center
-        beta = ref.conic_beta(rows[:, 14], rows[:, 15], rows[:, 16], offset[:, 0], offset[:, 1])
-        depth = ref.ray_plane_distance(ref.rays_through(pix, camera.focal.detach(), camera.principal), p, n)
-        keep = (beta <= options.cutoff) & torch.isfinite(depth) & (depth > 0)
+        rows = torch.index_select(t[:, 12:17], 0, sid)   # centre and conic: one gather
+        offset = torch.stack([ix, iy], dim=1).to(dtype) + 0.5 - rows[:, :2]
+        keep = ref.conic_beta(rows[:, 2], rows[:, 3], rows[:, 4], offset[:, 0], offset[:, 1]) <= options.cutoff
         sid, ix, iy = sid[keep], ix[keep], iy[keep]
         pixel = (iy - row0) * width + ix
         if options.min_visibility > 0 and differentiable:
             terms = _pair_terms(t, sid, ix, iy, pixel, npix, camera, options)
-            keep = terms["vis"] >= options.min_visibility
-            sid, ix, iy, pixel = sid[keep], ix[keep], iy[keep], pixel[keep]
+            hit = terms["hit"]
+            keep = torch.isfinite(hit) & (hit > 0) & (terms["vis"] >= options.min_visibility)
+        else:
+            rows = torch.index_select(t, 0, sid)
+            pix = torch.stack([ix, iy], dim=1).to(dtype) + 0.5
+            rays = ref.rays_through(pix, camera.focal.detach(), camera.principal)
+            hit = ref.ray_plane_distance(rays, rows[:, _P], rows[:, _N])
+            keep = torch.isfinite(hit) & (hit > 0)
+        sid, ix, iy, pixel = sid[keep], ix[keep], iy[keep], pixel[keep]
     terms = _pair_terms(table, sid, ix, iy, pixel, npix, camera, options)
     opacity, r2 = terms["opacity"], terms["r2"]
     w = opacity * terms["scale"] * torch.exp(-terms["beta"]) * terms["vis"]
