@@ -192,6 +192,20 @@ def rotate(v: np.ndarray, axis: np.ndarray, angle_deg: float) -> np.ndarray:
     return v * np.cos(a) + np.cross(axis, v) * np.sin(a) + axis * (axis @ v) * (1.0 - np.cos(a))
 
 
+def fit_basis(direction, up) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The view basis :func:`fit_points` frames in: ``(direction, up, right, screen_up)``, float64 world
+    vectors; ``direction`` (toward the eye) and ``right`` and ``screen_up`` unit, ``up`` as given or, where
+    the direction runs along it, replaced by +z (or +y for a direction near z)."""
+    d = np.asarray(direction, dtype=np.float64)
+    d = d / np.linalg.norm(d)
+    up = direction_vector(up, "up")
+    if np.linalg.norm(np.cross(d, up)) < 1e-6 * np.linalg.norm(up):
+        up = np.array([0.0, 0.0, 1.0]) if abs(d[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    right = np.cross(-d, up)
+    right /= np.linalg.norm(right)
+    return d, up, right, np.cross(right, -d)
+
+
 def fit_points(points, *, direction, up=(0.0, 1.0, 0.0), fov: float = 40.0, width: int = 512, height: int = 512,
                fill: float = 0.9, margin: float = 0.0) -> Camera:
     """A camera looking along ``-direction`` whose image the points' projections fill tightly.
@@ -210,14 +224,7 @@ def fit_points(points, *, direction, up=(0.0, 1.0, 0.0), fov: float = 40.0, widt
         up: world up vector. fov: vertical field of view, degrees. width, height: pixels.
     """
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    d = _vec3(direction, "direction")
-    d /= np.linalg.norm(d)
-    up = direction_vector(up, "up")
-    if np.linalg.norm(np.cross(d, up)) < 1e-6 * np.linalg.norm(up):
-        up = np.array([0.0, 0.0, 1.0]) if abs(d[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    right = np.cross(-d, up)
-    right /= np.linalg.norm(right)
-    screen_up = np.cross(right, -d)
+    d, up, right, screen_up = fit_basis(_vec3(direction, "direction"), up)
     lo, hi = p.min(axis=0), p.max(axis=0)
     center = 0.5 * (lo + hi)
     q = p - center

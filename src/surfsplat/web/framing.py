@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
-from ..camera import Camera, direction_vector
+from ..camera import Camera, fit_basis
 
 
 def _hull(points: np.ndarray) -> np.ndarray:
@@ -35,14 +35,7 @@ def fit_frame(points: np.ndarray, direction, up, margin: float) -> dict:
     replaces it where the direction runs along it), the points' box ``center`` and diagonal ``extent``,
     ``margin`` and the hulls of ``(x, z)`` and ``(y, z)`` (model units, relative to the center)."""
     p = np.asarray(points, np.float64).reshape(-1, 3)
-    d = np.asarray(direction, np.float64)
-    d = d / np.linalg.norm(d)
-    up = direction_vector(up, "up")
-    if np.linalg.norm(np.cross(d, up)) < 1e-6 * np.linalg.norm(up):
-        up = np.array([0.0, 0.0, 1.0]) if abs(d[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    right = np.cross(-d, up)
-    right /= np.linalg.norm(right)
-    screen_up = np.cross(right, -d)
+    d, up, right, screen_up = fit_basis(direction, up)
     lo, hi = p.min(axis=0), p.max(axis=0)
     center = 0.5 * (lo + hi)
     q = p - center
