@@ -242,16 +242,18 @@ def fit_points(points, *, direction, up=(0.0, 1.0, 0.0), fov: float = 40.0, widt
     dist = max(max(distances), float(z.max()) + margin + 1e-3 * extent)
     for axis, lateral in enumerate((x, y)):
         if distances[axis] < dist:   # not the limiting side: center its projected extremes at this distance
-            offsets[axis] = _centering_offset(lateral, dist - z, margin)
+            offsets[axis] = centering_offset(lateral, dist - z, margin)
     target = center + offsets[0] * right + offsets[1] * screen_up
     cam = Camera(eye=tuple(target + dist * d), target=tuple(target), up=tuple(up), fov=fov, width=width,
                  height=height)
     return cam.with_clip_from_bounds(lo, hi, margin)
 
 
-def _centering_offset(lateral: np.ndarray, depth: np.ndarray, margin: float) -> float:
+def centering_offset(lateral: np.ndarray, depth: np.ndarray, margin: float) -> float:
     """The offset c with max((x + m - c) / d) = -min((x - m - c) / d): projected extremes symmetric
-    about the image center (bisection; the difference decreases monotonically in c)."""
+    about the image center (bisection; the difference decreases monotonically in c). ``lateral``: the
+    points' screen-axis coordinates, ``depth``: their distances along the view, ``margin``: model units;
+    returns c in model units (used by :func:`fit_points` and the web page's fit)."""
     lo, hi = float(lateral.min()) - margin, float(lateral.max()) + margin
     for _ in range(60):
         c = 0.5 * (lo + hi)

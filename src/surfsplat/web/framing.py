@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
-from ..camera import Camera, fit_basis
+from ..camera import Camera, centering_offset, fit_basis
 
 
 def _hull(points: np.ndarray) -> np.ndarray:
@@ -46,18 +46,6 @@ def fit_frame(points: np.ndarray, direction, up, margin: float) -> dict:
             "hull_x": _hull(np.stack([x, z], axis=1)).tolist(), "hull_y": _hull(np.stack([y, z], axis=1)).tolist()}
 
 
-def _centering(lateral: np.ndarray, depth: np.ndarray, margin: float) -> float:
-    """:func:`surfsplat.camera._centering_offset` (the same 60 bisection steps)."""
-    lo, hi = float(lateral.min()) - margin, float(lateral.max()) + margin
-    for _ in range(60):
-        c = 0.5 * (lo + hi)
-        if np.max((lateral + margin - c) / depth) + np.min((lateral - margin - c) / depth) > 0:
-            lo = c
-        else:
-            hi = c
-    return 0.5 * (lo + hi)
-
-
 def camera_from_frame(frame: dict, fov: float, width: int, height: int, fill: float = 0.9) -> Camera:
     """The camera :func:`surfsplat.camera.fit_points` gives for the points of :func:`fit_frame` (no near/far)."""
     m = frame["margin"]
@@ -75,7 +63,7 @@ def camera_from_frame(frame: dict, fov: float, width: int, height: int, fill: fl
     dist = max(max(distances), frame["zmax"] + m + 1e-3 * frame["extent"])
     for axis, hull in enumerate(hulls):
         if distances[axis] < dist:
-            offsets[axis] = _centering(hull[:, 0], dist - hull[:, 1], m)
+            offsets[axis] = centering_offset(hull[:, 0], dist - hull[:, 1], m)
     right, screen_up, d = (np.asarray(frame[k], np.float64) for k in ("right", "screen_up", "direction"))
     target = np.asarray(frame["center"], np.float64) + offsets[0] * right + offsets[1] * screen_up
     return Camera(eye=tuple(target + dist * d), target=tuple(target), up=tuple(frame["up"]), fov=fov, width=width,
