@@ -66,7 +66,7 @@ class Camera:
         if np.linalg.norm(eye - target) <= 0:
             raise InputError("camera eye and target must differ", argument="target")
         forward = (target - eye) / np.linalg.norm(target - eye)
-        if np.linalg.norm(np.cross(forward, up)) < 1e-9 * max(np.linalg.norm(up), 1e-30):
+        if np.linalg.norm(np.cross(forward, up)) < 1e-9 * max(float(np.linalg.norm(up)), 1e-30):
             raise InputError("camera up vector must not be parallel to the viewing direction (or zero)", argument="up")
         if not (MIN_FOV <= float(self.fov) < 180.0):
             raise InputError(f"field of view must be in [{MIN_FOV:g}, 180) degrees, got {self.fov}", argument="fov")

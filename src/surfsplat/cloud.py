@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import warnings
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -178,8 +179,8 @@ class SplatCloud:
 
     def subset(self, index: np.ndarray) -> "SplatCloud":
         """A new SplatCloud with the rows selected by a boolean mask or index array (same origin)."""
-        fields = {name: (None if getattr(self, name) is None else getattr(self, name)[index])
-                  for name in ("positions",) + self._OPTIONAL}
+        fields: dict[str, Any] = {name: (None if getattr(self, name) is None else getattr(self, name)[index])
+                                  for name in ("positions",) + self._OPTIONAL}
         if self.attributes is not None:
             fields["attributes"] = {name: values[index] for name, values in self.attributes.items()}
         return SplatCloud(**fields, origin=self.origin, up=self.up)
@@ -435,7 +436,8 @@ def checked_up(up) -> tuple[float, float, float]:
     length = float(np.linalg.norm(vec)) if vec.shape == (3,) and np.isfinite(vec).all() else 0.0
     if not length > 0:
         raise InputError(f"up must be 3 finite numbers, not all zero, got {up!r}")
-    return tuple(float(x) for x in vec / length)
+    x, y, z = (float(c) for c in vec / length)
+    return (x, y, z)
 
 
 def concatenate(clouds) -> SplatCloud:
@@ -449,8 +451,8 @@ def concatenate(clouds) -> SplatCloud:
     first = clouds[0]
     positions = np.concatenate([(c.positions.astype(np.float64) + (c.origin - first.origin)).astype(np.float32)
                                 if (c.origin != first.origin).any() else c.positions for c in clouds])
-    arrays = {name: np.concatenate([getattr(c, name) for c in clouds]) for name in SplatCloud._OPTIONAL
-              if all(getattr(c, name) is not None for c in clouds)}
+    arrays: dict[str, Any] = {name: np.concatenate([getattr(c, name) for c in clouds])
+                              for name in SplatCloud._OPTIONAL if all(getattr(c, name) is not None for c in clouds)}
     common = set.intersection(*(set(c.attributes or ()) for c in clouds))
     if common:
         arrays["attributes"] = {name: np.concatenate([c.attributes[name] for c in clouds])

@@ -226,7 +226,7 @@ def colorize(cloud: SplatCloud, by: str, colormap: str | None = None, value_rang
     if value_range is None:
         lo, hi = robust_range(values)
     else:
-        lo, hi = ColorOptions(by, colormap, value_range).value_range
+        lo, hi = ColorOptions(by, colormap, value_range).value_range or robust_range(values)
     t = (np.asarray(values, dtype=np.float64) - lo) / (hi - lo)
     return cloud.replace(colors=colormap_colors(colormap, np.nan_to_num(t, nan=0.0)))
 

@@ -480,6 +480,8 @@ def perspective_footprint(camera: Camera, p_cam: np.ndarray, n_cam: np.ndarray, 
     """
     p, n, u, v = (np.asarray(a, dtype=np.float64) for a in (p_cam, n_cam, u_cam, v_cam))
     near, far = camera.near, camera.far
+    if near is None or far is None:
+        raise ValueError("the camera needs near and far set (Camera.with_clip_from_bounds)")
     f = camera.focal_px
     z = -p[:, 2]
     wz = np.stack([u[:, 2], v[:, 2]], axis=-1)

@@ -37,7 +37,9 @@ def default(cls, name: str):
     """The default value of field ``name`` of dataclass ``cls`` (the one place it is written)."""
     for f in dataclasses.fields(cls):
         if f.name == name:
-            return f.default if f.default is not dataclasses.MISSING else f.default_factory()
+            if f.default is not dataclasses.MISSING:
+                return f.default
+            return f.default_factory()  # type: ignore[operator]  # a field has a default or a factory
     raise KeyError(name)
 
 

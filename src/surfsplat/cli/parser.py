@@ -48,7 +48,7 @@ class Parser(argparse.ArgumentParser):
                 parts.append("COMMAND")
             elif not action.option_strings:
                 name = action.metavar if isinstance(action.metavar, str) else action.dest.upper()
-                parts.append({"+": f"{name}...", "*": f"[{name}...]", "?": f"[{name}]"}.get(action.nargs, name))
+                parts.append({"+": f"{name}...", "*": f"[{name}...]", "?": f"[{name}]"}.get(str(action.nargs), name))
         for action in self._actions:
             if action.option_strings and action.required:
                 flag = min(action.option_strings, key=len)

@@ -34,6 +34,7 @@ The result's layout is described in :mod:`surfsplat.hierarchy.model`.
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
+from typing import Any
 
 import numpy as np
 
@@ -217,6 +218,7 @@ def _split_nodes(cols: list[np.ndarray], order: np.ndarray, s_start: np.ndarray,
     """
     ns = len(s_start)
     contiguous = bool(np.all(s_start[1:] == s_start[:-1] + s_count[:-1]))
+    idx: slice | np.ndarray
     if contiguous:
         idx = slice(int(s_start[0]), int(s_start[-1] + s_count[-1]))
     else:
@@ -238,7 +240,7 @@ def _split_nodes(cols: list[np.ndarray], order: np.ndarray, s_start: np.ndarray,
     key = seg * 8
     key += code
     perm = np.argsort(key, kind="stable")
-    if contiguous:
+    if isinstance(idx, slice):
         order[idx] = order[idx][perm]
     else:
         order[idx] = order[idx[perm]]
@@ -316,8 +318,10 @@ def _node_sums(points: SplatCloud, topo: dict, origin: np.ndarray) -> dict[str, 
     }
 
 
-def _float32_columns(arr: np.ndarray) -> list[np.ndarray]:
-    """(N, 3) array -> three contiguous float32 columns."""
+def _float32_columns(arr: np.ndarray | None) -> list[np.ndarray]:
+    """(N, 3) array -> three contiguous float32 columns (a prepared cloud's arrays are never None here)."""
+    if arr is None:
+        raise ValueError("a hierarchy is built from prepared splats (normals and axes set)")
     t = np.ascontiguousarray(np.asarray(arr).T, dtype=np.float32)
     return [t[0], t[1], t[2]]
 
@@ -340,7 +344,8 @@ def _segment_maxima(fn, start: np.ndarray, count: np.ndarray, node, outputs: int
     contiguous = bool(np.all(start[1:] == start[:-1] + count[:-1]))
     idx = None if contiguous else ranges_to_indices(start, count)
     local = np.repeat(np.arange(k, dtype=np.int64), count)
-    gid = node + np.arange(k, dtype=np.int64) if np.isscalar(node) else np.asarray(node, dtype=np.int64)
+    gid = (node + np.arange(k, dtype=np.int64) if isinstance(node, (int, np.integer))
+           else np.asarray(node, dtype=np.int64))
     base = int(start[0])
     cuts = list(range(0, total, BLOCK))
 
@@ -367,7 +372,7 @@ def _segment_maxima(fn, start: np.ndarray, count: np.ndarray, node, outputs: int
 
 
 def _node_splats(points: SplatCloud, topo: dict, origin: np.ndarray, sums: dict,
-                 max_anisotropy: float) -> dict[str, np.ndarray]:
+                 max_anisotropy: float) -> dict[str, Any]:
     """Representative splats, spheres, cones and normal fields of all nodes (Pajarola 2003, sec. 3.4)."""
     offsets = topo["level_offsets"]
     child_count = topo["child_count"]

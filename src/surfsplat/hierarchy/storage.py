@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import zipfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -49,7 +50,7 @@ FORMAT = "surfsplat-hierarchy"
 __all__ = ["FORMAT", "FORMAT_VERSION", "save_hierarchy", "load_hierarchy", "hierarchy_up"]
 
 #: name -> (dtype, shape after the first axis, first axis: "nodes", "points", "levels+1" or a number, required)
-_SPEC = {
+_SPEC: dict[str, tuple[Any, tuple[int, ...], str | int, bool]] = {
     "order": (np.int64, (), "points", True),
     "level_offsets": (np.int64, (), "levels+1", True),
     "origin": (np.float64, (), 3, True),
@@ -97,7 +98,7 @@ def save_hierarchy(hierarchy: Hierarchy, path, *, overwrite: bool = True) -> Pat
         raise InputError(f"{path}: save_hierarchy needs a Hierarchy, got {type(hierarchy).__name__}")
     if path.is_dir():
         raise InputError(f"{path}: is a directory, not a file")
-    members = dict(hierarchy.arrays())
+    members: dict[str, Any] = dict(hierarchy.arrays())
     members["format"] = np.array(FORMAT)
     members["format_version"] = np.array(FORMAT_VERSION, dtype=np.int64)
     members["leaf_capacity"] = np.array(hierarchy.leaf_capacity, dtype=np.int64)
@@ -144,7 +145,7 @@ def hierarchy_up(path) -> tuple[float, float, float] | None:
     return checked_up(up) if up is not None and up.shape == (3,) and up.dtype.kind == "f" else None
 
 
-def _scalar(members: dict, name: str, source: str, kind) -> object:
+def _scalar(members: dict, name: str, source: str, kind) -> Any:
     if name not in members:
         raise InputError(f"{source}: not a surfsplat hierarchy file (no '{name}' entry)", element=name)
     value = members[name]
@@ -169,14 +170,14 @@ def _from_members(members: dict[str, np.ndarray], source: str) -> Hierarchy:
     _check_format(members, source)
     leaf_capacity = _scalar(members, "leaf_capacity", source, np.integer)
     max_depth = _scalar(members, "max_depth", source, np.integer)
-    sizes = {"nodes": None, "points": None, "levels+1": None}
+    sizes: dict[str, int | None] = {"nodes": None, "points": None, "levels+1": None}
     if "node_positions" in members and members["node_positions"].ndim >= 1:
         sizes["nodes"] = len(members["node_positions"])
     if "point_positions" in members and members["point_positions"].ndim >= 1:
         sizes["points"] = len(members["point_positions"])
     if "level_offsets" in members and members["level_offsets"].ndim >= 1:
         sizes["levels+1"] = len(members["level_offsets"])
-    arrays = {}
+    arrays: dict[str, Any] = {}
     for name, (dtype, tail, first, required) in _SPEC.items():
         if name not in members:
             if required:

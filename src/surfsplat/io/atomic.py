@@ -96,32 +96,32 @@ def atomic_path(path: str | os.PathLike, *, overwrite: bool = True, directory: b
     symbolic link at ``path`` is itself replaced (the file it points to is not written). Refusing
     the caller's own inputs is the caller's business (:func:`same_file`). OSError while writing a
     file (disk full, file size limit) -> InputError naming ``path``."""
-    path = check_writable(path, overwrite=overwrite, directory=directory)
-    folder = path.parent if str(path.parent) else Path(".")
+    target = check_writable(path, overwrite=overwrite, directory=directory)
+    folder = target.parent if str(target.parent) else Path(".")
     try:
         if directory:
-            temp = tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".partial", dir=folder)
+            temp = tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".partial", dir=folder)
         else:
-            handle, temp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+            handle, temp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
             os.close(handle)
     except OSError as exc:
-        raise InputError(f"{path}: cannot write in its folder: {exc.strerror or exc}") from exc
+        raise InputError(f"{target}: cannot write in its folder: {exc.strerror or exc}") from exc
     try:
         try:
             yield Path(temp)
         except OSError as exc:  # disk full, file size limit, ...: the old file stays as it was
             if directory:   # a folder's builder reads inputs too: its errors are its own to word
                 raise
-            raise InputError(f"{path}: cannot write: {exc.strerror or exc}") from exc
-        if not overwrite and path.exists():
-            raise InputError(f"{path}: exists (not replaced: overwrite=False)")
+            raise InputError(f"{target}: cannot write: {exc.strerror or exc}") from exc
+        if not overwrite and target.exists():
+            raise InputError(f"{target}: exists (not replaced: overwrite=False)")
         if directory:
-            _replace_folder(Path(temp), path)
+            _replace_folder(Path(temp), target)
         else:
             umask = os.umask(0)
             os.umask(umask)
             os.chmod(temp, 0o666 & ~umask)   # mkstemp made it private; a new file gets the usual mode
-            os.replace(temp, path)
+            os.replace(temp, target)
     finally:
         if directory:
             shutil.rmtree(temp, ignore_errors=True)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from functools import lru_cache
 from pathlib import Path
+from typing import cast
 
 import moderngl
 import numpy as np
@@ -107,6 +108,9 @@ class TextPanel:
         """(width, height) of the panel in pixels, (0, 0) before any text."""
         return self.texture.size if self.texture is not None else (0, 0)
 
+    def _uniform(self, name: str) -> moderngl.Uniform:
+        return cast(moderngl.Uniform, self.program[name])   # moderngl types program members as a union
+
     def draw(self, viewport: tuple[int, int], x_px: int, y_px: int) -> None:
         """Draw the panel with its top-left corner ``(x_px, y_px)`` pixels from the top-left of
         the current framebuffer, whose size is ``viewport`` (width, height) pixels."""
@@ -114,12 +118,12 @@ class TextPanel:
             return
         w, h = self.texture.size
         top = viewport[1] - y_px
-        self.program["u_rect"].value = (float(x_px), float(top - h), float(x_px + w), float(top))
-        self.program["u_viewport"].value = (float(viewport[0]), float(viewport[1]))
-        self.program["u_text"].value = 0
+        self._uniform("u_rect").value = (float(x_px), float(top - h), float(x_px + w), float(top))
+        self._uniform("u_viewport").value = (float(viewport[0]), float(viewport[1]))
+        self._uniform("u_text").value = 0
         self.texture.use(location=0)
         self.ctx.enable(moderngl.BLEND)
-        self.ctx.blend_equation = moderngl.FUNC_ADD
+        self.ctx.blend_equation = moderngl.FUNC_ADD  # type: ignore[assignment]  # moderngl's stub wants a pair
         self.ctx.blend_func = moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA
         self._vao.render(moderngl.TRIANGLE_STRIP, vertices=4)
         self.ctx.disable(moderngl.BLEND)
