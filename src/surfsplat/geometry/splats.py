@@ -546,7 +546,8 @@ def _cell_vertices(d, rows, frame, bound, plain, pts, tree):
         cy = (xj * qk - xk * qj) / det2
         # only vertices near or outside the ellipse matter, in any of the rounder shapes too
         # (their scale keeps the given ellipse inside); NaN: no circumcenter
-        pair, col = np.nonzero((cx / a[rows]) ** 2 + (cy / b[rows]) ** 2 > np.float32(0.9))
+        # (candidates in point order: each point's vertices form one run, for the maxima below)
+        col, pair = np.nonzero(((cx / a[rows]) ** 2 + (cy / b[rows]) ** 2 > np.float32(0.9)).T)
     cx, cy = cx[pair, col], cy[pair, col]
     # the triangle's angle at the point and at P_j, P_k: obtuse where the dot products are negative
     flat = pair * len(rows) + col
@@ -580,9 +581,7 @@ def _cell_vertices(d, rows, frame, bound, plain, pts, tree):
     col, i, cx, ey2 = col[keep], i[keep], cx[keep], ey2[keep]
     need = np.zeros((len(rho), len(rows)), dtype=np.float32)
     if len(col):
-        # the largest value per point: sorted by point, a maximum over each run (exact, like maximum.at)
-        by = np.argsort(col, kind="stable")
-        col, i, cx, ey2 = col[by], i[by], cx[by], ey2[by]
+        # the largest value per point: a maximum over each point's run (exact, like maximum.at)
         start = np.flatnonzero(np.r_[True, col[1:] != col[:-1]])
         for s in range(len(rho)):
             need[s, col[start]] = np.maximum.reduceat((cx / (a[i] * rho[s, i])) ** 2 + ey2, start)
