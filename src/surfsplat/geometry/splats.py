@@ -648,16 +648,18 @@ def _inside(d, rows, frame, limit):
     k, m = x.shape
     # one (4, K + 2, M) array: the neighbours sorted by angle and, wrapped around, the first two again,
     # so that "the next" and "the one after" are slices, not rolled copies
-    table = np.empty((4, k + 2, m), dtype=np.float32)
-    ang, nx, ny, h = table[0, :k], table[1, :k], table[2, :k], table[3, :k]
+    raw = np.empty((4, k, m), dtype=np.float32)
+    ang, nx, ny, h = raw
     np.multiply(x, a[rows], out=nx)
     np.multiply(y, b[rows], out=ny)
     np.multiply(np.float32(0.5), x * x + y * y, out=h)
     np.arctan2(ny, nx, out=ang)
     ang[~(h > 0)] = np.nan                       # a coincident point bounds nothing
     order = np.argsort(ang.T, axis=1)            # (M, K); insertion sort for K <= 16: ties keep their order
-    flat = (order * m + np.arange(m)[:, None]).T   # (K, M) flat positions in a (K, M) array
-    table[:, :k] = table[:, :k].reshape(4, -1)[:, flat]
+    flat = np.ascontiguousarray((order * m + np.arange(m)[:, None]).T)   # (K, M) positions in a (K, M) array
+    table = np.empty((4, k + 2, m), dtype=np.float32)
+    for c in range(4):
+        np.take(raw[c].reshape(-1), flat, out=table[c, :k])
     table[:, k:] = table[:, :2]
     ang, nx, ny, h = table[0, :k], table[1, :k], table[2, :k], table[3, :k]
     two_pi = np.float32(2.0 * np.pi)
