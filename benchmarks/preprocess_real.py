@@ -17,7 +17,14 @@ SRC`` (the ``src`` directory of another checkout, e.g. one made with ``git workt
 processes, and the outputs are compared: the splat arrays and clip lines element for element,
 the pictures pixel for pixel.
 
+With ``--spacings 0.75,1.5,2`` (pixels), the mesh's sample count is traded against its picture: the
+default render of ``featuretype.ply`` with its surface sampled that many pixels apart (this tree only,
+each in a fresh process), scored against ``render_mesh`` of the same camera (``surfsplat.metrics.compare``:
+PSNR over both silhouettes and inside the eroded one, hole pixels) with the CPU seconds of sampling,
+sizing, clip lines and drawing; saved as ``preprocess_real_density.md``.
+
     python benchmarks/preprocess_real.py [--size 1024] [--repeats 2] [--baseline /path/to/old/src]
+    python benchmarks/preprocess_real.py --spacings 0.75,1.5,2 [--size 1024]
 """
 
 from __future__ import annotations
@@ -136,6 +143,39 @@ def worker(case: str, size: int, out: Path) -> dict:
     return timer.times
 
 
+def density_worker(spacing: float, size: int) -> dict:
+    """The featuretype render sampled ``spacing`` pixels apart, against the mesh's own render (this process)."""
+    from surfsplat import metrics
+    from surfsplat.api import prepare, render_mesh
+    from surfsplat.pipeline.options import SourceOptions
+
+    path = str(DATA / "featuretype.ply")
+    truth = render_mesh(path, width=size, height=size)
+    wall, cpu = time.perf_counter(), time.process_time()
+    result = prepare(path, source_options=SourceOptions(spacing_px=spacing)).render(None, width=size, height=size)
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    score = metrics.compare(result.frame, truth)
+    return {"samples": int(result.splats), "cpu": cpu, "wall": wall, "psnr": score["psnr"],
+            "psnr_inner": score["psnr_inner"], "holes": int(score["holes"])}
+
+
+def density(spacings: list[float], size: int) -> None:
+    """The ``--spacings`` table (see the module docstring)."""
+    rows = []
+    for spacing in spacings:
+        result = subprocess.run([sys.executable, __file__, "--density-worker", str(spacing), "--size", str(size)],
+                                capture_output=True, text=True, check=True)
+        r = json.loads(result.stdout.strip().splitlines()[-1])
+        rows.append([spacing, r["samples"], round(r["psnr"], 2), round(r["psnr_inner"], 2), r["holes"],
+                     round(r["cpu"], 2), round(r["wall"], 2)])
+        print(rows[-1], flush=True)
+    command = "python benchmarks/preprocess_real.py " + " ".join(sys.argv[1:])
+    write_table("preprocess_real_density", ["spacing px", "samples", "PSNR dB", "PSNR inside dB", "holes",
+                                            "CPU s", "wall s"], rows,
+                machine_description() + f"; featuretype.ply, default render at {size}x{size} against render_mesh "
+                f"of the same camera; CPU and wall: sampling, sizing, clip lines, drawing; command: {command}")
+
+
 def run_tree(src: str, case: str, size: int, out: Path) -> dict:
     """:func:`worker` in a fresh process with ``src`` first on the path."""
     env = dict(os.environ, PYTHONPATH=src)
@@ -160,11 +200,19 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--baseline", help="src directory of another checkout to compare with")
     parser.add_argument("--cases", default="featuretype,scan")
+    parser.add_argument("--spacings", help="mesh sample spacings (pixels, comma-separated): the density table")
     parser.add_argument("--worker", help=argparse.SUPPRESS)
+    parser.add_argument("--density-worker", type=float, help=argparse.SUPPRESS)
     parser.add_argument("--out", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
         print(json.dumps(worker(args.worker, args.size, Path(args.out))))
+        return
+    if args.density_worker is not None:
+        print(json.dumps(density_worker(args.density_worker, args.size)))
+        return
+    if args.spacings:
+        density([float(x) for x in args.spacings.split(",")], args.size)
         return
     here = str(Path(__file__).resolve().parents[1] / "src")
     trees = [("before", args.baseline), ("after", here)] if args.baseline else [("this tree", here)]

@@ -15,7 +15,7 @@ from scipy.spatial import Delaunay, cKDTree
 from surfsplat import InputError
 from surfsplat.geometry import knn, preprocess
 from surfsplat.geometry.common import row_norms
-from surfsplat.geometry.splats import ELLIPSE_COVERAGE, GAP_BASE, cover_cells, elliptical_splats
+from surfsplat.geometry.splats import ELLIPSE_COVERAGE, GAP_BASE, GAP_MARGIN, cover_cells, elliptical_splats
 
 N = 20_000
 
@@ -192,3 +192,20 @@ def test_bad_arguments_are_input_errors(plane):
         cover_cells(p, idx, u, v, wide=1)
     with pytest.raises(InputError, match="indices"):
         cover_cells(p, idx[:10], u, v)
+
+
+@pytest.mark.parametrize("radius", [0.6, 0.75])
+def test_square_lattice_cells_are_the_squares(radius):
+    """On a square lattice (spacing 1: neighbours at equal angles and four points on every circumcircle,
+    the ties of the cell tests) a point's Voronoi cell is its unit square, corners sqrt(2)/2 away: circles
+    of radius 0.75 contain it (unchanged), circles of 0.6 grow until the corners lie GAP_MARGIN inside."""
+    g = np.arange(30, dtype=np.float32)
+    p = np.zeros((len(g) ** 2, 3), dtype=np.float32)
+    p[:, 0], p[:, 1] = (c.ravel() for c in np.meshgrid(g, g))
+    _, idx = knn(p, 8)
+    u = np.tile(np.float32([radius, 0, 0]), (len(p), 1))
+    v = np.tile(np.float32([0, radius, 0]), (len(p), 1))
+    _, _, factors = cover_cells(p, idx, u, v)
+    interior = ((p[:, :2] >= 3) & (p[:, :2] <= len(g) - 4)).all(axis=1)
+    want = max(1.0, np.sqrt(0.5) * (1.0 + GAP_MARGIN) / radius)
+    np.testing.assert_allclose(factors[interior], want, rtol=1e-5)

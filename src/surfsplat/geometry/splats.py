@@ -538,27 +538,34 @@ def _cell_vertices(d, rows, frame, bound, plain, pts, tree):
     x, y = _in_plane(d, rows, ua, va)   # in i's own ellipse frame (the splat's tangent plane)
     q = x * x + y * y
     jj, kk = np.triu_indices(k, 1)
+    xj, xk, yj, yk, qj, qk = x[jj], x[kk], y[jj], y[kk], q[jj], q[kk]
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         # circumcenter of (0, P_j, P_k): the Voronoi vertex of the three samples
-        det2 = 2.0 * (x[jj] * y[kk] - x[kk] * y[jj])
-        cx = (y[kk] * q[jj] - y[jj] * q[kk]) / det2
-        cy = (x[jj] * q[kk] - x[kk] * q[jj]) / det2
+        det2 = 2.0 * (xj * yk - xk * yj)
+        cx = (yk * qj - yj * qk) / det2
+        cy = (xj * qk - xk * qj) / det2
         # only vertices near or outside the ellipse matter, in any of the rounder shapes too
         # (their scale keeps the given ellipse inside); NaN: no circumcenter
-        pair, col = np.nonzero((cx / a[rows]) ** 2 + (cy / b[rows]) ** 2 > np.float32(0.9))
+        # (candidates in point order: each point's vertices form one run, for the maxima below)
+        col, pair = np.nonzero(((cx / a[rows]) ** 2 + (cy / b[rows]) ** 2 > np.float32(0.9)).T)
     cx, cy = cx[pair, col], cy[pair, col]
     # the triangle's angle at the point and at P_j, P_k: obtuse where the dot products are negative
-    pj = x[jj[pair], col] * x[kk[pair], col] + y[jj[pair], col] * y[kk[pair], col]
-    obtuse = (pj < 0) | (q[jj[pair], col] < pj) | (q[kk[pair], col] < pj)
+    flat = pair * len(rows) + col
+    pj = xj.ravel()[flat] * xk.ravel()[flat] + yj.ravel()[flat] * yk.ravel()[flat]
+    obtuse = (pj < 0) | (qj.ravel()[flat] < pj) | (qk.ravel()[flat] < pj)
     with np.errstate(invalid="ignore", over="ignore"):
         r2 = cx * cx + cy * cy
         # a vertex of the cell: no neighbour strictly inside the circle, |P_l - c|^2 < |c|^2; most
         # candidates (~99% on noisy scans at K = 24) have one of the nearest neighbours inside, so
         # those are tested first and only the survivors against the rest (the same test, in two parts)
-        vertex = _empty_circles(x[:_VERTEX_FIRST], y[:_VERTEX_FIRST], col, cx, cy, r2)
+        # the neighbours point by point, (M, K): a candidate's gather reads contiguous rows (~2x faster)
+        xt, yt, qt = (np.ascontiguousarray(t.T) for t in (x, y, q))
+        first = slice(None, _VERTEX_FIRST)
+        vertex = _empty_circles(xt[:, first], yt[:, first], qt[:, first], col, cx, cy, r2)
         if k > _VERTEX_FIRST:
             live = np.flatnonzero(vertex)
-            vertex[live] = _empty_circles(x[_VERTEX_FIRST:], y[_VERTEX_FIRST:], col[live], cx[live], cy[live],
+            rest = slice(_VERTEX_FIRST, None)
+            vertex[live] = _empty_circles(xt[:, rest], yt[:, rest], qt[:, rest], col[live], cx[live], cy[live],
                                           r2[live])
         near = r2 <= bound[col]
     i = rows[col]
@@ -573,16 +580,20 @@ def _cell_vertices(d, rows, frame, bound, plain, pts, tree):
         far[col[vertex & ~keep & ((cx / a[i]) ** 2 + ey2 > 1.0)]] = True
     col, i, cx, ey2 = col[keep], i[keep], cx[keep], ey2[keep]
     need = np.zeros((len(rho), len(rows)), dtype=np.float32)
-    for s in range(len(rho)):
-        np.maximum.at(need[s], col, (cx / (a[i] * rho[s, i])) ** 2 + ey2)
+    if len(col):
+        # the largest value per point: a maximum over each point's run (exact, like maximum.at)
+        start = np.flatnonzero(np.r_[True, col[1:] != col[:-1]])
+        for s in range(len(rho)):
+            need[s, col[start]] = np.maximum.reduceat((cx / (a[i] * rho[s, i])) ** 2 + ey2, start)
     return need, far
 
 
-def _empty_circles(x, y, col, cx, cy, r2) -> np.ndarray:
-    """(P,) bool: none of the neighbours ``(x, y)`` (K, M) of the points ``col`` (P,) lies strictly inside
-    the circle through the point (the origin) centred at ``(cx, cy)`` (P,), ``r2 = cx^2 + cy^2``."""
-    xs, ys = x[:, col], y[:, col]
-    return ~((xs * xs + ys * ys - 2.0 * (xs * cx + ys * cy)) < np.float32(-1e-4) * r2).any(axis=0)
+def _empty_circles(x, y, q, col, cx, cy, r2) -> np.ndarray:
+    """(P,) bool: none of the neighbours ``(x, y)`` (M, K; ``q = x^2 + y^2``) of the points ``col`` (P,)
+    lies strictly inside the circle through the point (the origin) centred at ``(cx, cy)`` (P,),
+    ``r2 = cx^2 + cy^2``."""
+    xs, ys = x[col], y[col]
+    return ~((q[col] - 2.0 * (xs * cx[:, None] + ys * cy[:, None])) < (np.float32(-1e-4) * r2)[:, None]).any(axis=1)
 
 
 def _enclosed(x, y, cx, cy):
@@ -634,24 +645,38 @@ def _inside(d, rows, frame, limit):
     """
     ua, va, a, b = frame[:4]
     x, y = _in_plane(d, rows, ua, va)
-    h = 0.5 * (x * x + y * y)
-    nx, ny = x * a[rows], y * b[rows]
-    ang = np.where(h > 0, np.arctan2(ny, nx), np.float32(np.nan))  # a coincident point bounds nothing
-    order = np.argsort(ang.T, axis=1).T
-    ang, nx, ny, h = (np.take_along_axis(t, order, axis=0) for t in (ang, nx, ny, h))
+    k, m = x.shape
+    # one (4, K + 2, M) array: the neighbours sorted by angle and, wrapped around, the first two again,
+    # so that "the next" and "the one after" are slices, not rolled copies
+    raw = np.empty((4, k, m), dtype=np.float32)
+    ang, nx, ny, h = raw
+    np.multiply(x, a[rows], out=nx)
+    np.multiply(y, b[rows], out=ny)
+    np.multiply(np.float32(0.5), x * x + y * y, out=h)
+    np.arctan2(ny, nx, out=ang)
+    ang[~(h > 0)] = np.nan                       # a coincident point bounds nothing
+    order = np.argsort(ang.T, axis=1)            # (M, K); insertion sort for K <= 16: ties keep their order
+    flat = np.ascontiguousarray((order * m + np.arange(m)[:, None]).T)   # (K, M) positions in a (K, M) array
+    table = np.empty((4, k + 2, m), dtype=np.float32)
+    for c in range(4):
+        np.take(raw[c].reshape(-1), flat, out=table[c, :k])
+    table[:, k:] = table[:, :2]
+    ang, nx, ny, h = table[0, :k], table[1, :k], table[2, :k], table[3, :k]
     two_pi = np.float32(2.0 * np.pi)
+    half_turn = np.float32(np.pi * 0.999)
     ok = {}
     for step in (1, 2):
-        nx1, ny1, h1, ang1 = (np.roll(t, -step, axis=0) for t in (nx, ny, h, ang))
+        ang1, nx1, ny1, h1 = table[0, step:step + k], table[1, step:step + k], table[2, step:step + k], \
+            table[3, step:step + k]
         span = ang1 - ang
         span[span < 0] += two_pi  # wrapped around; NaN (coincident points) fails both tests
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             det = nx * ny1 - nx1 * ny
             cx = (h * ny1 - h1 * ny) / det
             cy = (nx * h1 - nx1 * h) / det
-            ok[step] = (cx * cx + cy * cy <= limit) & (span < np.float32(np.pi * 0.999))
+            ok[step] = (cx * cx + cy * cy <= limit) & (span < half_turn)
         if step == 1:
-            open_ = ~(span < np.float32(np.pi * 0.999)).all(axis=0)
+            open_ = ~(span < half_turn).all(axis=0)
     # the angle from D_m to D_m+1 is covered by its own edge or by the edges from D_m-1 or D_m to two on
     covered = ok[1] | ok[2] | np.roll(ok[2], 1, axis=0)
     return covered.all(axis=0) & ~open_, open_
