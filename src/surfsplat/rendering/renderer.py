@@ -500,6 +500,22 @@ class Renderer:
         for step in plan.passes:
             step.run(self, inputs)
 
+    def hiz_framebuffer(self, block: int) -> moderngl.Framebuffer:
+        """The framebuffer of the ``hiz`` target (``passes.HizPass``): one texel per ``block`` x ``block``
+        pixels of the current targets, made once per size."""
+        targets = self._targets
+        width, height = targets["size"]
+        size = (-(-width // block), -(-height // block))
+        if targets.get("hiz_size") != size:
+            if "fbo_hiz" in targets:
+                self.park()
+                targets["fbo_hiz"].release()
+                targets["hiz"].release()
+            hiz = self.ctx.texture(size, 1, dtype="f4")
+            hiz.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            targets |= {"hiz": hiz, "fbo_hiz": self.ctx.framebuffer([hiz]), "hiz_size": size}
+        return targets["fbo_hiz"]
+
     def _fullscreen_pass(self, fragment: str, defines: dict | None = None,
                          version: str = GLSL_VERSION) -> moderngl.VertexArray:
         """The full-screen triangle drawn with a fragment shader (``normalize.frag``, ``cracks.frag``,
