@@ -17,6 +17,14 @@ from surfsplat.rendering.shaders import FILL_FAR
 from surfsplat.rendering.techniques import TECHNIQUES
 
 HIZ_TECHNIQUES = sorted(name for name, technique in TECHNIQUES.items() if technique.hiz_cull)
+#: Opaque techniques whose second compute pass skips splats behind the first one's depths (ComputeOpaquePass)
+OPAQUE_HIZ = sorted(name for name, technique in TECHNIQUES.items() if technique.compute_opaque)
+
+
+def splats_tested(plan) -> bool:
+    """Whether a frame's plan tests whole splats against blocks' farthest depths."""
+    opaque = plan.get("compute_opaque")
+    return plan.get("hiz") is not None or (opaque is not None and opaque.hiz_block > 0)
 SIDE_NONE, SIDE_CRACK = 0.5, 0.375   # visibility.glsl
 
 
@@ -64,20 +72,22 @@ def test_blocks_hold_the_farthest_visible_depth(gl_renderer, torus):
     assert inner.sum() > 20 and (~inner).sum() > 20   # blocks inside the surface and at its border
 
 
-@pytest.mark.parametrize("technique", HIZ_TECHNIQUES)
+@pytest.mark.parametrize("technique", HIZ_TECHNIQUES + OPAQUE_HIZ)
 def test_frames_equal_those_without_the_test(gl_renderer, torus, monkeypatch, technique):
-    """Every technique that declares the test, with edge coverage, supersampled in tiles (each tile's
+    """Every technique that declares the test (and "flat", whose second compute pass tests its splats
+    against the first one's depths), with edge coverage where it has it, supersampled in tiles (each tile's
     blocks start at its own corner) and not: the same frame bit for bit as with no hiz pass."""
     camera = oblique(torus)
+    edges = TECHNIQUES[technique].edge_coverage
     cases = [(OPTIONS, 1, 4096),
-             (RenderOptions(visibility=VisibilityOptions(cull_backfaces=False, edge_coverage=True)), 2, 136)]
+             (RenderOptions(visibility=VisibilityOptions(cull_backfaces=False, edge_coverage=edges)), 2, 136)]
     gpu = gl_renderer.upload(torus)
     try:
         for options, k, max_tile in cases:
             with_test = gl_renderer.render(gpu, camera, technique, Lights(), options, supersample=k, max_tile=max_tile)
-            assert gl_renderer.plan(gpu, camera, technique, options).get("hiz") is not None
+            assert splats_tested(gl_renderer.plan(gpu, camera, technique, options))
             monkeypatch.setattr(passes, "HIZ_BLOCK", 0)
-            assert gl_renderer.plan(gpu, camera, technique, options).get("hiz") is None
+            assert not splats_tested(gl_renderer.plan(gpu, camera, technique, options))
             without = gl_renderer.render(gpu, camera, technique, Lights(), options, supersample=k, max_tile=max_tile)
             monkeypatch.undo()
             assert with_test.alpha.mean() > 0.2

@@ -91,7 +91,7 @@ FILL_ITERATIONS = 1
 #: boxes over more than 2 x 2 blocks are drawn). 0: no such test.
 HIZ_BLOCK = 8
 #: Texture unit of the ``hiz`` target during the accumulation pass.
-HIZ_TEXTURE_UNIT = 4
+HIZ_TEXTURE_UNIT = 6
 #: Texture units of the normalization pass's three targets during the ``fill`` pass.
 NORM_COLOR_UNIT, NORM_DEPTH_UNIT, NORM_Z_UNIT = 0, 1, 2
 
@@ -335,11 +335,14 @@ class OpaquePass(SplatPass):
         renderer.ctx.disable(moderngl.BLEND)
 
 
-def _compute(renderer, frame: FrameInputs, ranges: tuple, compute_pass: int) -> None:
-    """One pass of ``visibility.comp`` (``compute_pass``) over the splats of ``ranges``."""
+def _compute(renderer, frame: FrameInputs, ranges: tuple, compute_pass: int, defines: dict | None = None,
+             uniforms: dict | None = None) -> None:
+    """One pass of ``visibility.comp`` (``compute_pass``, with ``defines`` and ``uniforms`` of its own) over
+    the splats of ``ranges``."""
     program = renderer.compute_program("visibility.comp", compute_visibility.shader_defines(
-        frame.splats.buffers, frame.defines, compute_pass))
+        frame.splats.buffers, frame.defines | (defines or {}), compute_pass))
     renderer.set_uniforms(program, frame.uniforms, optional=frame.uniforms)   # the frame's, where declared
+    renderer.set_uniforms(program, uniforms or {})
     compute_visibility.dispatch(program, frame.splats.buffers, list(ranges))
 
 
@@ -388,13 +391,27 @@ class ComputeOpaquePass:
 
     name: ClassVar[str] = "compute_opaque"
     computed: tuple = ()
+    hiz_block: int = 0   # between the two: the first's depths per block, the second skips splats behind them
 
     def run(self, renderer, frame: FrameInputs) -> None:
-        splats = frame.splats
+        splats, ctx = frame.splats, renderer.ctx
         compute_visibility.begin(frame.targets)
         _compute(renderer, frame, self.computed, compute_visibility.COMPUTE_OPAQUE_DEPTH)
-        renderer.ctx.memory_barrier()
-        _compute(renderer, frame, self.computed, compute_visibility.COMPUTE_OPAQUE_INDEX)
+        ctx.memory_barrier()
+        index_defines = {}
+        if self.hiz_block:
+            units = compute_visibility.bind_images(ctx, frame.targets)
+            vao = renderer._fullscreen_pass("hiz.frag", {"HIZ_BLOCK": self.hiz_block, "OPAQUE_DEPTH": 1})
+            ctx.disable(moderngl.DEPTH_TEST)
+            renderer.hiz_framebuffer(self.hiz_block).use()
+            renderer.set_uniforms(vao.program, {"u_opaque_depth": units[0]})
+            vao.render(moderngl.TRIANGLES, vertices=3)
+            frame.accumulation.use()   # the opaque pass's framebuffer and depth test, for the resolve
+            ctx.enable(moderngl.DEPTH_TEST)
+            frame.targets["hiz"].use(location=HIZ_TEXTURE_UNIT)
+            index_defines = {"HIZ_BLOCK": self.hiz_block}
+        _compute(renderer, frame, self.computed, compute_visibility.COMPUTE_OPAQUE_INDEX, index_defines,
+                 {"u_hiz": HIZ_TEXTURE_UNIT} if self.hiz_block else {})
         units = compute_visibility.bind_images(renderer.ctx, frame.targets)
         vao = renderer._fullscreen_pass("opaque_resolve.frag", compute_visibility.shader_defines(
             splats.buffers, frame.defines) | {"READ_COLOR": 1}, COMPUTE_GLSL_VERSION)
@@ -512,7 +529,7 @@ def plan_frame(technique: Technique, options: RenderOptions, quads: list, points
     else:
         steps.append(OpaquePass(vis_quads, vis_points))
         if computed:
-            steps.append(ComputeOpaquePass(computed))
+            steps.append(ComputeOpaquePass(computed, HIZ_BLOCK))
     gap = fill_gap(options, supersample)
     steps.append(NormalizationPass("cracks" if technique.blended else "side", edges, technique.edge_fringe, gap > 0))
     if gap > 0:
