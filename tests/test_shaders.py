@@ -102,7 +102,7 @@ def test_line_directives_follow_each_include_and_return():
     lines = composed.text.split("\n")
     text = read_glsl("ewa.vert").splitlines()
     includes = [i + 1 for i, line in enumerate(text) if line.startswith("#include")]
-    assert len(includes) == 6   # camera, lighting, attributes, splat vertex, primitive, disk
+    assert len(includes) == 7   # camera, lighting, attributes, splat vertex, primitive, disk, hiz
     k = composed.files.index("ewa.vert")
     for number in includes:  # after each pasted include: back to the next line of ewa.vert
         assert f"#line {k * LINE_STRIDE + number + 1} {k}" in lines

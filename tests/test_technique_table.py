@@ -266,8 +266,8 @@ def test_builtin_plans_follow_their_declarations(gl_renderer, scene, name):
         gpu.release()
     first, last = ("visibility", "accumulation") if technique.blended else ("opaque", "opaque")
     compute = "compute_visibility" if technique.blended else "compute_opaque"
-    expected = (["clear", compute, "visibility", "cracks", "accumulation"] if technique.blended
-                else ["clear", "opaque", compute])
+    expected = (["clear", compute, "visibility", "cracks"] + ["hiz"] * technique.hiz_cull + ["accumulation"]
+                if technique.blended else ["clear", "opaque", compute])
     declared = technique.compute_visibility if technique.blended else technique.compute_opaque
     if not (declared and gl_renderer.has_compute):
         expected.remove(compute)
@@ -285,6 +285,8 @@ def test_builtin_plans_follow_their_declarations(gl_renderer, scene, name):
         assert count(plan.get(compute).computed) > 0
         split = plan.get(first).quads + plan.get(first).points + plan.get(compute).computed
         assert count(split) == len(everything) and indices(split) == everything
+    if technique.blended:   # the accumulation pass tests whole splats against the hiz pass's blocks as declared
+        assert plan.get(last).hiz_block == (plan.get("hiz").block if technique.hiz_cull else 0)
     normalization = plan.get("normalization")
     assert normalization.edge_coverage == technique.edge_coverage
     assert normalization.edge_fringe == technique.edge_fringe
@@ -303,6 +305,9 @@ def test_builtin_declarations_match_their_shaders(name):
     assert (technique.min_point_px > 0) == (technique.point_footprint == "adaptive")
     if technique.compute_visibility or technique.edge_coverage:
         assert "splat_fragment.glsl" in fragment
+    # the hiz test's depth bound is that of the shared fragment code's disk depths
+    if technique.hiz_cull:
+        assert "hiz.glsl" in vertex and "splat_fragment.glsl" in fragment
 
 
 def test_contradictory_declarations_are_input_errors():
@@ -312,6 +317,8 @@ def test_contradictory_declarations_are_input_errors():
         replace(DISK, compute_visibility=True)
     with pytest.raises(InputError, match="edge_coverage"):
         replace(DISK, edge_coverage=True)
+    with pytest.raises(InputError, match="hiz_cull"):
+        replace(DISK, hiz_cull=True)
     with pytest.raises(InputError, match="compute_opaque"):
         replace(BOX, compute_opaque=True)
     with pytest.raises(InputError, match="min_point_px"):

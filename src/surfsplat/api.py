@@ -11,6 +11,7 @@ from __future__ import annotations
 from . import defaults, progress
 from .camera import Camera
 from .camera_path import orbit_cameras
+from .cloud import SplatCloud
 from .errors import InputError
 from .io import Mesh, load_mesh
 from .lighting import Lights
@@ -21,7 +22,7 @@ from .pipeline.models import as_model
 from .rendering.frame import Frame, check_background
 from .rendering.mesh import render_mesh as rasterize_mesh
 from .rendering.options import RenderOptions, TechniqueName
-from .rendering.renderer import default_renderer
+from .rendering.renderer import content_key, default_renderer
 from .rendering.tiles import check_supersample
 
 __all__ = ["fit", "load_model", "orbit_cameras", "prepare", "render", "render_mesh", "turntable_frames"]
@@ -32,6 +33,29 @@ def prepare(source, *, source_options: SourceOptions | None = None, lod: LodOpti
     camera drawn, a cloud's hierarchy built once), then ``view.render(camera, ...)`` for any number of
     cameras, each returning a :class:`~surfsplat.pipeline.RenderResult`. Arguments as :func:`render`."""
     return View(source, source_options=source_options, lod=lod)
+
+
+#: The last view :func:`render` made of a SplatCloud: ``(cloud, its content key, (source_options, lod), view)``.
+_last_view: tuple | None = None
+
+
+def _view_of(source, source_options: SourceOptions | None, lod: LodOptions | None) -> View:
+    """:func:`prepare` of ``source``; for a SplatCloud, the view made by the last call when it was of this
+    very cloud holding the same bytes (its :func:`~surfsplat.rendering.renderer.content_key`, which the
+    renderer then reuses to find its upload) and the same options: a cloud rendered again and again is
+    prepared once (its orientation, up axis, hierarchy), as a :func:`prepare`'d view would be."""
+    global _last_view
+    if not isinstance(source, SplatCloud):
+        return prepare(source, source_options=source_options, lod=lod)
+    key, settings = content_key(source), (source_options, lod)
+    last = _last_view
+    if last is not None and last[0] is source and last[1] == key and last[2] == settings:
+        return last[3]
+    _last_view = None   # the previous cloud is not kept while this one is prepared
+    view = prepare(source, source_options=source_options, lod=lod)
+    view.source_key = key
+    _last_view = (source, key, settings, view)
+    return view
 
 
 def load_model(source, source_options: SourceOptions | None = None):
@@ -77,7 +101,7 @@ def render(source, camera: Camera | CameraSpec | None = None, *, technique: Tech
     """
     check_render_args(technique=technique, width=width, height=height, background=background, options=options,
                       supersample=supersample, lights=lights)
-    return prepare(source, source_options=source_options, lod=lod).render(
+    return _view_of(source, source_options, lod).render(
         camera, technique=technique, width=width, height=height, lights=lights, background=background,
         options=options, supersample=supersample).frame
 

@@ -156,6 +156,11 @@ class View:
         self._outward = False
         self._tree: Model | None = None         # the hierarchy a cut needs (built once for a cloud)
         self._layout: SequentialLayout | None = None   # the GPU LOD layout of the hierarchy
+        self._source = source
+        #: The :func:`~surfsplat.rendering.renderer.content_key` of ``source`` (a SplatCloud) where a caller
+        #: computed it (:func:`surfsplat.render` checks its last view by it): the renderer then takes it
+        #: for the frames that draw that very cloud instead of computing it again.
+        self.source_key: tuple | None = None
 
     # -- cameras -------------------------------------------------------------
 
@@ -251,10 +256,22 @@ class View:
             if self.hybrid:
                 cloud = hybrid_splats(tree, cloud, selection, local_camera(cloud, camera))
             frame = default_renderer().render(cloud, camera, technique, lights or Lights(), options, background,
-                                              supersample=supersample)   # world camera: the renderer handles the origin
+                                              supersample=supersample,   # world camera: the renderer handles the origin
+                                              cloud_key=self._drawn_key(cloud))
         result = RenderResult(frame, len(cloud), selection, time.perf_counter() - start, merged_from)
         check_coverage(frame, self.model)
         return result
+
+    def _drawn_key(self, cloud) -> tuple | None:
+        """The renderer's content key of ``cloud`` where :attr:`source_key` gives it: ``source`` itself, or
+        the splats this view made of it (:meth:`sample`: what ``source`` and the source options determine)."""
+        if self.source_key is None:
+            return None
+        if cloud is self._source:
+            return self.source_key
+        if self._drawn is not None and cloud is self._drawn.points():
+            return ("drawn", self.source_options) + self.source_key
+        return None
 
     def _render_gpu(self, camera, technique, lights, background, options, supersample) -> RenderResult:
         """:meth:`render` with the cut chosen per entry by the vertex shader (sequential point trees,

@@ -27,6 +27,7 @@ BLEND = Technique(
     point_footprint="disk",   # disk.vert
     compute_visibility=True,   # the shared ray-cast disk visibility (splat_fragment.glsl)
     edge_coverage=True,
+    hiz_cull=True,   # hidden splats are not drawn in the accumulation pass (hiz.glsl)
     edge_fringe=False,   # kernels end at the disk's rim
     description="object-space blending kernels psi_E, epsilon-z-buffer, normalization (Pajarola et al. 2003)",
 )

@@ -18,5 +18,6 @@ EWA = Technique(
     compute_visibility=True,   # the shared ray-cast disk visibility (splat_fragment.glsl)
     edge_coverage=True,
     edge_fringe=True,   # the prefilter reaches beyond the disk
+    hiz_cull=True,   # ewa.vert: hidden splats are not drawn in the accumulation pass (hiz.glsl)
     description="screen-space EWA splatting, three passes (Guennebaud & Paulin 2003)",
 )

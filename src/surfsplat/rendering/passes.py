@@ -86,6 +86,12 @@ FILL_REACH_FACTOR = 3
 #: random vegetation points (174 pixels, 233 with two, 270 with five), and each costs as much as the first
 #: (37 ms at 512 x 512 on llvmpipe, the torus; its normalization pass: 13 ms).
 FILL_ITERATIONS = 1
+#: Side in pixels of the blocks whose farthest visible depth the accumulation pass's vertex shaders test
+#: each splat against (``HizPass``, ``hiz.glsl``: a splat behind it wherever its box reaches is not drawn;
+#: boxes over more than 2 x 2 blocks are drawn). 0: no such test.
+HIZ_BLOCK = 8
+#: Texture unit of the ``hiz`` target during the accumulation pass.
+HIZ_TEXTURE_UNIT = 6
 #: Texture units of the normalization pass's three targets during the ``fill`` pass.
 NORM_COLOR_UNIT, NORM_DEPTH_UNIT, NORM_Z_UNIT = 0, 1, 2
 
@@ -227,21 +233,29 @@ class SplatPass:
     def run(self, renderer, frame: FrameInputs) -> None:
         self.begin(renderer, frame)
         ctx, technique = renderer.ctx, frame.technique
+        defines, uniforms = {"PASS": self.pass_id} | frame.defines | self.defines(), frame.uniforms | self.uniforms()
         if self.quads:
-            program = renderer.program(technique.vertex, technique.fragment, {"PASS": self.pass_id} | frame.defines)
-            renderer.set_uniforms(program, frame.uniforms, frame.optional)
+            program = renderer.program(technique.vertex, technique.fragment, defines)
+            renderer.set_uniforms(program, uniforms, frame.optional)
             for start, count in self.quads:
                 renderer._draw_quads(frame.splats, program, technique, count, start)
         if self.points:
-            program = renderer.program(technique.vertex, technique.fragment,
-                                       {"PASS": self.pass_id, "POINT_PRIMITIVE": 1} | frame.defines)
-            renderer.set_uniforms(program, frame.uniforms | {"u_max_point": renderer._max_point}, frame.optional)
+            program = renderer.program(technique.vertex, technique.fragment, defines | {"POINT_PRIMITIVE": 1})
+            renderer.set_uniforms(program, uniforms | {"u_max_point": renderer._max_point}, frame.optional)
             ctx.enable(moderngl.PROGRAM_POINT_SIZE)
             renderer._draw_points(frame.splats, program, technique, self.points)
             ctx.disable(moderngl.PROGRAM_POINT_SIZE)
 
     def begin(self, renderer, frame: FrameInputs) -> None:
         """The pass's framebuffer and fixed-function state."""
+
+    def defines(self) -> dict:
+        """The pass's own defines of the technique's programs (beyond ``PASS`` and the frame's)."""
+        return {}
+
+    def uniforms(self) -> dict:
+        """The pass's own uniforms of the technique's programs (beyond the frame's)."""
+        return {}
 
 
 @dataclass(frozen=True)
@@ -264,10 +278,13 @@ class AccumulationPass(SplatPass):
 
     name: ClassVar[str] = "accumulation"
     pass_id: ClassVar[int] = PASS_ACCUMULATION
+    hiz_block: int = 0   # a HizPass ran: whole splats behind its blocks' depths are not drawn (hiz.glsl)
 
     def begin(self, renderer, frame: FrameInputs) -> None:
         ctx = renderer.ctx
         frame.targets["cracks"].use(location=SIDE_TEXTURE_UNIT)
+        if self.hiz_block:
+            frame.targets["hiz"].use(location=HIZ_TEXTURE_UNIT)
         fbo = frame.accumulation
         fbo.use()
         fbo.depth_mask = False
@@ -275,6 +292,31 @@ class AccumulationPass(SplatPass):
         ctx.enable(moderngl.BLEND)
         ctx.blend_equation = moderngl.FUNC_ADD
         ctx.blend_func = moderngl.ONE, moderngl.ONE
+
+    def defines(self) -> dict:
+        return {"HIZ_BLOCK": self.hiz_block} if self.hiz_block else {}
+
+    def uniforms(self) -> dict:
+        return {"u_hiz": HIZ_TEXTURE_UNIT} if self.hiz_block else {}
+
+
+@dataclass(frozen=True)
+class HizPass:
+    """After the cracks pass: the farthest visible depth of each ``block`` x ``block`` block of the record
+    (``hiz.frag``), which the accumulation pass's vertex shaders test whole splats against (``hiz.glsl``)."""
+
+    name: ClassVar[str] = "hiz"
+    block: int = HIZ_BLOCK
+
+    def run(self, renderer, frame: FrameInputs) -> None:
+        ctx, targets = renderer.ctx, frame.targets
+        vao = renderer._fullscreen_pass("hiz.frag", {"HIZ_BLOCK": int(self.block)})
+        ctx.disable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.BLEND)
+        renderer.hiz_framebuffer(int(self.block)).use()
+        targets["cracks"].use(location=SIDE_TEXTURE_UNIT)
+        renderer.set_uniforms(vao.program, {"u_side": SIDE_TEXTURE_UNIT})
+        vao.render(moderngl.TRIANGLES, vertices=3)
 
 
 @dataclass(frozen=True)
@@ -293,11 +335,14 @@ class OpaquePass(SplatPass):
         renderer.ctx.disable(moderngl.BLEND)
 
 
-def _compute(renderer, frame: FrameInputs, ranges: tuple, compute_pass: int) -> None:
-    """One pass of ``visibility.comp`` (``compute_pass``) over the splats of ``ranges``."""
+def _compute(renderer, frame: FrameInputs, ranges: tuple, compute_pass: int, defines: dict | None = None,
+             uniforms: dict | None = None) -> None:
+    """One pass of ``visibility.comp`` (``compute_pass``, with ``defines`` and ``uniforms`` of its own) over
+    the splats of ``ranges``."""
     program = renderer.compute_program("visibility.comp", compute_visibility.shader_defines(
-        frame.splats.buffers, frame.defines, compute_pass))
+        frame.splats.buffers, frame.defines | (defines or {}), compute_pass))
     renderer.set_uniforms(program, frame.uniforms, optional=frame.uniforms)   # the frame's, where declared
+    renderer.set_uniforms(program, uniforms or {})
     compute_visibility.dispatch(program, frame.splats.buffers, list(ranges))
 
 
@@ -346,13 +391,27 @@ class ComputeOpaquePass:
 
     name: ClassVar[str] = "compute_opaque"
     computed: tuple = ()
+    hiz_block: int = 0   # between the two: the first's depths per block, the second skips splats behind them
 
     def run(self, renderer, frame: FrameInputs) -> None:
-        splats = frame.splats
+        splats, ctx = frame.splats, renderer.ctx
         compute_visibility.begin(frame.targets)
         _compute(renderer, frame, self.computed, compute_visibility.COMPUTE_OPAQUE_DEPTH)
-        renderer.ctx.memory_barrier()
-        _compute(renderer, frame, self.computed, compute_visibility.COMPUTE_OPAQUE_INDEX)
+        ctx.memory_barrier()
+        index_defines = {}
+        if self.hiz_block:
+            units = compute_visibility.bind_images(ctx, frame.targets)
+            vao = renderer._fullscreen_pass("hiz.frag", {"HIZ_BLOCK": self.hiz_block, "OPAQUE_DEPTH": 1})
+            ctx.disable(moderngl.DEPTH_TEST)
+            renderer.hiz_framebuffer(self.hiz_block).use()
+            renderer.set_uniforms(vao.program, {"u_opaque_depth": units[0]})
+            vao.render(moderngl.TRIANGLES, vertices=3)
+            frame.accumulation.use()   # the opaque pass's framebuffer and depth test, for the resolve
+            ctx.enable(moderngl.DEPTH_TEST)
+            frame.targets["hiz"].use(location=HIZ_TEXTURE_UNIT)
+            index_defines = {"HIZ_BLOCK": self.hiz_block}
+        _compute(renderer, frame, self.computed, compute_visibility.COMPUTE_OPAQUE_INDEX, index_defines,
+                 {"u_hiz": HIZ_TEXTURE_UNIT} if self.hiz_block else {})
         units = compute_visibility.bind_images(renderer.ctx, frame.targets)
         vao = renderer._fullscreen_pass("opaque_resolve.frag", compute_visibility.shader_defines(
             splats.buffers, frame.defines) | {"READ_COLOR": 1}, COMPUTE_GLSL_VERSION)
@@ -463,12 +522,14 @@ def plan_frame(technique: Technique, options: RenderOptions, quads: list, points
     if technique.blended:
         if computed:
             steps.append(ComputeVisibilityPass(computed))
-        steps += [VisibilityPass(vis_quads, vis_points), CracksPass(bool(computed)),
-                  AccumulationPass(tuple(quads), tuple(points))]
+        steps += [VisibilityPass(vis_quads, vis_points), CracksPass(bool(computed))]
+        if HIZ_BLOCK > 0 and technique.hiz_cull:
+            steps.append(HizPass(HIZ_BLOCK))
+        steps.append(AccumulationPass(tuple(quads), tuple(points), hiz_block=HIZ_BLOCK if technique.hiz_cull else 0))
     else:
         steps.append(OpaquePass(vis_quads, vis_points))
         if computed:
-            steps.append(ComputeOpaquePass(computed))
+            steps.append(ComputeOpaquePass(computed, HIZ_BLOCK))
     gap = fill_gap(options, supersample)
     steps.append(NormalizationPass("cracks" if technique.blended else "side", edges, technique.edge_fringe, gap > 0))
     if gap > 0:

@@ -30,6 +30,7 @@ PERSPECTIVE = Technique(
     point_footprint=None,   # perspective.vert bounds the exact image conic: quads only
     compute_visibility=True,   # the shared ray-cast disk visibility (splat_fragment.glsl)
     edge_coverage=True,
+    hiz_cull=True,   # hidden splats are not drawn in the accumulation pass (hiz.glsl)
     edge_fringe=True,   # the prefilter reaches beyond the disk
     description="perspective accurate EWA splatting, three passes (Zwicker et al. 2004)",
 )

@@ -122,6 +122,14 @@ def _with_clip_planes(camera: Camera, splats: GpuSplats) -> Camera:
     return camera
 
 
+def content_key(cloud: SplatCloud) -> tuple:
+    """What tells two SplatClouds' GPU copies apart: each array's shape and CRC-32 and the origin (two
+    clouds with the same key upload the same buffers; about 30 ms per million splats)."""
+    arrays = [cloud.positions, cloud.normals, cloud.colors, cloud.u, cloud.v, cloud.clip_lines, cloud.normal_field]
+    key = tuple(None if a is None else (a.shape, zlib.crc32(np.ascontiguousarray(a).data)) for a in arrays)
+    return key + (np.asarray(cloud.origin, dtype=np.float64).tobytes(),)
+
+
 class Renderer:
     """Renders SplatClouds with any technique of ``techniques.TECHNIQUES`` into Frames.
 
@@ -245,13 +253,12 @@ class Renderer:
                          class_start=class_start, class_radius=class_radius,
                          origin=np.asarray(cloud.origin, dtype=np.float64), scale=scale)
 
-    def _upload_cached(self, cloud: SplatCloud) -> GpuSplats:
+    def _upload_cached(self, cloud: SplatCloud, key: tuple | None = None) -> GpuSplats:
         """The GPU copy of ``cloud``: the last one :meth:`render` uploaded when its arrays hold the same
-        bytes (a CRC-32 of each, about 30 ms per million splats against several hundred for an upload:
-        the frames of a turntable or a batch upload a cloud once), else a new upload replacing it."""
-        arrays = [cloud.positions, cloud.normals, cloud.colors, cloud.u, cloud.v, cloud.clip_lines, cloud.normal_field]
-        key = tuple(None if a is None else (a.shape, zlib.crc32(np.ascontiguousarray(a).data)) for a in arrays)
-        key += (np.asarray(cloud.origin, dtype=np.float64).tobytes(),)
+        bytes (:func:`content_key`, about 30 ms per million splats against several hundred for an upload:
+        the frames of a turntable or a batch upload a cloud once; ``key``: computed by the caller
+        already), else a new upload replacing it."""
+        key = content_key(cloud) if key is None else key
         if self._upload_key != key or self._uploaded is None:
             self.forget_upload()
             self._uploaded = self.upload(cloud)
@@ -500,6 +507,22 @@ class Renderer:
         for step in plan.passes:
             step.run(self, inputs)
 
+    def hiz_framebuffer(self, block: int) -> moderngl.Framebuffer:
+        """The framebuffer of the ``hiz`` target (``passes.HizPass``): one texel per ``block`` x ``block``
+        pixels of the current targets, made once per size."""
+        targets = self._targets
+        width, height = targets["size"]
+        size = (-(-width // block), -(-height // block))
+        if targets.get("hiz_size") != size:
+            if "fbo_hiz" in targets:
+                self.park()
+                targets["fbo_hiz"].release()
+                targets["hiz"].release()
+            hiz = self.ctx.texture(size, 1, dtype="f4")
+            hiz.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            targets |= {"hiz": hiz, "fbo_hiz": self.ctx.framebuffer([hiz]), "hiz_size": size}
+        return targets["fbo_hiz"]
+
     def _fullscreen_pass(self, fragment: str, defines: dict | None = None,
                          version: str = GLSL_VERSION) -> moderngl.VertexArray:
         """The full-screen triangle drawn with a fragment shader (``normalize.frag``, ``cracks.frag``,
@@ -542,8 +565,12 @@ class Renderer:
 
     def render(self, splats: GpuSplats | SplatCloud, camera: Camera, technique: Technique | str = "ewa",
                lights: Lights = Lights(), options: RenderOptions = RenderOptions(),
-               background=(1.0, 1.0, 1.0), *, supersample: int = 1, max_tile: int = MAX_TILE) -> Frame:
+               background=(1.0, 1.0, 1.0), *, supersample: int = 1, max_tile: int = MAX_TILE,
+               cloud_key: tuple | None = None) -> Frame:
         """Render into a :class:`Frame` (color, depth, weight, alpha as NumPy arrays).
+
+        A SplatCloud is uploaded once for the frames that draw it (:meth:`_upload_cached`; ``cloud_key``:
+        its :func:`content_key` where the caller has it already).
 
         ``supersample`` K (1..16, :func:`~surfsplat.rendering.tiles.check_supersample`): the image is drawn
         at K times the size and box-filtered per pixel (:mod:`surfsplat.rendering.tiles`); any size is drawn
@@ -553,7 +580,7 @@ class Renderer:
         check_render_memory(len(splats) if isinstance(splats, SplatCloud) else splats.count, camera.width,
                             camera.height, k, max_tile)
         if isinstance(splats, SplatCloud):
-            splats = self._upload_cached(splats)
+            splats = self._upload_cached(splats, cloud_key)
         self._non_finite, self._background = 0, np.asarray(background, "f4")
         camera = _with_clip_planes(camera, splats)
         big = camera.resized(camera.width * k, camera.height * k)

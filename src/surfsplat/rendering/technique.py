@@ -65,6 +65,9 @@ class Technique:
         edge_fringe: the footprints reach beyond the splat's disk (the EWA prefilter's fringe):
             with edge coverage, pixels beyond a silhouette take the disks' distances there
             (``u_edge_fringe`` of ``normalize.frag``).
+        hiz_cull: blended only: the accumulation pass's vertex shader drops a splat that lies behind the
+            blocks of the visibility record its box touches (it includes ``hiz.glsl`` and honours
+            ``HIZ_BLOCK``; ``passes.HizPass``), every fragment of which its fragment shader would discard.
     """
 
     name: str
@@ -81,6 +84,7 @@ class Technique:
     compute_opaque: bool = False
     edge_coverage: bool = False
     edge_fringe: bool = False
+    hiz_cull: bool = False
 
     def __post_init__(self) -> None:
         where = f"technique {self.name!r}"
@@ -89,7 +93,7 @@ class Technique:
                              f"got {self.point_footprint!r}")
         if not (self.min_point_px >= 0.0 and self.min_point_px < float("inf")):
             raise InputError(f"{where}: min_point_px must be a finite number >= 0, got {self.min_point_px!r}")
-        blended_only = [name for name in ("compute_visibility", "edge_coverage") if getattr(self, name)]
+        blended_only = [name for name in ("compute_visibility", "edge_coverage", "hiz_cull") if getattr(self, name)]
         if blended_only and not self.blended:
             raise InputError(f"{where}: {' and '.join(blended_only)} need a blended technique (the visibility "
                              f"and accumulation passes)")

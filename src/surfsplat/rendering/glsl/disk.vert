@@ -6,10 +6,15 @@
 #include "splat_vertex.glsl"
 #include "disk_vertex.glsl"
 #include "splat_primitive.glsl"
+#include "hiz.glsl"
 
 void main() {
     Splat s;
     vec2 lo, hi;
     if (!camera_splat(s) || !disk_bounds(s, lo, hi)) { gl_Position = CULLED; return; }
+#if PASS == PASS_ACCUMULATION && defined(HIZ_BLOCK)
+    // behind the visible surface wherever it is drawn (its disk's depths are at least z minus its extent)
+    if (hidden_splat(lo, hi, -s.p.z - length(vec2(s.u.z, s.v.z)))) { gl_Position = CULLED; return; }
+#endif
     emit_box(lo, hi);
 }

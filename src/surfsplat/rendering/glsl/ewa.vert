@@ -5,6 +5,7 @@
 #include "splat_vertex.glsl"
 #include "splat_primitive.glsl"
 #include "disk_vertex.glsl"
+#include "hiz.glsl"
 
 uniform float u_cutoff;      // c: kernel cut at 0.5 x^T V^-1 x = c
 uniform float u_prefilter;   // H = u_prefilter * I, pixels^2 (1: EWA prefilter on)
@@ -41,6 +42,11 @@ void main() {
     vec2 lo = max(v_center_px - half_extent, tile_lo() - 1.0);
     vec2 hi = min(v_center_px + half_extent, tile_hi() + 1.0);
     if (any(greaterThanEqual(lo, hi))) { gl_Position = CULLED; return; }
+#if PASS == PASS_ACCUMULATION && defined(HIZ_BLOCK)
+    // behind the visible surface wherever it is drawn: no fragment would blend (a fragment's depth is
+    // that of the disk point nearest its ray's hit, footprint_depth: at least z minus the disk's extent)
+    if (hidden_splat(lo, hi, z - length(vec2(s.u.z, s.v.z)))) { gl_Position = CULLED; return; }
+#endif
     emit_box(lo, hi);
 #endif
 }

@@ -6,6 +6,7 @@
 #include "splat_attributes.glsl"
 #include "splat_vertex.glsl"
 #include "disk_vertex.glsl"
+#include "hiz.glsl"
 
 uniform float u_cutoff;      // c: kernel cut at 0.5 x^T V^-1 x = c (F_g^2 = 2c)
 uniform float u_prefilter;   // H = u_prefilter * I, pixels^2 (1: EWA prefilter on)
@@ -125,6 +126,10 @@ void main() {
         if (!(lambda1 > 0.0 && lambda2 > 0.0) || any(isnan(lo)) || any(isnan(hi))) { gl_Position = CULLED; return; }
     }
     if (!pixel_box(lo, hi)) { gl_Position = CULLED; return; }
+#ifdef HIZ_BLOCK
+    // behind the visible surface wherever it is drawn (a fragment's depth is a disk point's, footprint_depth)
+    if (hidden_splat(lo, hi, -s.p.z - length(vec2(s.u.z, s.v.z)))) { gl_Position = CULLED; return; }
+#endif
 #endif
     gl_Position = px_to_clip(mix(lo, hi, in_corner * 0.5 + 0.5));
 }

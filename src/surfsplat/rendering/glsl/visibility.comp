@@ -21,6 +21,7 @@
 #include "disk_vertex.glsl"
 #include "disk_ray.glsl"
 #include "splat_buffers.glsl"
+#include "hiz.glsl"
 
 layout(local_size_x = COMPUTE_GROUP) in;
 
@@ -42,6 +43,10 @@ void main() {
     Splat s;
     vec2 lo, hi;
     if (!camera_splat(s) || !disk_bounds(s, lo, hi)) return;
+#if COMPUTE_PASS == COMPUTE_OPAQUE_INDEX && defined(HIZ_BLOCK)
+    // behind the nearest disks wherever it reaches (hiz.frag of the first pass's depths): at no pixel its depth
+    if (hidden_splat(lo, hi, -s.p.z - length(vec2(s.u.z, s.v.z)))) return;
+#endif
     ivec2 origin = ivec2(tile_lo());
     for (float y = lo.y; y < hi.y; y += 1.0) {
         for (float x = lo.x; x < hi.x; x += 1.0) {
