@@ -207,3 +207,57 @@ def test_the_browser_driver_names_a_missing_browser(tmp_path):
     from surfsplat.web.browser import Browser, BrowserError
     with pytest.raises(BrowserError, match="no such executable"):
         Browser(str(tmp_path / "chromium"))
+
+
+def _page_header(out):
+    text = (out / "data.js").read_text()
+    data = json.loads(text[text.index("=") + 1:].rstrip().rstrip(";"))
+    return data["header"], data["streams"]
+
+
+def test_the_page_colours_are_colorize_s_from_compact_attributes(tmp_path):
+    import base64
+
+    from surfsplat.colors import colorize
+    from surfsplat.web.colors import page_colors
+    rng = np.random.default_rng(5)
+    base = torus(60, 30)
+    n = len(base)
+    attributes = {"classification": rng.choice([1, 2, 6, 9, 200], n).astype(np.uint8),
+                  "intensity": rng.integers(0, 60_000, n).astype(np.uint16),
+                  "gps_time": rng.uniform(1e5, 2e5, n), "nonplanar": np.zeros(n, np.uint8)}
+    cloud = base.replace(attributes=attributes)
+    header, streams = _page_header(surfsplat.export(cloud, tmp_path / "site").path)
+    color = header["color"]
+    # the desktop viewer's C cycle: own colours (the page's own), elevation, then the attributes sorted
+    assert [m["name"] for m in color["modes"]] == ["elevation", "classification", "gps_time", "intensity"]
+    kinds = {name: info["type"] for name, info in color["attributes"].items()}
+    assert kinds == {"classification": "u8", "intensity": "u16", "gps_time": "u16"}   # 1 or 2 bytes a splat
+    raw = {k: np.frombuffer(base64.b64decode(v), np.uint8 if k in ("color", "attr_classification") else np.uint16)
+           for k, v in streams.items()}
+    tables = {k: np.frombuffer(base64.b64decode(v), np.uint8).reshape(256, 3) for k, v in color["tables"].items()}
+    assert set(tables) == {"asprs", "viridis"}
+    positions = wf.dequantize_unit(raw["position"].reshape(-1, 3), header["lo"], header["hi"])
+    order = np.lexsort(positions.T)   # the page's order to the cloud's: match rows by position
+    mine = np.lexsort(wf.dequantize_unit(wf.quantize_unit(cloud.positions, header["lo"], header["hi"]),
+                                         header["lo"], header["hi"]).T)
+    codes = {k: v[order] for k, v in raw.items() if k.startswith("attr_")}
+    for name in ("classification", "intensity", "gps_time", "elevation"):
+        page = page_colors({**color, "tables": tables}, codes, positions[order], name)
+        desktop = np.rint(colorize(cloud, name, up=View(cloud).up).colors[mine] * 255).astype(int)
+        same = (np.abs(page.astype(int) - desktop) <= 1).all(axis=1).mean()
+        # integers exactly; a quantized float or position may cross a colormap bin: a few splats differ
+        assert same >= (1.0 if name in ("classification", "intensity") else 0.99), name
+
+
+def test_a_mesh_is_sampled_for_the_page_size_as_render_samples_for_its_size(tmp_path):
+    trimesh = pytest.importorskip("trimesh")
+    mesh = tmp_path / "sphere.ply"
+    trimesh.creation.icosphere(subdivisions=3).export(mesh)
+    small = surfsplat.export(mesh, tmp_path / "small", size=(100, 75))
+    large = surfsplat.export(mesh, tmp_path / "large", size=(200, 150))
+    view = View(mesh)
+    assert small.splats == len(view.sample(view.camera(None, 100, 75)).points())
+    assert 3.0 < large.splats / small.splats < 5.0   # twice the size: four times the samples
+    with pytest.raises(InputError, match="page size"):
+        surfsplat.export(mesh, tmp_path / "bad", size=(0, 10))

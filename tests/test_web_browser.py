@@ -276,3 +276,75 @@ def test_the_page_cuts_a_hierarchy_within_the_budget_as_the_desktop_does(browser
         page.close()
     assert drawn <= budget and drawn == result.splats   # Potree's priority, the same cut as hierarchy.lod.select
     assert psnr(canvas / 255.0, result.frame.image() / 255.0) >= 40.0
+
+
+# measured at 320 x 240: 53.8 dB (points + EDL; ewa 39.2 dB: the desktop draws LiDAR's non-planar splats as
+# round points, the page as splats)
+def test_colour_by_classification_on_the_page_is_the_render_coloured_by_it(browser, shared_data, tmp_path):
+    from surfsplat.colors import ColorOptions
+    source = shared_data / "simple.las"
+    out = tmp_path / "site"
+    export(source, out, technique="points", size=(W, H))
+    view = View(source, source_options=SourceOptions(color=ColorOptions("classification")))
+    camera = view.camera(None, W, H)
+    reference = view.render(camera, technique="points", options=RenderOptions(edl=EdlOptions())).frame.image()
+    own = View(source).render(camera, technique="points", options=RenderOptions(edl=EdlOptions())).frame.image()
+    page = opened(browser, file_url(out / "index.html", "?ui=0#color=classification"))
+    try:
+        canvas = page.canvas()
+        modes = page.evaluate("Array.from(document.getElementById('color').options).map(o => o.value)")
+        assert page.evaluate("surfsplat.colorBy") == "classification"
+        page.evaluate("document.getElementById('view').focus()")
+        page.key("c", code="KeyC", key_code=67)   # C: the next colouring, as in the desktop viewer
+        following = modes[modes.index("classification") + 1]
+        page.wait_for(f"surfsplat.colorBy === {json.dumps(following)} && location.hash.indexOf('color=') >= 0",
+                      timeout=10)
+        assert page.collect() == []
+    finally:
+        page.close()
+    assert modes[:2] == ["own colours", "elevation"] and modes[2:] == sorted(modes[2:]) and "nonplanar" not in modes
+    assert psnr(canvas / 255.0, reference / 255.0) >= 35.0
+    assert psnr(canvas / 255.0, own / 255.0) < psnr(canvas / 255.0, reference / 255.0) - 10   # recoloured
+
+
+# measured at 200 x 150: 46.3 dB: the page's splats are the render's (the mesh sampled for the same size)
+@pytest.mark.slow
+def test_a_mesh_page_exported_for_its_size_is_surfsplat_render_of_the_mesh(browser, shared_data, tmp_path):
+    source, width, height = shared_data / "bunny.ply", 200, 150   # small: the test samples the mesh twice
+    out = tmp_path / "site"
+    result = export(source, out, size=(width, height))
+    view = View(source)
+    camera = view.camera(None, width, height)
+    reference = view.render(camera, technique="ewa").frame.image()
+    page = opened(browser, file_url(out / "index.html", "?ui=0"), width, height)
+    try:
+        canvas = page.canvas()
+    finally:
+        page.close()
+    assert result.splats == len(view.sample(camera).points())
+    assert psnr(canvas / 255.0, reference / 255.0) >= 35.0
+
+
+def test_on_a_small_page_the_controls_fold_behind_one_button(browser, site):
+    area = ("(function () { var p = document.getElementById('panel').getBoundingClientRect(); "
+            "return p.width * p.height / (innerWidth * innerHeight); })()")
+    visible = "getComputedStyle(document.getElementById('technique')).display !== 'none' && " \
+              "document.getElementById('technique').getBoundingClientRect().width > 0"
+    page = opened(browser, file_url(site / "index.html"), 360, 240)
+    try:
+        folded = page.evaluate(area)
+        assert page.evaluate("surfsplat.compact") and not page.evaluate(visible)
+        page.evaluate("document.getElementById('menu').click()")
+        assert page.evaluate(visible)
+        assert page.evaluate("document.getElementById('menu').getAttribute('aria-expanded')") == "true"
+        assert page.collect() == []
+    finally:
+        page.close()
+    wide = opened(browser, file_url(site / "index.html"), 1024, 600)
+    try:
+        assert not wide.evaluate("surfsplat.compact") and wide.evaluate(visible)
+        assert wide.evaluate("getComputedStyle(document.getElementById('menu')).display") == "none"
+        spread = wide.evaluate(area)
+    finally:
+        wide.close()
+    assert folded < 0.04 and spread < 0.12   # the folded bar: a corner of the picture (was a third of it)

@@ -25,7 +25,7 @@ from .. import defaults, progress
 from ..errors import InputError
 from ..io.atomic import atomic_path, check_writable
 from ..io.copc import is_surfsplat_copc, write_copc
-from ..pipeline import CameraSpec, LodOptions, SourceOptions, View, check_source
+from ..pipeline import CameraSpec, LodOptions, SourceOptions, View, check_image_size, check_source
 from ..rendering.frame import check_background
 from ..version import __version__
 from . import format as web_format
@@ -40,6 +40,9 @@ __all__ = ["DEFAULT_POINT_BUDGET", "ExportResult", "as_drawn", "export", "export
 FILES = ("index.html", "viewer.js", "shaders.js", "data.js")
 #: The generator tag of the page: what marks a file or folder as an earlier export (replaced without --force).
 GENERATOR = "surfsplat export"
+#: The page size (CSS pixels) a model is prepared for unless told: the desktop viewer's window. A mesh is
+#: sampled as ``surfsplat render --width W --height H`` samples it, a hierarchy cut at that default view.
+PAGE_SIZE = defaults.WINDOW_SIZE
 #: What :func:`export` writes: the web viewer, or a COPC file (:mod:`surfsplat.io.copc`).
 FORMATS = ("web", "copc")
 
@@ -119,6 +122,13 @@ def single_page(files: dict[str, str]) -> str:
     return files["index.html"].replace(scripts, inline)
 
 
+def check_page_size(size) -> tuple[int, int]:
+    """``(width, height)`` of the page a model is prepared for, checked (InputError) like an image size."""
+    if not isinstance(size, (tuple, list)) or len(size) != 2:
+        raise InputError(f"page size must be (width, height) in pixels, got {size!r}")
+    return check_image_size(size[0], size[1], what="page")
+
+
 def check_page_args(technique: str, background, point_budget: int | None) -> tuple[float, ...]:
     """The checked background of a page (InputError for a technique the page does not draw, a bad
     background or point budget)."""
@@ -133,15 +143,15 @@ def check_page_args(technique: str, background, point_budget: int | None) -> tup
 def page_payload(source, *, technique: str = "ewa", background=defaults.BACKGROUND,
                  source_options: SourceOptions | None = None, lod: LodOptions | None = None,
                  camera: CameraSpec | None = None, point_budget: int | None = None,
-                 browser_lod: bool = False) -> tuple[dict, dict]:
+                 browser_lod: bool = False, size=PAGE_SIZE) -> tuple[dict, dict]:
     """The header and the base64 streams of a page showing ``source`` (:func:`export`'s arguments): the
-    model prepared by the view plan, cut within the budget (or with ``browser_lod`` its whole hierarchy,
-    :mod:`surfsplat.web.tree`), quantized (what ``data.js`` holds)."""
+    model prepared by the view plan for the page's ``size``, cut within the budget (or with ``browser_lod``
+    its whole hierarchy, :mod:`surfsplat.web.tree`), quantized (what ``data.js`` holds)."""
     background = check_page_args(technique, background, point_budget)
+    width, height = check_page_size(size)
     check_source(source)
     plan = View(source, source_options=source_options, lod=lod)
-    size = defaults.CLI_IMAGE_SIZE
-    view_camera = plan.camera(camera, size, size)
+    view_camera = plan.camera(camera, width, height)
     with progress.stage("exporting for the web"):
         if browser_lod:
             return tree_data(plan, view_camera, technique, background, plan.name, point_budget)
@@ -152,7 +162,7 @@ def page_payload(source, *, technique: str = "ewa", background=defaults.BACKGROU
 def export(source, output, *, technique: str = "ewa", background=defaults.BACKGROUND,
            source_options: SourceOptions | None = None, lod: LodOptions | None = None,
            camera: CameraSpec | None = None, point_budget: int | None = None, browser_lod: bool = False,
-           force: bool = False, format: str | None = None) -> ExportResult:
+           force: bool = False, format: str | None = None, size=PAGE_SIZE) -> ExportResult:
     """Write a static web viewer of ``source`` to ``output``: a folder (``index.html``, ``viewer.js``,
     ``shaders.js``, ``data.js``), or one self-contained file where ``output`` ends in ``.html``.
 
@@ -163,7 +173,7 @@ def export(source, output, *, technique: str = "ewa", background=defaults.BACKGR
         background: the page's first background, RGB in [0, 1].
         source_options, lod: as :func:`surfsplat.render` takes them.
         camera: the view a mesh is sampled for and a hierarchy cut at (None: the automatic one of
-            ``surfsplat render``, at 1024 x 1024 pixels). The page opens at its own default view.
+            ``surfsplat render`` at ``size``). The page opens at its own default view.
         point_budget: at most this many splats from a hierarchy or a cloud (default 5,000,000); with
             ``browser_lod`` the page's first budget (default 1,000,000, changed on the page).
         browser_lod: export the whole hierarchy (a cloud's built) and let the page cut it per view: a
@@ -171,6 +181,9 @@ def export(source, output, *, technique: str = "ewa", background=defaults.BACKGR
         force: replace an existing file or non-empty folder that an earlier export did not write.
         format: "web" or "copc" (None: "copc" where ``output`` ends in ``.copc.laz``, else "web"): a COPC
             file (LAS 1.4 octree, :func:`surfsplat.io.copc.write_copc`) of the splats a page would draw.
+        size: ``(width, height)``, the page size in CSS pixels the model is prepared for (default
+            :data:`PAGE_SIZE`): a mesh is sampled for the default view at that size, as ``surfsplat render``
+            at that size samples it (the density the page can show), a hierarchy cut there.
 
     Returns:
         :class:`ExportResult` (for COPC, ``bytes`` is the size of the file).
@@ -180,11 +193,13 @@ def export(source, output, *, technique: str = "ewa", background=defaults.BACKGR
     if format not in FORMATS:
         raise InputError(f"export format {format!r} is not one of {', '.join(FORMATS)}")
     check_page_args(technique, background, point_budget)
+    size = check_page_size(size)
     if format == "copc":
-        return _export_copc(source, output, source_options, lod, camera, point_budget, force, start)
+        return _export_copc(source, output, source_options, lod, camera, point_budget, force, start, size)
     path, single = check_export_output(output, force)
     header, streams = page_payload(source, technique=technique, background=background, source_options=source_options,
-                                   lod=lod, camera=camera, point_budget=point_budget, browser_lod=browser_lod)
+                                   lod=lod, camera=camera, point_budget=point_budget, browser_lod=browser_lod,
+                                   size=size)
     files = page_files(header, streams)
     written: list[Path] = []
     if single:
@@ -201,7 +216,7 @@ def export(source, output, *, technique: str = "ewa", background=defaults.BACKGR
     return ExportResult(path, count, count * web_format.BYTES_PER_SPLAT, time.perf_counter() - start, tuple(written))
 
 
-def _export_copc(source, output, source_options, lod, camera, point_budget, force, start) -> ExportResult:
+def _export_copc(source, output, source_options, lod, camera, point_budget, force, start, size) -> ExportResult:
     """:func:`export` to a COPC file: the splats a page would draw, written by :func:`write_copc`. An existing
     file is replaced only where surfsplat wrote it or with ``force``."""
     path = check_writable(output)
@@ -210,7 +225,7 @@ def _export_copc(source, output, source_options, lod, camera, point_budget, forc
                          "replace it")
     check_source(source)
     plan = View(source, source_options=source_options, lod=lod)
-    view_camera = plan.camera(camera, defaults.CLI_IMAGE_SIZE, defaults.CLI_IMAGE_SIZE)
+    view_camera = plan.camera(camera, *size)
     with progress.stage("exporting to COPC"):
         result = write_copc(exported_splats(plan, view_camera, point_budget), path)
     return ExportResult(path, result.points, result.bytes, time.perf_counter() - start, (path,))

@@ -20,6 +20,7 @@ from ..cloud import SplatCloud
 from ..errors import InputError
 from ..hierarchy import Hierarchy
 from ..pipeline import View
+from .colors import cut_attributes
 from .page import _b64, page_data
 
 #: The page's first point budget (splats drawn) and LOD tolerance (pixels).
@@ -40,7 +41,8 @@ def tree_entries(h: Hierarchy) -> SplatCloud:
 
     return points.with_arrays(positions=rows("positions"), normals=rows("normals"),
                               colors=np.concatenate([colors(nodes), colors(points)]), u=rows("u"), v=rows("v"),
-                              normal_field=None, clip_lines=None, attributes=None)
+                              normal_field=None, clip_lines=None,
+                              attributes=cut_attributes(h, np.arange(len(h)), np.arange(len(h.points))))
 
 
 def tree_data(plan: View, camera: Camera, technique: str, background, name: str,

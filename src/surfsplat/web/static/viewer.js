@@ -32,6 +32,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   var state = {
     technique: H.technique, background: H.background.slice(), edl: H.technique === 'points',
     camera: null, frameMs: 0, frames: 0, splats: H.count, errors: [], ready: false, firstFrameMs: null,
+    colorBy: 'own colours',
     ui: true, width: 0, height: 0
   };
   // one full-quality frame drawn now; its time in milliseconds (the benchmark's)
@@ -272,6 +273,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     gl.bufferData(gl.ARRAY_BUFFER, array, gl.STATIC_DRAW);
     gl.enableVertexAttribArray(index);
     gl.vertexAttribPointer(index, size, type, normalized, 0, 0);
+    return buf;
   }
   function repeated(array, width, count, Kind) {   // each of the first count rows 6 times
     var out = new Kind(6 * width * count);
@@ -282,7 +284,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     gl.bindVertexArray(pointsVao);
     attribute(1, decoded.position, 3, gl.FLOAT, false);
     attribute(2, decoded.normal, 3, gl.FLOAT, false);
-    attribute(3, decoded.color, 3, gl.UNSIGNED_BYTE, true);
+    colorBuffers = [attribute(3, decoded.color, 3, gl.UNSIGNED_BYTE, true)];
     attribute(4, decoded.u, 3, gl.FLOAT, false);
     attribute(5, decoded.v, 3, gl.FLOAT, false);
     if (H.lod) {   // the drawn entries: an index list chosen per view (selectCut)
@@ -300,12 +302,61 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     attribute(0, corners, 2, gl.FLOAT, false);
     attribute(1, repeated(decoded.position, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
     attribute(2, repeated(decoded.normal, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
-    attribute(3, repeated(decoded.color, 3, quadCount, Uint8Array), 3, gl.UNSIGNED_BYTE, true);
+    colorBuffers.push(attribute(3, repeated(decoded.color, 3, quadCount, Uint8Array), 3, gl.UNSIGNED_BYTE, true));
     attribute(4, repeated(decoded.u, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
     attribute(5, repeated(decoded.v, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
     gl.bindVertexArray(null);
     gl.vertexAttrib2f(0, 0, 0);   // a point has no corner
     for (i = 6; i < ATTRIBUTES.length; ++i) gl.vertexAttrib4f(i, 0, 0, 0, 0);   // no clip lines, no normal field
+  }
+
+  // ---- colour by attribute (surfsplat.web.colors): the desktop viewer's C key --------------------------
+  // A mode maps each splat's value (an exported attribute, or the elevation of its decoded position along
+  // the up axis) to t = (value - lo) / (hi - lo) in [0, 1] and takes entry min(floor(256 t), 255) of its
+  // colormap's table (matplotlib's indexing); the ASPRS palette is indexed by the class code.
+  var colorBuffers = [], colorTables = {}, OWN_COLORS = 'own colours';
+  function colorModes() { return [OWN_COLORS].concat((H.color ? H.color.modes : []).map(function (m) { return m.name; })); }
+  function attributeValues(name) {
+    var info = H.color.attributes[name], b = bytes(DATA.streams['attr_' + name]);
+    var codes = info.type === 'u8' ? b : new Uint16Array(b.buffer, b.byteOffset, b.length / 2);
+    var out = new Float64Array(codes.length);
+    for (var i = 0; i < codes.length; ++i) out[i] = info.offset + codes[i] * info.scale;
+    return out;
+  }
+  function modeColors(name) {
+    if (name === OWN_COLORS) return splats.color;
+    var m = null;
+    H.color.modes.forEach(function (x) { if (x.name === name) m = x; });
+    if (!m) throw new Error('no colouring ' + name + ' on this page');
+    var n = H.count, values, i;
+    if (m.up) {
+      var p = splats.position;
+      values = new Float64Array(n);
+      for (i = 0; i < n; ++i) values[i] = p[3 * i] * m.up[0] + p[3 * i + 1] * m.up[1] + p[3 * i + 2] * m.up[2];
+    } else values = attributeValues(m.attribute);
+    if (!(m.colormap in colorTables)) colorTables[m.colormap] = bytes(H.color.tables[m.colormap]);
+    var table = colorTables[m.colormap], out = new Uint8Array(3 * n), lo = m.range[0], w = m.range[1] - m.range[0];
+    for (i = 0; i < n; ++i) {
+      var v = values[i], k;
+      if (m.colormap === 'asprs') k = (v >= 0 && v <= 255 && v === Math.round(v)) ? v : 255;
+      else k = Math.min(Math.floor(Math.min(1, Math.max(0, (v - lo) / w)) * 256), 255);
+      out[3 * i] = table[3 * k]; out[3 * i + 1] = table[3 * k + 1]; out[3 * i + 2] = table[3 * k + 2];
+    }
+    return out;
+  }
+  function setColorBy(name) {
+    if (colorModes().indexOf(name) < 0) return;
+    var colors = modeColors(name);
+    gl.bindBuffer(gl.ARRAY_BUFFER, colorBuffers[0]);
+    gl.bufferData(gl.ARRAY_BUFFER, colors, gl.STATIC_DRAW);
+    if (colorBuffers.length > 1) {
+      gl.bindBuffer(gl.ARRAY_BUFFER, colorBuffers[1]);
+      gl.bufferData(gl.ARRAY_BUFFER, repeated(colors, 3, quadCount, Uint8Array), gl.STATIC_DRAW);
+    }
+    state.colorBy = name;
+    syncControls();
+    saveUrl();
+    request();
   }
 
   // passes.point_scale and point_radius: the largest radius drawn as a point in this frame (model units).
@@ -602,7 +653,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     urlTimer = setTimeout(function () {
       var c = state.camera;
       var hash = '#eye=' + fmt(c.eye) + '&target=' + fmt(c.target) + '&up=' + fmt(c.up) + '&fov=' + c.fov +
-                 '&technique=' + state.technique + (state.edl !== (state.technique === 'points') ? '&edl=' + (state.edl ? 1 : 0) : '');
+                 '&technique=' + state.technique + (state.colorBy !== OWN_COLORS ? '&color=' + encodeURIComponent(state.colorBy) : '') + (state.edl !== (state.technique === 'points') ? '&edl=' + (state.edl ? 1 : 0) : '');
       if (options.url) {
         try { history.replaceState(null, '', location.pathname + location.search + hash); } catch (e) { /* file:// in some browsers */ }
       }
@@ -692,6 +743,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     else if (e.key === 't' || e.key === 'T') { var ts = H.techniques; setTechnique(ts[(ts.indexOf(state.technique) + 1) % ts.length]); }
     else if (e.key === 'e' || e.key === 'E') { state.edl = !state.edl; syncControls(); changed(); }
     else if (e.key === 'p' || e.key === 'P') screenshot();
+    else if (e.key === 'c' || e.key === 'C') { var cs = colorModes(); setColorBy(cs[(cs.indexOf(state.colorBy) + 1) % cs.length]); }
   });
 
   function setTechnique(name) {
@@ -721,9 +773,13 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     });
   }
   H.techniques.forEach(function (t) { var o = document.createElement('option'); o.value = o.textContent = t; select.appendChild(o); });
+  var colorSelect = $('color');
+  colorModes().forEach(function (t) { var o = document.createElement('option'); o.value = o.textContent = t; colorSelect.appendChild(o); });
+  colorSelect.addEventListener('change', function () { setColorBy(colorSelect.value); });
   function hex(c) { return '#' + c.map(function (x) { return ('0' + Math.round(Math.min(1, Math.max(0, x)) * 255).toString(16)).slice(-2); }).join(''); }
   function syncControls() {
     select.value = state.technique; bg.value = hex(state.background); edlBox.checked = state.edl;
+    colorSelect.value = state.colorBy;
     if (H.lod) $('budget').value = state.budget;
   }
   select.addEventListener('change', function () { setTechnique(select.value); });
@@ -741,8 +797,25 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     help.style.display = open ? 'block' : 'none';
     helpButton.setAttribute('aria-expanded', String(open));
   });
-  window.addEventListener('resize', function () { if (sizeCanvas()) request(); });
-  if (window.ResizeObserver) new ResizeObserver(function () { if (sizeCanvas()) request(); }).observe(canvas);
+  // Below COMPACT_WIDTH CSS pixels (a phone, a small notebook cell) the controls fold behind one button,
+  // so that they cover a corner of the picture rather than a third of it.
+  var COMPACT_WIDTH = 640, panel = $('panel'), menu = $('menu');
+  function fitControls() {
+    var compact = root.clientWidth < COMPACT_WIDTH;
+    if (compact !== root.classList.contains('compact')) {
+      root.classList.toggle('compact', compact);
+      panel.classList.remove('open');
+      menu.setAttribute('aria-expanded', 'false');
+    }
+    state.compact = compact;
+  }
+  menu.addEventListener('click', function () {
+    var open = panel.classList.toggle('open');
+    menu.setAttribute('aria-expanded', String(open));
+  });
+  fitControls();
+  window.addEventListener('resize', function () { fitControls(); if (sizeCanvas()) request(); });
+  if (window.ResizeObserver) new ResizeObserver(function () { fitControls(); if (sizeCanvas()) request(); }).observe(canvas);
 
   // Where a full-quality frame is slow (CPU WebGL: SwiftShader), a moving camera and the first frame are
   // drawn with "points" (one pass, the cheapest), and the full frame follows when the camera stops.
@@ -815,6 +888,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     }
     if (H.lod) selectCut(state.camera, canvas.width, canvas.height);
     syncControls();
+    if (params.color && params.color !== OWN_COLORS) setColorBy(params.color);
     dirty = false;
     request();
   } catch (e) {
@@ -824,8 +898,8 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
 }
 
 // The viewer's style and elements (ids are looked up inside its root element only).
-var SURFSPLAT_CSS = ".surfsplat-root { position: relative; overflow: hidden; font: 13px/1.4 system-ui, sans-serif; }\n.surfsplat-root #view { display: block; width: 100%; height: 100%; touch-action: none; outline: none; }\n.surfsplat-root #view:focus-visible { outline: 2px solid #3b82f6; outline-offset: -2px; }\n.surfsplat-root .overlay { position: absolute; background: rgba(255, 255, 255, 0.85); color: #111; border-radius: 6px;\n  padding: 6px 8px; box-shadow: 0 1px 4px rgba(0, 0, 0, 0.25); }\n.surfsplat-root #panel { top: 8px; left: 8px; display: flex; gap: 8px; align-items: center; flex-wrap: wrap; max-width: 95%; }\n.surfsplat-root #panel label { display: inline-flex; gap: 4px; align-items: center; }\n.surfsplat-root #hud { bottom: 8px; left: 8px; font-variant-numeric: tabular-nums; }\n.surfsplat-root #help { bottom: 8px; right: 8px; max-width: 22em; display: none; }\n.surfsplat-root #message { top: 50%; left: 50%; transform: translate(-50%, -50%); display: none; max-width: 40em; white-space: pre-wrap; }\n.surfsplat-root.noui .overlay { display: none !important; }\n.surfsplat-root button, .surfsplat-root select, .surfsplat-root input { font: inherit; }";
-var SURFSPLAT_MARKUP = "<canvas id=\"view\" tabindex=\"0\" role=\"img\" aria-label=\"3D view: drag or arrow keys to orbit, shift to pan, wheel or +/- to zoom\"></canvas>\n<div id=\"panel\" class=\"overlay\" role=\"toolbar\" aria-label=\"viewer controls\">\n  <label>Technique <select id=\"technique\" aria-label=\"technique\"></select></label>\n  <label>Background <input id=\"background\" type=\"color\" aria-label=\"background colour\"></label>\n  <label><input id=\"edl\" type=\"checkbox\"> Eye-dome lighting</label>\n  <button id=\"home\" type=\"button\" title=\"back to the default view (Home)\">Reset view</button>\n  <button id=\"screenshot\" type=\"button\" title=\"save the picture as PNG (P)\">Screenshot</button>\n  <button id=\"helpbutton\" type=\"button\" aria-expanded=\"false\" aria-controls=\"help\">Keys</button>\n</div>\n<div id=\"hud\" class=\"overlay\" aria-live=\"off\"></div>\n<div id=\"help\" class=\"overlay\">\n  Drag: orbit. Shift+drag or right drag: pan. Wheel or pinch: zoom.<br>\n  Arrows: orbit; Shift+arrows: pan; + / -: zoom; Home or 0: default view;\n  T: next technique; E: eye-dome lighting; P: screenshot. The address holds the camera: copy it to share the view.\n</div>\n<div id=\"message\" class=\"overlay\" role=\"alert\"></div>";
+var SURFSPLAT_CSS = ".surfsplat-root { position: relative; overflow: hidden; font: 13px/1.4 system-ui, sans-serif; }\n.surfsplat-root #view { display: block; width: 100%; height: 100%; touch-action: none; outline: none; }\n.surfsplat-root #view:focus-visible { outline: 2px solid #3b82f6; outline-offset: -2px; }\n.surfsplat-root .overlay { position: absolute; background: rgba(255, 255, 255, 0.85); color: #111; border-radius: 6px;\n  padding: 6px 8px; box-shadow: 0 1px 4px rgba(0, 0, 0, 0.25); }\n.surfsplat-root #panel { top: 8px; left: 8px; display: flex; gap: 8px; align-items: center; flex-wrap: wrap; max-width: 95%; }\n.surfsplat-root #panel label { display: inline-flex; gap: 4px; align-items: center; }\n.surfsplat-root #hud { bottom: 8px; left: 8px; font-variant-numeric: tabular-nums; }\n.surfsplat-root #help { bottom: 8px; right: 8px; max-width: 22em; display: none; }\n.surfsplat-root #message { top: 50%; left: 50%; transform: translate(-50%, -50%); display: none; max-width: 40em; white-space: pre-wrap; }\n.surfsplat-root.noui .overlay { display: none !important; }\n.surfsplat-root #menu { display: none; }\n.surfsplat-root.compact #menu { display: inline-block; }\n.surfsplat-root.compact #panel { top: 4px; left: 4px; padding: 3px 5px; gap: 4px; font-size: 12px; max-width: calc(100% - 8px); }\n.surfsplat-root.compact #panel:not(.open) > :not(#menu) { display: none; }\n.surfsplat-root.compact #panel.open { flex-direction: column; align-items: flex-start; max-height: calc(100% - 8px); overflow: auto; }\n.surfsplat-root.compact #hud { bottom: 4px; left: 4px; padding: 2px 5px; font-size: 11px; max-width: calc(100% - 8px); }\n.surfsplat-root.compact #help { right: 4px; bottom: 4px; font-size: 12px; }\n.surfsplat-root button, .surfsplat-root select, .surfsplat-root input { font: inherit; }";
+var SURFSPLAT_MARKUP = "<canvas id=\"view\" tabindex=\"0\" role=\"img\" aria-label=\"3D view: drag or arrow keys to orbit, shift to pan, wheel or +/- to zoom\"></canvas>\n<div id=\"panel\" class=\"overlay\" role=\"toolbar\" aria-label=\"viewer controls\">\n  <button id=\"menu\" type=\"button\" aria-expanded=\"false\" aria-controls=\"panel\" title=\"show the controls\">\u2630 Controls</button>\n  <label>Technique <select id=\"technique\" aria-label=\"technique\"></select></label>\n  <label>Colour <select id=\"color\" aria-label=\"colour by\"></select></label>\n  <label>Background <input id=\"background\" type=\"color\" aria-label=\"background colour\"></label>\n  <label><input id=\"edl\" type=\"checkbox\"> Eye-dome lighting</label>\n  <button id=\"home\" type=\"button\" title=\"back to the default view (Home)\">Reset view</button>\n  <button id=\"screenshot\" type=\"button\" title=\"save the picture as PNG (P)\">Screenshot</button>\n  <button id=\"helpbutton\" type=\"button\" aria-expanded=\"false\" aria-controls=\"help\">Keys</button>\n</div>\n<div id=\"hud\" class=\"overlay\" aria-live=\"off\"></div>\n<div id=\"help\" class=\"overlay\">\n  Drag: orbit. Shift+drag or right drag: pan. Wheel or pinch: zoom.<br>\n  Arrows: orbit; Shift+arrows: pan; + / -: zoom; Home or 0: default view;\n  T: next technique; C: colour by (own colours, elevation, each attribute); E: eye-dome lighting; P: screenshot. The address holds the camera: copy it to share the view.\n</div>\n<div id=\"message\" class=\"overlay\" role=\"alert\"></div>";
 
 // The query and hash of the page's address as a dictionary (the camera, technique, ui, ...).
 function surfsplatParams() {
