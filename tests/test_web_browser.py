@@ -348,3 +348,105 @@ def test_on_a_small_page_the_controls_fold_behind_one_button(browser, site):
     finally:
         wide.close()
     assert folded < 0.04 and spread < 0.12   # the folded bar: a corner of the picture (was a third of it)
+
+
+# -- a chunked hierarchy streamed from a static server (surfsplat.web.stream) -------------------------------
+
+STREAM_BUDGET = 8_000
+
+
+@pytest.fixture(scope="module")
+def streamed(tmp_path_factory):
+    """A small chunked hierarchy (a 15 k-splat torus in some 40 cells), exported with browser LOD."""
+    from surfsplat.hierarchy.chunked import build_chunked
+    from surfsplat.io import save_ply
+    folder = tmp_path_factory.mktemp("streamed")
+    save_ply(torus(240, 64), folder / "torus.ply")
+    build_chunked(folder / "torus.ply", folder / "torus.ssh", cell_points=1_000, scheduler="synchronous")
+    export(folder / "torus.ssh", folder / "site", browser_lod=True, point_budget=STREAM_BUDGET)
+    return folder / "torus.ssh", folder / "site"
+
+
+@pytest.fixture(scope="module")
+def server(streamed):
+    """A static web server (python's http.server) of the exported folder, in a thread; its log of paths."""
+    import functools
+    import http.server
+    import threading
+    paths: list[str] = []
+
+    class Handler(http.server.SimpleHTTPRequestHandler):
+        def log_message(self, format, *args):   # noqa: A002
+            paths.append(self.path)
+
+    httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), functools.partial(Handler, directory=streamed[1]))
+    threading.Thread(target=httpd.serve_forever, daemon=True).start()
+    yield f"http://127.0.0.1:{httpd.server_address[1]}/", paths
+    httpd.shutdown()
+
+
+def stream_state(page) -> dict:
+    return json.loads(page.evaluate("JSON.stringify(Object.assign({drawn: surfsplat.drawn}, surfsplat.stream))"))
+
+
+# measured at 320 x 240: close to one side 17 of 42 cells requested, 1,784 splats drawn (the desktop's cut 1,768),
+# 62.8 dB; the default view: every cell, 7,998 splats as the desktop's cut (the budget binds), 61.2 dB
+def test_a_chunked_model_streams_its_cells_on_demand_from_a_static_server(browser, streamed, server):
+    from surfsplat.pipeline import LodOptions
+    from surfsplat.hierarchy.chunked import open_chunked
+    path, site = streamed
+    url, paths = server
+    cells = len(open_chunked(path).cells)
+    view = View(path, lod=LodOptions(tolerance=1.0, point_budget=STREAM_BUDGET, shading="flat"))
+    home = view.camera(None, W, H)
+    target, eye = np.asarray(home.target), np.asarray(home.eye)
+    right = np.cross(target - eye, home.up)
+    right *= 0.25 * np.linalg.norm(target - eye) / np.linalg.norm(right)
+    close = Camera(eye=tuple(eye + right + 0.7 * (target - eye)), target=tuple(target + right), up=home.up,
+                   fov=home.fov, width=W, height=H)
+    for camera, hash_ in ((close, camera_hash(close, "ewa")), (home, "")):
+        del paths[:]
+        page = opened(browser, url + "index.html?ui=0" + hash_)
+        try:
+            page.wait_for("surfsplat.stream.idle", timeout=30)
+            state, canvas = stream_state(page), page.canvas()
+            assert page.collect() == []
+        finally:
+            page.close()
+        requested = [p for p in paths if p.startswith("/cells/")]
+        assert state["requests"] == state["loads"] == len(requested) == len(set(requested)) <= cells
+        assert state["drawn"] <= STREAM_BUDGET and state["bytes"] <= state["memoryBudget"]
+        result = view.render(view.camera(camera), technique="ewa")
+        reference = result.frame.image()
+        # the cut of ChunkedHierarchy.view_splats: the same at the home view, where the budget binds
+        assert abs(state["drawn"] - result.splats) <= (0 if camera is home else 0.02 * result.splats)
+        assert psnr(canvas / 255.0, reference / 255.0) >= 35.0
+        if camera is close:   # on demand: only the cells in view, close enough to refine
+            assert 0 < len(requested) < cells / 2
+        else:
+            assert len(requested) > cells / 2
+
+
+def test_a_streamed_page_keeps_its_memory_budget_and_lets_go_of_unseen_cells_from_a_file_url(browser, streamed):
+    path, site = streamed
+    budget = 300_000   # bytes: a fifth of the cells
+    page = opened(browser, file_url(site / "index.html", f"?ui=0&memory={budget}"))
+    try:
+        page.wait_for("surfsplat.stream.idle", timeout=30)
+        states = [stream_state(page)]
+        camera = json.loads(page.evaluate("JSON.stringify(surfsplat.camera)"))
+        target, eye = np.asarray(camera["target"]), np.asarray(camera["eye"])
+        right = np.cross(target - eye, camera["up"])
+        right *= 0.25 * np.linalg.norm(target - eye) / np.linalg.norm(right)
+        for side in (-1, 1):   # close to one side of the torus, then to the other
+            moved = {**camera, "eye": (eye + side * right + 0.7 * (target - eye)).tolist(),
+                     "target": (target + side * right).tolist()}
+            page.evaluate(f"surfsplat.setCamera({json.dumps(moved)})")
+            page.wait_for(f"surfsplat.stream.requests > {states[-1]['requests']} && surfsplat.stream.idle", timeout=30)
+            states.append(stream_state(page))
+        assert page.collect() == []
+    finally:
+        page.close()
+    assert states[0]["blocked"] and 0 < states[0]["loads"]   # the budget stops the loads at the home view
+    assert all(s["peakBytes"] <= budget and s["bytes"] <= budget for s in states)
+    assert states[-1]["evictions"] > 0   # the cells of the first side let go for those of the other

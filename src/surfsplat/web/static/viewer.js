@@ -61,8 +61,8 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
 
   function u16(b64) { var b = bytes(b64); return new Uint16Array(b.buffer, b.byteOffset, b.length / 2); }
 
-  function decode() {
-    var n = H.count, s = DATA.streams;
+  function decode(hd, s) {   // a page's splats (H, DATA.streams) or a streamed cell's
+    var H = hd, n = H.count;
     var qp = u16(s.position), qn = u16(s.normal), qa = u16(s.angle), qr = u16(s.radii);
     var pos = new Float32Array(3 * n), nrm = new Float32Array(3 * n), u = new Float32Array(3 * n),
         v = new Float32Array(3 * n);
@@ -395,70 +395,198 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   var tree = null, elements = null;
   function i32(b64) { var b = bytes(b64); return new Int32Array(b.buffer, b.byteOffset, b.length / 4); }
   function f32(b64) { var b = bytes(b64); return new Float32Array(b.buffer, b.byteOffset, b.length / 4); }
-  function readTree() {
-    var s = DATA.streams;
+  function readTree(s) {
     return {childStart: i32(s.child_start), childCount: i32(s.child_count), pointStart: i32(s.point_start),
             pointCount: i32(s.point_count), center: f32(s.center), radius: f32(s.radius), extent: f32(s.extent)};
   }
   // The entries to draw for a camera: the tolerance cut (a node refined while f 2 a / (|c - eye| - R) exceeds
   // the tolerance; nodes outside the frustum dropped with their subtrees), and where it holds more than the
   // budget, its refinements largest projected size first (a child's priority at most its parent's; ties:
-  // shallower first), the longest prefix within the budget (Schuetz 2016, sec. 3.3).
+  // shallower first), the longest prefix within the budget (Schuetz 2016, sec. 3.3). A streamed chunked
+  // hierarchy (surfsplat.web.stream) is a forest: the points of the top hierarchy's leaves are the cells'
+  // roots, and a loaded cell's tree continues below its root as ChunkedHierarchy.view_splats cuts it.
+  var topTree = null, cells = null, cellOf = null, roots = null, cutId = 0;
   function selectCut(cam, w, h) {
-    var L = H.lod, T = tree, M = L.nodes, budget = Math.max(1, state.budget | 0);
+    var L = H.lod, budget = Math.max(1, state.budget | 0), tol = L.tolerance;
     var f = 0.5 * h / Math.tan(cam.fov * Math.PI / 360), o = H.origin;
     var eye = sub(cam.eye, o), r = viewRows(eye, sub(cam.target, o), cam.up), nf = nearFar(cam.eye, cam.target, cam.up);
     var sx = Math.hypot(f, w / 2), sy = Math.hypot(f, h / 2);
-    function visible(n) {
-      var c = [T.center[3 * n], T.center[3 * n + 1], T.center[3 * n + 2]], R = T.radius[n];
+    function sphereVisible(C, i, R) {
+      var c = [C[3 * i], C[3 * i + 1], C[3 * i + 2]];
       var x = dot(r[0], c) + r[3][0], y = dot(r[1], c) + r[3][1], z = -(dot(r[2], c) + r[3][2]);
       if (z + R < nf[0] || z - R > nf[1]) return false;
       return f * Math.abs(x) - (w / 2) * z <= R * sx && f * Math.abs(y) - (h / 2) * z <= R * sy;
     }
-    function size(n) {
-      var d = Math.hypot(T.center[3 * n] - eye[0], T.center[3 * n + 1] - eye[1], T.center[3 * n + 2] - eye[2]) - T.radius[n];
-      return d < nf[0] ? Infinity : f * 2 * T.extent[n] / d;
+    function sphereSize(C, i, R, a) {
+      var d = Math.hypot(C[3 * i] - eye[0], C[3 * i + 1] - eye[1], C[3 * i + 2] - eye[2]) - R;
+      return d < nf[0] ? Infinity : f * 2 * a / d;
     }
-    var refined = [], base = 0, stack = [], n, k;
-    for (n = L.level_offsets[0]; n < L.level_offsets[1]; ++n) if (visible(n)) { stack.push([n, Infinity, 0]); base += 1; }
+    function visible(t, n) { return sphereVisible(t.T.center, n, t.T.radius[n]); }
+    function size(t, n) { return sphereSize(t.T.center, n, t.T.radius[n], t.T.extent[n]); }
+    // a top leaf's point k: the root of a cell, continued by its tree where loaded and refined
+    function cellRoot(t, n, k) {
+      if (!cells || t !== topTree) return null;
+      var c = cellOf[t.T.pointStart[n] + k];
+      return {cell: c, size: sphereSize(roots.center, c, roots.radius[c], roots.extent[c])};
+    }
+    cutId += 1;
+    var refined = [], base = 0, stack = [], wanted = [], n, k, t;
+    for (n = topTree.offsets[0]; n < topTree.offsets[1]; ++n) if (visible(topTree, n)) { stack.push([topTree, n, Infinity, 0]); base += 1; }
     var total = base;
     while (stack.length) {
-      var item = stack.pop(); n = item[0];
-      var own = size(n);
-      if (!(own > L.tolerance)) continue;
-      var p = Math.min(own, item[1]), cost;
-      if (T.childCount[n] === 0) cost = T.pointCount[n] - 1;
-      else {
+      var item = stack.pop(); t = item[0]; n = item[1];
+      var own = size(t, n);
+      if (!(own > tol)) continue;
+      var p = Math.min(own, item[2]), cost;
+      if (t.T.childCount[n] === 0) {
+        cost = t.T.pointCount[n] - 1;
+        for (k = 0; cells && t === topTree && k < t.T.pointCount[n]; ++k) {
+          var cr = cellRoot(t, n, k), cell = cells[cr.cell];
+          if (!(cr.size > tol)) continue;
+          var pc = Math.min(cr.size, p);
+          if (cell.tree) {
+            if (visible(cell.tree, 0)) stack.push([cell.tree, 0, p, item[3] + 1]);   // its root node for its root splat
+            else refined.push([pc, item[3] + 1, cell.tree, -1, -1]);   // culled whole: refining its root drops it
+          } else if (sphereVisible(roots.center, cr.cell, roots.radius[cr.cell])) wanted.push([pc, cr.cell]);
+        }
+      } else {
         cost = -1;
-        for (k = 0; k < T.childCount[n]; ++k) {
-          var child = T.childStart[n] + k;
-          if (visible(child)) { cost += 1; stack.push([child, p, item[2] + 1]); }
+        for (k = 0; k < t.T.childCount[n]; ++k) {
+          var child = t.T.childStart[n] + k;
+          if (visible(t, child)) { cost += 1; stack.push([t, child, p, item[3] + 1]); }
         }
       }
-      refined.push([p, item[2], n, cost]);
+      refined.push([p, item[3], t, n, cost]);
       total += cost;
     }
-    var open = new Uint8Array(M);
-    if (total <= budget) refined.forEach(function (x) { open[x[2]] = 1; });
+    var trees = [topTree];
+    if (cells) cells.forEach(function (c) { if (c.tree) trees.push(c.tree); });
+    trees.forEach(function (x) { x.open = new Uint8Array(x.M); x.dropped = false; x.out = []; });
+    var stop = -Infinity;   // the priority of the first refinement the budget leaves out
+    function open(x) { if (x[3] < 0) x[2].dropped = true; else x[2].open[x[3]] = 1; }
+    if (total <= budget) refined.forEach(open);
     else {
-      refined.sort(function (a, b) { return b[0] - a[0] || a[1] - b[1] || a[2] - b[2]; });
+      refined.sort(function (a, b) { return b[0] - a[0] || a[1] - b[1] || a[3] - b[3]; });
       var sum = base;
-      for (k = 0; k < refined.length && sum + refined[k][3] <= budget; ++k) { sum += refined[k][3]; open[refined[k][2]] = 1; }
+      for (k = 0; k < refined.length && sum + refined[k][4] <= budget; ++k) { sum += refined[k][4]; open(refined[k]); }
+      if (k < refined.length) stop = refined[k][0];
     }
-    var out = [], todo = [];
-    for (n = L.level_offsets[0]; n < L.level_offsets[1]; ++n) if (visible(n)) todo.push(n);
+    var todo = [];
+    for (n = topTree.offsets[0]; n < topTree.offsets[1]; ++n) if (visible(topTree, n)) todo.push([topTree, n]);
     while (todo.length) {
-      n = todo.pop();
-      if (!open[n]) { out.push(n); continue; }
-      if (T.childCount[n] === 0) { for (k = 0; k < T.pointCount[n]; ++k) out.push(M + T.pointStart[n] + k); continue; }
-      for (k = 0; k < T.childCount[n]; ++k) if (visible(T.childStart[n] + k)) todo.push(T.childStart[n] + k);
+      var next = todo.pop(); t = next[0]; n = next[1];
+      if (!t.open[n]) { t.out.push(n); continue; }
+      if (t.T.childCount[n] === 0) {
+        for (k = 0; k < t.T.pointCount[n]; ++k) {
+          var root = cellRoot(t, n, k), sub_ = root && cells[root.cell].tree;
+          if (sub_ && root.size > tol) { if (!sub_.dropped) todo.push([sub_, 0]); }
+          else t.out.push(t.M + t.T.pointStart[n] + k);
+        }
+        continue;
+      }
+      for (k = 0; k < t.T.childCount[n]; ++k) if (visible(t, t.T.childStart[n] + k)) todo.push([t, t.T.childStart[n] + k]);
     }
-    var list = Uint32Array.from(out);
-    gl.bindVertexArray(pointsVao);
-    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, list, gl.DYNAMIC_DRAW);
-    gl.bindVertexArray(null);
-    state.drawn = list.length;
-    return list.length;
+    var drawn = 0;
+    trees.forEach(function (x) {
+      var list = Uint32Array.from(x.out);
+      gl.bindVertexArray(x.vao);
+      gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, list, gl.DYNAMIC_DRAW);
+      gl.bindVertexArray(null);
+      x.drawn = list.length;
+      drawn += list.length;
+      if (x.cell !== undefined && list.length) cells[x.cell].lastUsed = cutId;
+      x.out = null;
+    });
+    state.drawn = drawn;
+    if (cells) {   // the cells worth loading: those the budget would refine, largest on screen first
+      wanted = wanted.filter(function (x) { return x[0] > stop; });
+      wanted.sort(function (a, b) { return b[0] - a[0] || a[1] - b[1]; });
+      stream.wanted = wanted.map(function (x) { return x[1]; });
+    }
+    return drawn;
+  }
+
+  // ---- streaming the cells of a chunked hierarchy (surfsplat.web.stream) -----------------------------
+  // Each cell file is a script calling surfsplatCell(index, data): scripts load from a server and from
+  // file:// alike. Requests go out when the camera stops (after a full-quality frame), a few at a time;
+  // loaded cells stay within the memory budget, the least recently drawn let go first.
+  var stream = {requests: 0, loads: 0, evictions: 0, bytes: 0, peakBytes: 0, inflight: 0, inflightBytes: 0,
+                wanted: [], blocked: false, memoryBudget: 0, loaded: 0};
+  state.stream = stream;
+  function startStreaming() {
+    var S = H.lod.streamed, s = DATA.streams;
+    cellOf = i32(s.cell_of_point);
+    roots = {center: f32(s.root_center), radius: f32(s.root_radius), extent: f32(s.root_extent)};
+    cells = S.cells.map(function (c, i) { return {index: i, key: c.key, bytes: c.bytes, tree: null, loading: false, lastUsed: 0}; });
+    stream.memoryBudget = Number(params.memory) >= 1 ? Math.floor(Number(params.memory)) : S.memory_budget;
+    window.surfsplatCell = cellLoaded;
+  }
+  function evictable() {   // the least recently drawn loaded cell the current cut does not draw, or null
+    var best = null;
+    cells.forEach(function (c) { if (c.tree && c.lastUsed < cutId && (!best || c.lastUsed < best.lastUsed)) best = c; });
+    return best;
+  }
+  function evict(c) {
+    var x = c.tree;
+    x.buffers.forEach(function (b) { gl.deleteBuffer(b); });
+    gl.deleteVertexArray(x.vao);
+    c.tree = null;
+    stream.bytes -= c.bytes;
+    stream.loaded -= 1;
+    stream.evictions += 1;
+  }
+  function requestCells() {
+    if (!cells) return;
+    stream.blocked = false;
+    for (var i = 0; i < stream.wanted.length && stream.inflight < H.lod.streamed.concurrent; ++i) {
+      var c = cells[stream.wanted[i]];
+      if (c.tree || c.loading) continue;
+      while (stream.bytes + stream.inflightBytes + c.bytes > stream.memoryBudget) {
+        var old = evictable();
+        if (!old) break;
+        evict(old);
+      }
+      if (stream.bytes + stream.inflightBytes + c.bytes > stream.memoryBudget) { stream.blocked = true; break; }
+      c.loading = true;
+      stream.requests += 1;
+      stream.inflight += 1;
+      stream.inflightBytes += c.bytes;
+      var tag = document.createElement('script');
+      tag.src = H.lod.streamed.folder + '/' + encodeURIComponent(c.key) + '.js';
+      tag.onload = function () { this.remove(); };
+      tag.onerror = (function (cell, src) { return function () { fail('could not load ' + src); cell.loading = false; stream.inflight -= 1; stream.inflightBytes -= cell.bytes; }; })(c, tag.src);
+      document.head.appendChild(tag);
+    }
+    stream.idle = stream.inflight === 0 && (stream.blocked || !stream.wanted.some(function (k) { return !cells[k].tree; }));
+  }
+  var refineSoon = null;
+  function cellLoaded(index, data) {
+    var c = cells[index];
+    if (!c || !c.loading) return;
+    c.loading = false;
+    stream.inflight -= 1;
+    stream.inflightBytes -= c.bytes;
+    try {
+      var d = decode(data.header, data.streams), vao = gl.createVertexArray(), buffers = [];
+      gl.bindVertexArray(vao);
+      buffers.push(attribute(1, d.position, 3, gl.FLOAT, false), attribute(2, d.normal, 3, gl.FLOAT, false),
+                   attribute(3, d.color, 3, gl.UNSIGNED_BYTE, true), attribute(4, d.u, 3, gl.FLOAT, false),
+                   attribute(5, d.v, 3, gl.FLOAT, false));
+      var el = gl.createBuffer();
+      gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, el);
+      buffers.push(el);
+      gl.bindVertexArray(null);
+      c.tree = {T: readTree(data.streams), M: data.header.lod.nodes, offsets: data.header.lod.level_offsets, vao: vao,
+                elements: el, buffers: buffers, drawn: 0, cell: index};
+    } catch (e) { fail(String(e && e.message || e)); return; }
+    c.lastUsed = cutId;
+    stream.loads += 1;
+    stream.loaded += 1;
+    stream.bytes += c.bytes;
+    stream.peakBytes = Math.max(stream.peakBytes, stream.bytes);
+    stream.idle = false;
+    clearTimeout(refineSoon);   // a full frame with it once the camera is still (and more requests)
+    refineSoon = setTimeout(function () { if (performance.now() - lastChange >= SETTLE_MS) full(); else request(); }, 30);
   }
 
   // ---- targets ------------------------------------------------------------------------------------
@@ -522,8 +650,13 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   function drawSplats(name, values, frame, technique) {
     if (H.lod) {   // every entry of the cut as a point (node splats stay within the tolerance or the budget's)
       setUniforms(programs[name + '_points'], Object.assign({u_max_point: maxPoint}, values));
-      gl.bindVertexArray(pointsVao);
-      gl.drawElements(gl.POINTS, state.drawn, gl.UNSIGNED_INT, 0);
+      var trees = [topTree];
+      if (cells) cells.forEach(function (c) { if (c.tree) trees.push(c.tree); });
+      trees.forEach(function (x) {
+        if (!x.drawn) return;
+        gl.bindVertexArray(x.vao);
+        gl.drawElements(gl.POINTS, x.drawn, gl.UNSIGNED_INT, 0);
+      });
       gl.bindVertexArray(null);
       return;
     }
@@ -823,11 +956,18 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   var lastFullMs = null, lastChange = 0, refineTimer = null;
   function hudText(technique, ms, preview) {
     hud.textContent = (H.lod ? state.drawn : H.count).toLocaleString('en') + ' splats drawn \u00b7 ' + ms.toFixed(1) + ' ms/frame \u00b7 ' +
-                      technique + (state.edl ? ' + EDL' : '') + (preview ? ' (preview; full quality when still)' : '');
+                      technique + (state.edl ? ' + EDL' : '') +
+                      (cells ? ' \u00b7 ' + stream.loaded + '/' + cells.length + ' cells loaded' : '') + (preview ? ' (preview; full quality when still)' : '');
   }
   function full() {
     refineTimer = null;
     try { if (H.lod) selectCut(state.camera, canvas.width, canvas.height); render(); } catch (e) { fail(String(e && e.message || e)); return; }
+    state.fullFrames = (state.fullFrames || 0) + 1;
+    if (cells) {   // requests once the camera is still
+      var wait = SETTLE_MS - (performance.now() - lastChange);
+      clearTimeout(refineSoon);
+      if (wait <= 0) requestCells(); else refineSoon = setTimeout(full, wait);
+    }
     lastFullMs = state.frameMs;
     hudText(state.technique, state.frameMs, false);
     if (!state.ready) {
@@ -870,13 +1010,17 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     for (var p in SHADERS.programs) programs[p] = build(p);
     state.programs = Object.keys(programs);   // every shipped program compiled and linked
     state.timings.compile = performance.now() - t0;
-    splats = decode();
+    splats = decode(H, DATA.streams);
     if (H.lod) {
-      tree = readTree();
+      tree = readTree(DATA.streams);
       state.budget = Number(params.budget) >= 1 ? Math.floor(Number(params.budget)) : H.lod.budget;
     }
     state.timings.decode = performance.now() - t0 - state.timings.compile;
     upload(splats);
+    if (H.lod) {
+      topTree = {T: tree, M: H.lod.nodes, offsets: H.lod.level_offsets, vao: pointsVao, elements: elements, drawn: 0};
+      if (H.lod.streamed) startStreaming();
+    }
     state.timings.upload = performance.now() - t0 - state.timings.compile - state.timings.decode;
     sizeCanvas();
     home();
