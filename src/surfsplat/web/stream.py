@@ -25,10 +25,12 @@ import numpy as np
 
 from .. import progress
 from ..camera import Camera
+from ..colors import ASPRS
 from ..errors import InputError
 from ..hierarchy.chunked import ChunkedHierarchy
 from ..pipeline import View
 from . import format as web_format
+from .colors import encode_attribute
 from .page import _b64, page_data
 from .tree import DEFAULT_WEB_BUDGET, WEB_TOLERANCE, tree_entries, tree_streams
 
@@ -42,9 +44,11 @@ CONCURRENT_REQUESTS = 4
 CELLS_FOLDER = "cells"
 
 
-def cell_payload(h) -> dict:
+def cell_payload(h, point_attributes: dict | None = None, names=()) -> dict:
     """The header and streams (base64) of one cell's hierarchy ``h``: its entries (nodes, then points)
-    in the web format and its tree (:func:`surfsplat.web.tree.tree_streams`)."""
+    in the web format, its tree (:func:`surfsplat.web.tree.tree_streams`) and the attributes ``names`` of
+    its entries (``point_attributes``: the points' values; nodes: ``h.node_attributes``), each encoded
+    by :func:`~surfsplat.web.colors.encode_attribute`."""
     entries = tree_entries(h)
     assert entries.normals is not None and entries.colors is not None and entries.u is not None \
         and entries.v is not None   # tree_entries gives every one
@@ -52,6 +56,12 @@ def cell_payload(h) -> dict:
     header["lod"] = {"nodes": len(h), "points": int(len(h.points)), "level_offsets": [int(x) for x in h.level_offsets]}
     out = {key: _b64(value) for key, value in streams.items()}
     out.update(tree_streams(h))
+    header["attributes"] = {}
+    nodes, points = h.node_attributes or {}, point_attributes or {}
+    for name in names:
+        codes, info = encode_attribute(np.concatenate([np.asarray(nodes[name]), np.asarray(points[name])]))
+        header["attributes"][name] = info
+        out[f"attr_{name}"] = _b64(codes)
     return {"header": header, "streams": out}
 
 
@@ -67,12 +77,20 @@ def stream_data(plan: View, camera: Camera, technique: str, background, name: st
         raise InputError(f"memory budget must be a whole number of bytes >= 1, got {memory_budget!r}")
     top = ch.top
     header, streams = page_data(plan, tree_entries(top), technique, background, name, ordered=False)
+    # the colourings of ChunkedHierarchy.colorized: ranges from the manifest (a sample of every point) where
+    # it has them, else from the preview
+    ranges = {a["name"]: a.get("range") for a in ch.manifest.get("attributes", [])}
+    for mode in header["color"]["modes"]:
+        if mode.get("attribute") in ranges and ranges[mode["attribute"]] and mode["colormap"] != ASPRS:
+            mode["range"] = [float(x) for x in ranges[mode["attribute"]]]
+    names = list(header["color"]["attributes"])
     files: dict[str, str] = {}
     cells, radius = [], 0.0
     with progress.stage("encoding the cells for the web", len(ch.cells), "cells") as bar:
         for index, entry in enumerate(ch.cells):
             h = ch.cell(index, full=True)
-            payload = cell_payload(h)
+            values = ch._points(index)[2] if names else None   # the cell's point attributes, memory-mapped
+            payload = cell_payload(h, values, names)
             radius = max(radius, float(np.exp2(payload["header"]["log_radius"][1])))
             key = str(entry["key"])
             files[f"{CELLS_FOLDER}/{key}.js"] = (f"surfsplatCell({index}, "
@@ -85,8 +103,6 @@ def stream_data(plan: View, camera: Camera, technique: str, background, name: st
     header["bounds"] = [lo.tolist(), hi.tolist()]   # world, as SplatCloud.bounds
     header["origin"] = ch.origin.tolist()
     header["max_radius"] = radius
-    header["color"] = {"modes": [], "tables": {}, "attributes": {}}   # colourings are not streamed yet
-    streams = {k: v for k, v in streams.items() if not k.startswith("attr_")}
     header["lod"] = {"nodes": len(top), "points": int(len(top.points)), "levels": int(top.levels),
                      "level_offsets": [int(x) for x in top.level_offsets], "budget": int(budget or DEFAULT_WEB_BUDGET),
                      "tolerance": WEB_TOLERANCE,

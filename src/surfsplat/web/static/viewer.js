@@ -316,24 +316,24 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   // colormap's table (matplotlib's indexing); the ASPRS palette is indexed by the class code.
   var colorBuffers = [], colorTables = {}, OWN_COLORS = 'own colours';
   function colorModes() { return [OWN_COLORS].concat((H.color ? H.color.modes : []).map(function (m) { return m.name; })); }
-  function attributeValues(name) {
-    var info = H.color.attributes[name], b = bytes(DATA.streams['attr_' + name]);
-    var codes = info.type === 'u8' ? b : new Uint16Array(b.buffer, b.byteOffset, b.length / 2);
+  function attributeValues(info, b64) {
+    var b = bytes(b64), codes = info.type === 'u8' ? b : new Uint16Array(b.buffer, b.byteOffset, b.length / 2);
     var out = new Float64Array(codes.length);
     for (var i = 0; i < codes.length; ++i) out[i] = info.offset + codes[i] * info.scale;
     return out;
   }
-  function modeColors(name) {
-    if (name === OWN_COLORS) return splats.color;
+  // the colours of splats (the page's, or a streamed cell's: its header, streams, decoded positions and
+  // own colours) coloured by the mode name
+  function modeColors(name, hd, streams, position, own) {
+    if (name === OWN_COLORS) return own;
     var m = null;
     H.color.modes.forEach(function (x) { if (x.name === name) m = x; });
     if (!m) throw new Error('no colouring ' + name + ' on this page');
-    var n = H.count, values, i;
+    var n = hd.count, values, i;
     if (m.up) {
-      var p = splats.position;
       values = new Float64Array(n);
-      for (i = 0; i < n; ++i) values[i] = p[3 * i] * m.up[0] + p[3 * i + 1] * m.up[1] + p[3 * i + 2] * m.up[2];
-    } else values = attributeValues(m.attribute);
+      for (i = 0; i < n; ++i) values[i] = position[3 * i] * m.up[0] + position[3 * i + 1] * m.up[1] + position[3 * i + 2] * m.up[2];
+    } else values = attributeValues((hd.color || hd).attributes[m.attribute], streams['attr_' + m.attribute]);
     if (!(m.colormap in colorTables)) colorTables[m.colormap] = bytes(H.color.tables[m.colormap]);
     var table = colorTables[m.colormap], out = new Uint8Array(3 * n), lo = m.range[0], w = m.range[1] - m.range[0];
     for (i = 0; i < n; ++i) {
@@ -344,16 +344,23 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     }
     return out;
   }
+  function recolorCell(c) {   // a loaded cell in the page's colouring
+    var x = c.tree;
+    gl.bindBuffer(gl.ARRAY_BUFFER, x.buffers[2]);
+    gl.bufferData(gl.ARRAY_BUFFER, modeColors(state.colorBy, x.data.header, x.data.streams, x.position, x.color),
+                  gl.STATIC_DRAW);
+  }
   function setColorBy(name) {
     if (colorModes().indexOf(name) < 0) return;
-    var colors = modeColors(name);
+    state.colorBy = name;
+    var colors = modeColors(name, H, DATA.streams, splats.position, splats.color);
     gl.bindBuffer(gl.ARRAY_BUFFER, colorBuffers[0]);
     gl.bufferData(gl.ARRAY_BUFFER, colors, gl.STATIC_DRAW);
     if (colorBuffers.length > 1) {
       gl.bindBuffer(gl.ARRAY_BUFFER, colorBuffers[1]);
       gl.bufferData(gl.ARRAY_BUFFER, repeated(colors, 3, quadCount, Uint8Array), gl.STATIC_DRAW);
     }
-    state.colorBy = name;
+    if (cells) cells.forEach(function (c) { if (c.tree) recolorCell(c); });
     syncControls();
     saveUrl();
     request();
@@ -577,7 +584,8 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       buffers.push(el);
       gl.bindVertexArray(null);
       c.tree = {T: readTree(data.streams), M: data.header.lod.nodes, offsets: data.header.lod.level_offsets, vao: vao,
-                elements: el, buffers: buffers, drawn: 0, cell: index};
+                elements: el, buffers: buffers, drawn: 0, cell: index, data: data, position: d.position, color: d.color};
+      if (state.colorBy !== OWN_COLORS) recolorCell(c);
     } catch (e) { fail(String(e && e.message || e)); return; }
     c.lastUsed = cutId;
     stream.loads += 1;
