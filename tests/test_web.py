@@ -261,3 +261,33 @@ def test_a_mesh_is_sampled_for_the_page_size_as_render_samples_for_its_size(tmp_
     assert 3.0 < large.splats / small.splats < 5.0   # twice the size: four times the samples
     with pytest.raises(InputError, match="page size"):
         surfsplat.export(mesh, tmp_path / "bad", size=(0, 10))
+
+
+def test_a_chunked_hierarchy_exports_as_a_page_and_a_file_per_cell(tmp_path):
+    from surfsplat.hierarchy.chunked import build_chunked, open_chunked
+    from surfsplat.io import save_ply
+    from surfsplat.web.export import page_payload
+    save_ply(torus(60, 30), tmp_path / "torus.ply")
+    build_chunked(tmp_path / "torus.ply", tmp_path / "torus.ssh", cell_points=400, scheduler="synchronous")
+    model = open_chunked(tmp_path / "torus.ssh")
+    result = surfsplat.export(tmp_path / "torus.ssh", tmp_path / "site", browser_lod=True, memory_budget=10**6)
+    header, _ = _page_header(result.path)
+    streamed = header["lod"]["streamed"]
+    assert [c["key"] for c in streamed["cells"]] == [c["key"] for c in model.cells] and len(model.cells) > 3
+    assert streamed["memory_budget"] == 10**6 and header["lod"]["nodes"] == len(model.top)
+    files = sorted(p.name for p in (result.path / "cells").iterdir())
+    assert files == sorted(f"{c['key']}.js" for c in model.cells)
+    first = (result.path / "cells" / files[0]).read_text()
+    index = [f"{c['key']}.js" for c in model.cells].index(files[0])
+    assert first.startswith(f"surfsplatCell({index}, ")
+    payload = json.loads(first[first.index(",") + 1:].rstrip().rstrip(";").rstrip(")"))
+    h = model.cell(index)
+    assert payload["header"]["count"] == len(h) + len(h.points) == streamed["cells"][index]["entries"]
+    # every node and point once: the whole model is in the cells
+    assert sum(c["entries"] for c in streamed["cells"]) == result.splats - header["count"]
+    assert sum(len(model.cell(i).points) for i in range(len(model.cells))) == model.point_count
+    with pytest.raises(InputError, match="folder of cell files"):
+        surfsplat.export(tmp_path / "torus.ssh", tmp_path / "one.html", browser_lod=True)
+    with pytest.raises(InputError, match="folder of cell files"):
+        page_payload(tmp_path / "torus.ssh", browser_lod=True)
+    assert main(["export", str(tmp_path / "torus.ssh"), "-o", str(result.path), "--browser-lod", "-q"]) == 0   # ours
