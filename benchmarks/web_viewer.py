@@ -245,9 +245,10 @@ def main() -> None:
     finally:
         shutil.rmtree(work, ignore_errors=True)
     machine = machine_description(default_renderer().ctx.info["GL_RENDERER"])
+    command = " ".join(["python benchmarks/web_viewer.py", *sys.argv[1:]])
     write_table("web_viewer", ["measure", "unit", "value"], rows,
                 f"{machine}; headless {version} (WebGL2 on SwiftShader); load average {os.getloadavg()[0]:.1f} "
-                f"at the end; {width}x{height}; `python benchmarks/web_viewer.py`")
+                f"at the end; {width}x{height}; `{command}`")
     print(json.dumps({"results": str(RESULTS / "web_viewer.md")}))
 
 

@@ -261,6 +261,11 @@ def test_a_mesh_is_sampled_for_the_page_size_as_render_samples_for_its_size(tmp_
     assert 3.0 < large.splats / small.splats < 5.0   # twice the size: four times the samples
     with pytest.raises(InputError, match="page size"):
         surfsplat.export(mesh, tmp_path / "bad", size=(0, 10))
+    with pytest.raises(InputError, match="memory budget"):
+        surfsplat.export(mesh, tmp_path / "bad", browser_lod=True, memory_budget=0.5)
+    assert main(["export", str(mesh), "-o", str(tmp_path / "cli"), "--size", "100", "75", "-q"]) == 0
+    assert f'"count":{small.splats},' in (tmp_path / "cli" / "data.js").read_text()   # the same sampling
+    assert main(["export", str(mesh), "-o", str(tmp_path / "cli2"), "--size", "0", "75"]) == 2
 
 
 def test_a_chunked_hierarchy_exports_as_a_page_and_a_file_per_cell(tmp_path):

@@ -214,6 +214,8 @@ def export(source, output, *, technique: str = "ewa", background=defaults.BACKGR
         raise InputError(f"export format {format!r} is not one of {', '.join(FORMATS)}")
     check_page_args(technique, background, point_budget)
     size = check_page_size(size)
+    if memory_budget is not None and not (isinstance(memory_budget, (int, np.integer)) and memory_budget >= 1):
+        raise InputError(f"memory budget must be a whole number of bytes >= 1, got {memory_budget!r}")
     if format == "copc":
         return _export_copc(source, output, source_options, lod, camera, point_budget, force, start, size)
     path, single = check_export_output(output, force)
