@@ -584,7 +584,14 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       buffers.push(el);
       gl.bindVertexArray(null);
       c.tree = {T: readTree(data.streams), M: data.header.lod.nodes, offsets: data.header.lod.level_offsets, vao: vao,
-                elements: el, buffers: buffers, drawn: 0, cell: index, data: data, position: d.position, color: d.color};
+                elements: el, buffers: buffers, drawn: 0, cell: index};
+      if (H.color.modes.length) {   // what recolouring it needs (not the rest of its streams)
+        var attrs = {};
+        for (var key in data.streams) if (key.indexOf('attr_') === 0) attrs[key] = data.streams[key];
+        c.tree.data = {header: data.header, streams: attrs};
+        c.tree.position = d.position;
+        c.tree.color = d.color;
+      }
       if (state.colorBy !== OWN_COLORS) recolorCell(c);
     } catch (e) { fail(String(e && e.message || e)); return; }
     c.lastUsed = cutId;
