@@ -450,6 +450,8 @@ def test_a_streamed_page_keeps_its_memory_budget_and_lets_go_of_unseen_cells_fro
     assert states[0]["blocked"] and 0 < states[0]["loads"]   # the budget stops the loads at the home view
     assert all(s["peakBytes"] <= budget and s["bytes"] <= budget for s in states)
     assert states[-1]["evictions"] > 0   # the cells of the first side let go for those of the other
+    # Potree's order within the memory budget: no cell left out is worth more to the view than one kept
+    assert all(s["wantedTop"] <= s["loadedLeast"] for s in states if s["blocked"])
 
 
 # measured at 320 x 240: 67.5 dB (every cell streamed and coloured as it arrives)

@@ -13,8 +13,8 @@ Per view the page cuts the forest as :meth:`surfsplat.hierarchy.chunked.ChunkedH
 Schuetz 2016 sec. 3.3), draws the root splat of a cell it has not loaded, and when the camera stops
 requests the cells whose roots the cut would refine, largest projected size first, a few at a time.
 Loaded cells are kept within a memory budget (bytes of their GPU arrays): before a request, the least
-recently drawn cells the current cut does not use are let go; where that cannot make room, nothing more
-is requested.
+recently drawn cells the current cut does not use are let go, then those it uses of a lower priority than
+the cell requested; where that cannot make room, nothing more is requested.
 """
 
 from __future__ import annotations

@@ -451,10 +451,15 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
           var cr = cellRoot(t, n, k), cell = cells[cr.cell];
           if (!(cr.size > tol)) continue;
           var pc = Math.min(cr.size, p);
+          var inView = sphereVisible(roots.center, cr.cell, roots.radius[cr.cell]);
           if (cell.tree) {
+            if (inView) {   // in use, and what it is worth to this view, by the rule that requests it
+              cell.lastUsed = cell.priorityCut = cutId;
+              cell.priority = pc;
+            }
             if (visible(cell.tree, 0)) stack.push([cell.tree, 0, p, item[3] + 1]);   // its root node for its root splat
             else refined.push([pc, item[3] + 1, cell.tree, -1, -1]);   // culled whole: refining its root drops it
-          } else if (sphereVisible(roots.center, cr.cell, roots.radius[cr.cell])) wanted.push([pc, cr.cell]);
+          } else if (inView) wanted.push([pc, cr.cell]);
         }
       } else {
         cost = -1;
@@ -509,6 +514,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       wanted = wanted.filter(function (x) { return x[0] > stop; });
       wanted.sort(function (a, b) { return b[0] - a[0] || a[1] - b[1]; });
       stream.wanted = wanted.map(function (x) { return x[1]; });
+      stream.wantedPriority = wanted.map(function (x) { return x[0]; });
     }
     return drawn;
   }
@@ -518,20 +524,29 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   // file:// alike. Requests go out when the camera stops (after a full-quality frame), a few at a time;
   // loaded cells stay within the memory budget, the least recently drawn let go first.
   var stream = {requests: 0, loads: 0, evictions: 0, bytes: 0, peakBytes: 0, inflight: 0, inflightBytes: 0,
-                wanted: [], blocked: false, memoryBudget: 0, loaded: 0};
+                wanted: [], wantedPriority: [], blocked: false, memoryBudget: 0, loaded: 0};
   state.stream = stream;
   function startStreaming() {
     var S = H.lod.streamed, s = DATA.streams;
     cellOf = i32(s.cell_of_point);
     roots = {center: f32(s.root_center), radius: f32(s.root_radius), extent: f32(s.root_extent)};
-    cells = S.cells.map(function (c, i) { return {index: i, key: c.key, bytes: c.bytes, tree: null, loading: false, lastUsed: 0}; });
+    cells = S.cells.map(function (c, i) { return {index: i, key: c.key, bytes: c.bytes, tree: null, loading: false, lastUsed: 0,
+                                                  priority: 0, priorityCut: 0}; });
     stream.memoryBudget = Number(params.memory) >= 1 ? Math.floor(Number(params.memory)) : S.memory_budget;
     window.surfsplatCell = cellLoaded;
   }
-  function evictable() {   // the least recently drawn loaded cell the current cut does not draw, or null
-    var best = null;
-    cells.forEach(function (c) { if (c.tree && c.lastUsed < cutId && (!best || c.lastUsed < best.lastUsed)) best = c; });
-    return best;
+  // The cell to let go for a request of priority p: the least recently drawn loaded cell the current cut
+  // does not draw, else the drawn one of least priority in this view if below p (Potree's order: what is
+  // largest on screen is kept), else null.
+  function evictable(p) {
+    var best = null, least = null;
+    cells.forEach(function (c) {
+      if (!c.tree) return;
+      if (c.lastUsed < cutId) { if (!best || c.lastUsed < best.lastUsed) best = c; return; }
+      var q = c.priorityCut === cutId ? c.priority : 0;
+      if (q < p && (!least || q < (least.priorityCut === cutId ? least.priority : 0))) least = c;
+    });
+    return best || least;
   }
   function evict(c) {
     var x = c.tree;
@@ -545,12 +560,14 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   function requestCells() {
     if (!cells) return;
     stream.blocked = false;
+    var recut = false;
     for (var i = 0; i < stream.wanted.length && stream.inflight < H.lod.streamed.concurrent; ++i) {
       var c = cells[stream.wanted[i]];
       if (c.tree || c.loading) continue;
       while (stream.bytes + stream.inflightBytes + c.bytes > stream.memoryBudget) {
-        var old = evictable();
+        var old = evictable(stream.wantedPriority[i]);
         if (!old) break;
+        recut = recut || old.lastUsed === cutId;
         evict(old);
       }
       if (stream.bytes + stream.inflightBytes + c.bytes > stream.memoryBudget) { stream.blocked = true; break; }
@@ -565,6 +582,12 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       document.head.appendChild(tag);
     }
     stream.idle = stream.inflight === 0 && (stream.blocked || !stream.wanted.some(function (k) { return !cells[k].tree; }));
+    if (recut) { clearTimeout(refineSoon); refineSoon = setTimeout(full, 0); }   // its root splat for it meanwhile
+    // for the tests: the most a cell left out is worth, and the least a loaded cell drawn is worth
+    stream.wantedTop = 0;
+    stream.wanted.forEach(function (k, j) { if (!cells[k].tree && !cells[k].loading) stream.wantedTop = Math.max(stream.wantedTop, stream.wantedPriority[j]); });
+    stream.loadedLeast = Infinity;
+    cells.forEach(function (c) { if (c.tree && c.lastUsed === cutId && c.priorityCut === cutId) stream.loadedLeast = Math.min(stream.loadedLeast, c.priority); });
   }
   var refineSoon = null;
   function cellLoaded(index, data) {
