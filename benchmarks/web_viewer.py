@@ -16,9 +16,16 @@ frame times in headless Chromium.
   first frame (a ``points`` preview where a full frame is slow) and the first full-quality frame, ms
   after navigation start, and a full-quality frame drawn again (median of 3);
 * the same torus with ``--browser-lod`` and a budget of 300,000: export time (the hierarchy built),
-  splats the page's cut draws at the default view, and its frame times.
+  splats the page's cut draws at the default view, and its frame times;
+* with ``--chunked N``: a chunked hierarchy of N raw points (a torus, built with ``surfsplat build --chunked``
+  in cells of ``--cell-points``) exported with ``--browser-lod`` and served by python's ``http.server``: build
+  and export times, bytes, the first frame, and the time, full-quality frames and cell requests until the
+  still default view is fully refined (``surfsplat.stream.idle``).
 
-    python benchmarks/web_viewer.py [--size 1024 768] [--skip-raw]
+The bunny is exported for the page size (``export(..., size=(W, H))``), so it is sampled as ``surfsplat
+render --width W --height H`` samples it.
+
+    python benchmarks/web_viewer.py [--size 1024 768] [--skip-raw] [--chunked 10000000 --cell-points 500000]
 """
 
 from __future__ import annotations
@@ -83,11 +90,66 @@ def options_for(technique: str) -> RenderOptions | None:
     return RenderOptions(edl=EdlOptions()) if technique == "points" else None
 
 
+def chunked_rows(browser, work: Path, count: int, cell_points: int, width: int, height: int) -> list:
+    """The streaming rows: a chunked hierarchy of ``count`` raw points served over HTTP."""
+    import functools
+    import http.server
+    import threading
+
+    from surfsplat.hierarchy.chunked import build_chunked
+
+    rows: list = []
+    side = int(np.sqrt(count / 1.6))
+    cloud = torus(int(1.6 * side), side)
+    raw = work / "big.ply"
+    save_ply(SplatCloud(cloud.positions, colors=cloud.colors, origin=cloud.origin, up=cloud.up), raw)
+    n = len(cloud)
+    del cloud
+    start = time.perf_counter()
+    build_chunked(raw, work / "big.ssh", cell_points=cell_points)
+    rows.append([f"chunked: build {n:,} raw points (cells of {cell_points:,})", "s",
+                 round(time.perf_counter() - start, 1)])
+    start = time.perf_counter()
+    result = export(work / "big.ssh", work / "big", browser_lod=True)
+    rows.append(["chunked: export with browser LOD (every cell encoded)", "s", round(time.perf_counter() - start, 1)])
+    cells = list((work / "big" / "cells").iterdir())
+    rows.append(["chunked: page files (data.js and the rest)", "MB", round(folder_bytes(work / "big") / 1e6, 1)])
+    rows.append([f"chunked: cell files ({len(cells)})", "MB", round(sum(p.stat().st_size for p in cells) / 1e6, 1)])
+    rows.append(["chunked: entries (nodes and points)", "splats", result.splats])
+    class Quiet(http.server.SimpleHTTPRequestHandler):
+        def log_message(self, format, *args):   # noqa: A002
+            pass
+
+    handler = functools.partial(Quiet, directory=str(work / "big"))
+    httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    threading.Thread(target=httpd.serve_forever, daemon=True).start()
+    try:
+        page = opened(browser, f"http://127.0.0.1:{httpd.server_address[1]}/index.html?technique=ewa", width, height)
+        first = page.evaluate("surfsplat.firstFrameMs")
+        page.wait_for("surfsplat.stream.idle", timeout=1800, poll=0.5)
+        done = page.evaluate("performance.now()")
+        state = json.loads(page.evaluate("JSON.stringify(Object.assign({drawn: surfsplat.drawn, "
+                                         "frames: surfsplat.fullFrames}, surfsplat.stream))"))
+        page.close()
+    finally:
+        httpd.shutdown()
+    rows.append(["chunked over HTTP: first frame (the top hierarchy)", "ms after navigation", round(float(first))])
+    rows.append(["chunked: default view fully refined", "ms after navigation", round(float(done))])
+    rows.append(["chunked: full-quality frames until then", "frames", state["frames"]])
+    rows.append(["chunked: cells requested / in the model", "cells", f"{state['requests']} / {len(cells)}"])
+    rows.append(["chunked: splats drawn (budget 1,000,000)", "splats", state["drawn"]])
+    rows.append(["chunked: loaded cells' GPU arrays (budget 512 MiB)", "MB", round(state["bytes"] / 1e6, 1)])
+    return rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--size", type=int, nargs=2, default=(1024, 768))
     parser.add_argument("--skip-raw", action="store_true", help="skip the export of 1 M raw points")
     parser.add_argument("--images", type=Path, help="also save the canvases and desktop renders here")
+    parser.add_argument("--chunked", type=int, default=0, metavar="N",
+                        help="also stream a chunked hierarchy of N raw points (0: skip)")
+    parser.add_argument("--cell-points", type=int, default=500_000, help="points per cell of that hierarchy")
     args = parser.parse_args()
     width, height = args.size
     work = Path(tempfile.mkdtemp(prefix="surfsplat-web-bench-"))
@@ -110,12 +172,18 @@ def main() -> None:
         # -- quality on the bunny --------------------------------------------------------------------
         plan = View(BUNNY)
         camera = plan.camera(None, width, height)
-        splats = exported_splats(plan, plan.camera(None, 1024, 1024), None)   # sampled as export samples
+        splats = exported_splats(plan, camera, None)   # sampled as export samples for this page size
         quantized = View(as_drawn(splats))
         original = View(splats)
         rendered = View(BUNNY)   # `surfsplat render bunny.ply` at this size: sampled for its own camera
         mesh = render_mesh(BUNNY, camera)
-        export(BUNNY, work / "bunny")
+        start = time.perf_counter()
+        bunny = export(BUNNY, work / "bunny", size=(width, height))
+        rows.append([f"export of the bunny mesh for a {width} x {height} page", "s",
+                     round(time.perf_counter() - start, 2)])
+        rows.append([f"bunny for a {width} x {height} page: splats (as `surfsplat render` samples it)", "splats",
+                     bunny.splats])
+        rows.append(["bunny: data.js", "MB", round((work / "bunny" / "data.js").stat().st_size / 1e6, 1)])
         with Browser() as browser:
             for technique in TECHNIQUES:
                 desk = original.render(camera, technique=technique, options=options_for(technique)).frame
@@ -171,13 +239,16 @@ def main() -> None:
             rows.append(["browser LOD: first frame, ewa", "ms after navigation", round(float(first))])
             rows.append(["browser LOD: first full-quality frame, ewa", "ms after navigation", round(float(ready))])
             rows.append(["browser LOD: full-quality frame, ewa", "ms (median of 3)", round(statistics.median(again))])
+            if args.chunked:
+                rows.extend(chunked_rows(browser, work, args.chunked, args.cell_points, width, height))
             version = browser.version
     finally:
         shutil.rmtree(work, ignore_errors=True)
     machine = machine_description(default_renderer().ctx.info["GL_RENDERER"])
+    command = " ".join(["python benchmarks/web_viewer.py", *sys.argv[1:]])
     write_table("web_viewer", ["measure", "unit", "value"], rows,
                 f"{machine}; headless {version} (WebGL2 on SwiftShader); load average {os.getloadavg()[0]:.1f} "
-                f"at the end; {width}x{height}; `python benchmarks/web_viewer.py`")
+                f"at the end; {width}x{height}; `{command}`")
     print(json.dumps({"results": str(RESULTS / "web_viewer.md")}))
 
 

@@ -207,3 +207,92 @@ def test_the_browser_driver_names_a_missing_browser(tmp_path):
     from surfsplat.web.browser import Browser, BrowserError
     with pytest.raises(BrowserError, match="no such executable"):
         Browser(str(tmp_path / "chromium"))
+
+
+def _page_header(out):
+    text = (out / "data.js").read_text()
+    data = json.loads(text[text.index("=") + 1:].rstrip().rstrip(";"))
+    return data["header"], data["streams"]
+
+
+def test_the_page_colours_are_colorize_s_from_compact_attributes(tmp_path):
+    import base64
+
+    from surfsplat.colors import colorize
+    from surfsplat.web.colors import page_colors
+    rng = np.random.default_rng(5)
+    base = torus(60, 30)
+    n = len(base)
+    attributes = {"classification": rng.choice([1, 2, 6, 9, 200], n).astype(np.uint8),
+                  "intensity": rng.integers(0, 60_000, n).astype(np.uint16),
+                  "gps_time": rng.uniform(1e5, 2e5, n), "nonplanar": np.zeros(n, np.uint8)}
+    cloud = base.replace(attributes=attributes)
+    header, streams = _page_header(surfsplat.export(cloud, tmp_path / "site").path)
+    color = header["color"]
+    # the desktop viewer's C cycle: own colours (the page's own), elevation, then the attributes sorted
+    assert [m["name"] for m in color["modes"]] == ["elevation", "classification", "gps_time", "intensity"]
+    kinds = {name: info["type"] for name, info in color["attributes"].items()}
+    assert kinds == {"classification": "u8", "intensity": "u16", "gps_time": "u16"}   # 1 or 2 bytes a splat
+    raw = {k: np.frombuffer(base64.b64decode(v), np.uint8 if k in ("color", "attr_classification") else np.uint16)
+           for k, v in streams.items()}
+    tables = {k: np.frombuffer(base64.b64decode(v), np.uint8).reshape(256, 3) for k, v in color["tables"].items()}
+    assert set(tables) == {"asprs", "viridis"}
+    positions = wf.dequantize_unit(raw["position"].reshape(-1, 3), header["lo"], header["hi"])
+    order = np.lexsort(positions.T)   # the page's order to the cloud's: match rows by position
+    mine = np.lexsort(wf.dequantize_unit(wf.quantize_unit(cloud.positions, header["lo"], header["hi"]),
+                                         header["lo"], header["hi"]).T)
+    codes = {k: v[order] for k, v in raw.items() if k.startswith("attr_")}
+    for name in ("classification", "intensity", "gps_time", "elevation"):
+        page = page_colors({**color, "tables": tables}, codes, positions[order], name)
+        desktop = np.rint(colorize(cloud, name, up=View(cloud).up).colors[mine] * 255).astype(int)
+        same = (np.abs(page.astype(int) - desktop) <= 1).all(axis=1).mean()
+        # integers exactly; a quantized float or position may cross a colormap bin: a few splats differ
+        assert same >= (1.0 if name in ("classification", "intensity") else 0.99), name
+
+
+def test_a_mesh_is_sampled_for_the_page_size_as_render_samples_for_its_size(tmp_path):
+    trimesh = pytest.importorskip("trimesh")
+    mesh = tmp_path / "sphere.ply"
+    trimesh.creation.icosphere(subdivisions=3).export(mesh)
+    small = surfsplat.export(mesh, tmp_path / "small", size=(100, 75))
+    large = surfsplat.export(mesh, tmp_path / "large", size=(200, 150))
+    view = View(mesh)
+    assert small.splats == len(view.sample(view.camera(None, 100, 75)).points())
+    assert 3.0 < large.splats / small.splats < 5.0   # twice the size: four times the samples
+    with pytest.raises(InputError, match="page size"):
+        surfsplat.export(mesh, tmp_path / "bad", size=(0, 10))
+    with pytest.raises(InputError, match="memory budget"):
+        surfsplat.export(mesh, tmp_path / "bad", browser_lod=True, memory_budget=0.5)
+    assert main(["export", str(mesh), "-o", str(tmp_path / "cli"), "--size", "100", "75", "-q"]) == 0
+    assert f'"count":{small.splats},' in (tmp_path / "cli" / "data.js").read_text()   # the same sampling
+    assert main(["export", str(mesh), "-o", str(tmp_path / "cli2"), "--size", "0", "75"]) == 2
+
+
+def test_a_chunked_hierarchy_exports_as_a_page_and_a_file_per_cell(tmp_path):
+    from surfsplat.hierarchy.chunked import build_chunked, open_chunked
+    from surfsplat.io import save_ply
+    from surfsplat.web.export import page_payload
+    save_ply(torus(60, 30), tmp_path / "torus.ply")
+    build_chunked(tmp_path / "torus.ply", tmp_path / "torus.ssh", cell_points=400, scheduler="synchronous")
+    model = open_chunked(tmp_path / "torus.ssh")
+    result = surfsplat.export(tmp_path / "torus.ssh", tmp_path / "site", browser_lod=True, memory_budget=10**6)
+    header, _ = _page_header(result.path)
+    streamed = header["lod"]["streamed"]
+    assert [c["key"] for c in streamed["cells"]] == [c["key"] for c in model.cells] and len(model.cells) > 3
+    assert streamed["memory_budget"] == 10**6 and header["lod"]["nodes"] == len(model.top)
+    files = sorted(p.name for p in (result.path / "cells").iterdir())
+    assert files == sorted(f"{c['key']}.js" for c in model.cells)
+    first = (result.path / "cells" / files[0]).read_text()
+    index = [f"{c['key']}.js" for c in model.cells].index(files[0])
+    assert first.startswith(f"surfsplatCell({index}, ")
+    payload = json.loads(first[first.index(",") + 1:].rstrip().rstrip(";").rstrip(")"))
+    h = model.cell(index)
+    assert payload["header"]["count"] == len(h) + len(h.points) == streamed["cells"][index]["entries"]
+    # every node and point once: the whole model is in the cells
+    assert sum(c["entries"] for c in streamed["cells"]) == result.splats - header["count"]
+    assert sum(len(model.cell(i).points) for i in range(len(model.cells))) == model.point_count
+    with pytest.raises(InputError, match="folder of cell files"):
+        surfsplat.export(tmp_path / "torus.ssh", tmp_path / "one.html", browser_lod=True)
+    with pytest.raises(InputError, match="folder of cell files"):
+        page_payload(tmp_path / "torus.ssh", browser_lod=True)
+    assert main(["export", str(tmp_path / "torus.ssh"), "-o", str(result.path), "--browser-lod", "-q"]) == 0   # ours

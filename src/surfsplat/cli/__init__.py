@@ -174,6 +174,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="export the whole hierarchy (a cloud's built) and let the page cut it per view: a point "
                         "budget (--point-budget: the page's first, default 1,000,000) refined largest node first "
                         "when the camera stops")
+    p.add_argument("--memory-budget", type=opt.number(float, low=1), metavar="MB",
+                   help="with --browser-lod of a chunked hierarchy (its cells loaded on demand): the page's first "
+                        "memory budget for loaded cells, MB (default 512; least recently drawn cells let go)")
+    p.add_argument("--size", type=opt.number(int, low=1, high=defaults.MAX_IMAGE_SIDE, what="pixels"), nargs=2,
+                   metavar=("W", "H"), default=defaults.WINDOW_SIZE,
+                   help=f"the page size the model is prepared for: a mesh sampled as `surfsplat render --width W "
+                        f"--height H` samples it, a hierarchy cut at that default view (default "
+                        f"{defaults.WINDOW_SIZE[0]} {defaults.WINDOW_SIZE[1]})")
     p.add_argument("--force", action="store_true",
                    help="replace an existing file or non-empty folder that surfsplat export did not write "
                         "(an earlier export is always replaced)")

@@ -25,12 +25,13 @@ from .. import defaults, progress
 from ..errors import InputError
 from ..io.atomic import atomic_path, check_writable
 from ..io.copc import is_surfsplat_copc, write_copc
-from ..pipeline import CameraSpec, LodOptions, SourceOptions, View, check_source
+from ..pipeline import CameraSpec, LodOptions, SourceOptions, View, check_image_size, check_source
 from ..rendering.frame import check_background
 from ..version import __version__
 from . import format as web_format
 from .page import DEFAULT_POINT_BUDGET, as_drawn, exported_splats, page_data, web_order
 from .shaders import WEB_TECHNIQUES, shader_bundle
+from .stream import CELLS_FOLDER, stream_data
 from .tree import tree_data
 
 __all__ = ["DEFAULT_POINT_BUDGET", "ExportResult", "as_drawn", "export", "exported_splats", "page_data",
@@ -40,6 +41,9 @@ __all__ = ["DEFAULT_POINT_BUDGET", "ExportResult", "as_drawn", "export", "export
 FILES = ("index.html", "viewer.js", "shaders.js", "data.js")
 #: The generator tag of the page: what marks a file or folder as an earlier export (replaced without --force).
 GENERATOR = "surfsplat export"
+#: The page size (CSS pixels) a model is prepared for unless told: the desktop viewer's window. A mesh is
+#: sampled as ``surfsplat render --width W --height H`` samples it, a hierarchy cut at that default view.
+PAGE_SIZE = defaults.WINDOW_SIZE
 #: What :func:`export` writes: the web viewer, or a COPC file (:mod:`surfsplat.io.copc`).
 FORMATS = ("web", "copc")
 
@@ -66,7 +70,7 @@ class ExportResult:
 def _is_export(path: Path) -> bool:
     """Whether ``path`` (a folder or an .html file) was written by :func:`export`."""
     page = path / "index.html" if path.is_dir() else path
-    if path.is_dir() and not {p.name for p in path.iterdir()} <= set(FILES):
+    if path.is_dir() and not {p.name for p in path.iterdir()} <= {*FILES, CELLS_FOLDER}:
         return False
     try:
         head = page.read_text(encoding="utf-8", errors="replace")[:2000]
@@ -119,6 +123,13 @@ def single_page(files: dict[str, str]) -> str:
     return files["index.html"].replace(scripts, inline)
 
 
+def check_page_size(size) -> tuple[int, int]:
+    """``(width, height)`` of the page a model is prepared for, checked (InputError) like an image size."""
+    if not isinstance(size, (tuple, list)) or len(size) != 2:
+        raise InputError(f"page size must be (width, height) in pixels, got {size!r}")
+    return check_image_size(size[0], size[1], what="page")
+
+
 def check_page_args(technique: str, background, point_budget: int | None) -> tuple[float, ...]:
     """The checked background of a page (InputError for a technique the page does not draw, a bad
     background or point budget)."""
@@ -133,26 +144,41 @@ def check_page_args(technique: str, background, point_budget: int | None) -> tup
 def page_payload(source, *, technique: str = "ewa", background=defaults.BACKGROUND,
                  source_options: SourceOptions | None = None, lod: LodOptions | None = None,
                  camera: CameraSpec | None = None, point_budget: int | None = None,
-                 browser_lod: bool = False) -> tuple[dict, dict]:
+                 browser_lod: bool = False, size=PAGE_SIZE) -> tuple[dict, dict]:
     """The header and the base64 streams of a page showing ``source`` (:func:`export`'s arguments): the
-    model prepared by the view plan, cut within the budget (or with ``browser_lod`` its whole hierarchy,
-    :mod:`surfsplat.web.tree`), quantized (what ``data.js`` holds)."""
+    model prepared by the view plan for the page's ``size``, cut within the budget (or with ``browser_lod``
+    its whole hierarchy, :mod:`surfsplat.web.tree`), quantized (what ``data.js`` holds). A chunked
+    hierarchy with ``browser_lod`` streams its cells from files: only :func:`export` writes it."""
+    header, streams, files = _payload(source, technique, background, source_options, lod, camera, point_budget,
+                                      browser_lod, size, None)
+    if files:
+        raise InputError(f"{header['name']}: a chunked hierarchy streamed to the page needs a folder of cell files: "
+                         "export it (surfsplat export --browser-lod), or without browser LOD")
+    return header, streams
+
+
+def _payload(source, technique, background, source_options, lod, camera, point_budget, browser_lod, size,
+             memory_budget) -> tuple[dict, dict, dict[str, str]]:
+    """:func:`page_payload`'s header and streams, and the cell files of a streamed chunked hierarchy."""
     background = check_page_args(technique, background, point_budget)
+    width, height = check_page_size(size)
     check_source(source)
     plan = View(source, source_options=source_options, lod=lod)
-    size = defaults.CLI_IMAGE_SIZE
-    view_camera = plan.camera(camera, size, size)
+    view_camera = plan.camera(camera, width, height)
     with progress.stage("exporting for the web"):
         if browser_lod:
-            return tree_data(plan, view_camera, technique, background, plan.name, point_budget)
+            if not plan.tree(view_camera).in_memory:
+                return stream_data(plan, view_camera, technique, background, plan.name, point_budget, memory_budget)
+            return (*tree_data(plan, view_camera, technique, background, plan.name, point_budget), {})
         cloud = exported_splats(plan, view_camera, point_budget)
-        return page_data(plan, cloud, technique, background, plan.name)
+        return (*page_data(plan, cloud, technique, background, plan.name), {})
 
 
 def export(source, output, *, technique: str = "ewa", background=defaults.BACKGROUND,
            source_options: SourceOptions | None = None, lod: LodOptions | None = None,
            camera: CameraSpec | None = None, point_budget: int | None = None, browser_lod: bool = False,
-           force: bool = False, format: str | None = None) -> ExportResult:
+           force: bool = False, format: str | None = None, size=PAGE_SIZE,
+           memory_budget: int | None = None) -> ExportResult:
     """Write a static web viewer of ``source`` to ``output``: a folder (``index.html``, ``viewer.js``,
     ``shaders.js``, ``data.js``), or one self-contained file where ``output`` ends in ``.html``.
 
@@ -163,14 +189,21 @@ def export(source, output, *, technique: str = "ewa", background=defaults.BACKGR
         background: the page's first background, RGB in [0, 1].
         source_options, lod: as :func:`surfsplat.render` takes them.
         camera: the view a mesh is sampled for and a hierarchy cut at (None: the automatic one of
-            ``surfsplat render``, at 1024 x 1024 pixels). The page opens at its own default view.
+            ``surfsplat render`` at ``size``). The page opens at its own default view.
         point_budget: at most this many splats from a hierarchy or a cloud (default 5,000,000); with
             ``browser_lod`` the page's first budget (default 1,000,000, changed on the page).
         browser_lod: export the whole hierarchy (a cloud's built) and let the page cut it per view: a
             point budget in Potree's priority, refined when the camera stops (:mod:`surfsplat.web.tree`).
+            A chunked hierarchy is written as a folder of cell files that the page loads on demand
+            (:mod:`surfsplat.web.stream`), from a static web server or from ``file://``.
+        memory_budget: with a streamed chunked hierarchy, the page's first budget (bytes of loaded
+            cells' GPU arrays; default :data:`~surfsplat.web.stream.DEFAULT_MEMORY_BUDGET`).
         force: replace an existing file or non-empty folder that an earlier export did not write.
         format: "web" or "copc" (None: "copc" where ``output`` ends in ``.copc.laz``, else "web"): a COPC
             file (LAS 1.4 octree, :func:`surfsplat.io.copc.write_copc`) of the splats a page would draw.
+        size: ``(width, height)``, the page size in CSS pixels the model is prepared for (default
+            :data:`PAGE_SIZE`): a mesh is sampled for the default view at that size, as ``surfsplat render``
+            at that size samples it (the density the page can show), a hierarchy cut there.
 
     Returns:
         :class:`ExportResult` (for COPC, ``bytes`` is the size of the file).
@@ -180,12 +213,19 @@ def export(source, output, *, technique: str = "ewa", background=defaults.BACKGR
     if format not in FORMATS:
         raise InputError(f"export format {format!r} is not one of {', '.join(FORMATS)}")
     check_page_args(technique, background, point_budget)
+    size = check_page_size(size)
+    if memory_budget is not None and not (isinstance(memory_budget, (int, np.integer)) and memory_budget >= 1):
+        raise InputError(f"memory budget must be a whole number of bytes >= 1, got {memory_budget!r}")
     if format == "copc":
-        return _export_copc(source, output, source_options, lod, camera, point_budget, force, start)
+        return _export_copc(source, output, source_options, lod, camera, point_budget, force, start, size)
     path, single = check_export_output(output, force)
-    header, streams = page_payload(source, technique=technique, background=background, source_options=source_options,
-                                   lod=lod, camera=camera, point_budget=point_budget, browser_lod=browser_lod)
+    header, streams, cells = _payload(source, technique, background, source_options, lod, camera, point_budget,
+                                      browser_lod, size, memory_budget)
     files = page_files(header, streams)
+    if cells and single:
+        raise InputError(f"{path}: a chunked hierarchy streamed to the page is a folder of cell files; "
+                         "name a folder, not an .html file")
+    files.update(cells)
     written: list[Path] = []
     if single:
         with atomic_path(path) as temp:
@@ -195,13 +235,18 @@ def export(source, output, *, technique: str = "ewa", background=defaults.BACKGR
         with atomic_path(path, directory=True) as temp:
             Path(temp).chmod(0o755)   # a web server's user reads it (mkdtemp makes it the owner's alone)
             for name, text in files.items():
-                (Path(temp) / name).write_text(text, encoding="utf-8")
+                target = Path(temp) / name
+                if not target.parent.is_dir():
+                    target.parent.mkdir(parents=True)
+                    target.parent.chmod(0o755)
+                target.write_text(text, encoding="utf-8")
         written.extend(path / name for name in files)
-    count = int(header["count"])
+    count = int(header["count"]) + sum(int(c["entries"]) for c in header["lod"]["streamed"]["cells"]) if cells \
+        else int(header["count"])
     return ExportResult(path, count, count * web_format.BYTES_PER_SPLAT, time.perf_counter() - start, tuple(written))
 
 
-def _export_copc(source, output, source_options, lod, camera, point_budget, force, start) -> ExportResult:
+def _export_copc(source, output, source_options, lod, camera, point_budget, force, start, size) -> ExportResult:
     """:func:`export` to a COPC file: the splats a page would draw, written by :func:`write_copc`. An existing
     file is replaced only where surfsplat wrote it or with ``force``."""
     path = check_writable(output)
@@ -210,7 +255,7 @@ def _export_copc(source, output, source_options, lod, camera, point_budget, forc
                          "replace it")
     check_source(source)
     plan = View(source, source_options=source_options, lod=lod)
-    view_camera = plan.camera(camera, defaults.CLI_IMAGE_SIZE, defaults.CLI_IMAGE_SIZE)
+    view_camera = plan.camera(camera, *size)
     with progress.stage("exporting to COPC"):
         result = write_copc(exported_splats(plan, view_camera, point_budget), path)
     return ExportResult(path, result.points, result.bytes, time.perf_counter() - start, (path,))

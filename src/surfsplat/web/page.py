@@ -12,6 +12,7 @@ from .. import defaults, progress
 from ..camera import Camera
 from ..cloud import SplatCloud
 from ..errors import InputError
+from ..hierarchy import Hierarchy, Selection
 from ..lighting import Lights
 from ..pipeline import View
 from ..pipeline.framing import auto_fit_inputs
@@ -22,6 +23,7 @@ from ..rendering.options import EdlOptions, RenderOptions
 from ..rendering.techniques import get_technique
 from ..version import __version__
 from . import format as web_format
+from .colors import attribute_streams, cut_attributes
 from .framing import fit_frame
 from .shaders import WEB_TECHNIQUES
 
@@ -47,7 +49,11 @@ def exported_splats(plan: View, camera: Camera, point_budget: int | None) -> Spl
         progress.message(f"{len(points):,} splats are more than the point budget of {budget:,}: exporting the "
                          f"cut of their hierarchy at the default view")
     tree = plan.tree(camera)
-    cloud, _ = tree.cut(camera, 0.0, shading=plan.lod.shading, point_budget=budget)
+    cloud, selection = tree.cut(camera, 0.0, shading=plan.lod.shading, point_budget=budget)
+    if isinstance(tree.data, Hierarchy) and isinstance(selection, Selection) and cloud.attributes is None:
+        # the cut's splats with their attributes, for colour by attribute on the page
+        cloud = cloud.replace(attributes=cut_attributes(tree.data, selection.node_indices(),
+                                                        selection.point_indices()))
     return cloud
 
 
@@ -110,4 +116,8 @@ def page_data(plan: View, cloud: SplatCloud, technique: str, background, name: s
                        for t in WEB_TECHNIQUES},
         "edl": {"strength": EdlOptions().strength, "offsets": neighbour_offsets(EdlOptions().radius_px)},
     })
+    colorings, attributes = attribute_streams(cloud, order, plan.sample().points(), plan.up)
+    colorings["tables"] = {k: _b64(v) for k, v in colorings["tables"].items()}
+    header["color"] = colorings
+    streams.update(attributes)
     return header, {key: _b64(value) for key, value in streams.items()}

@@ -20,6 +20,7 @@ from ..cloud import SplatCloud
 from ..errors import InputError
 from ..hierarchy import Hierarchy
 from ..pipeline import View
+from .colors import cut_attributes
 from .page import _b64, page_data
 
 #: The page's first point budget (splats drawn) and LOD tolerance (pixels).
@@ -40,16 +41,14 @@ def tree_entries(h: Hierarchy) -> SplatCloud:
 
     return points.with_arrays(positions=rows("positions"), normals=rows("normals"),
                               colors=np.concatenate([colors(nodes), colors(points)]), u=rows("u"), v=rows("v"),
-                              normal_field=None, clip_lines=None, attributes=None)
+                              normal_field=None, clip_lines=None,
+                              attributes=cut_attributes(h, np.arange(len(h)), np.arange(len(h.points))))
 
 
 def tree_data(plan: View, camera: Camera, technique: str, background, name: str,
               budget: int | None = None) -> tuple[dict, dict]:
     """The header and streams of a page that cuts the view plan's hierarchy itself (a cloud's built)."""
     model = plan.tree(camera)
-    if not model.in_memory:
-        raise InputError(f"{name}: the page cannot cut a chunked hierarchy yet; export it without browser LOD "
-                         f"(a cut within the point budget)")
     h = model.data
     if not isinstance(h, Hierarchy):
         raise InputError(f"{name}: no hierarchy to cut in the browser")
@@ -58,10 +57,16 @@ def tree_data(plan: View, camera: Camera, technique: str, background, name: str,
     header["lod"] = {"nodes": nodes, "points": int(len(h.points)), "levels": int(h.levels),
                      "level_offsets": [int(x) for x in h.level_offsets], "budget": int(budget or DEFAULT_WEB_BUDGET),
                      "tolerance": WEB_TOLERANCE}
-    streams.update({
+    streams.update(tree_streams(h))
+    return header, streams
+
+
+def tree_streams(h: Hierarchy) -> dict[str, str]:
+    """The tree of ``h`` as the page cuts it (base64): per node its children, its points, its bounding
+    sphere's centre and radius and its extent."""
+    return {
         "child_start": _b64(h.node_child_start.astype("<i4")), "child_count": _b64(h.node_child_count.astype("<i4")),
         "point_start": _b64(h.node_point_start.astype("<i4")), "point_count": _b64(h.node_point_count.astype("<i4")),
         "center": _b64(h.node_positions.astype("<f4")), "radius": _b64(h.node_radius.astype("<f4")),
         "extent": _b64(h.node_extent.astype("<f4")),
-    })
-    return header, streams
+    }

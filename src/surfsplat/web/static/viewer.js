@@ -32,6 +32,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   var state = {
     technique: H.technique, background: H.background.slice(), edl: H.technique === 'points',
     camera: null, frameMs: 0, frames: 0, splats: H.count, errors: [], ready: false, firstFrameMs: null,
+    colorBy: 'own colours',
     ui: true, width: 0, height: 0
   };
   // one full-quality frame drawn now; its time in milliseconds (the benchmark's)
@@ -60,8 +61,8 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
 
   function u16(b64) { var b = bytes(b64); return new Uint16Array(b.buffer, b.byteOffset, b.length / 2); }
 
-  function decode() {
-    var n = H.count, s = DATA.streams;
+  function decode(hd, s) {   // a page's splats (H, DATA.streams) or a streamed cell's
+    var H = hd, n = H.count;
     var qp = u16(s.position), qn = u16(s.normal), qa = u16(s.angle), qr = u16(s.radii);
     var pos = new Float32Array(3 * n), nrm = new Float32Array(3 * n), u = new Float32Array(3 * n),
         v = new Float32Array(3 * n);
@@ -272,6 +273,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     gl.bufferData(gl.ARRAY_BUFFER, array, gl.STATIC_DRAW);
     gl.enableVertexAttribArray(index);
     gl.vertexAttribPointer(index, size, type, normalized, 0, 0);
+    return buf;
   }
   function repeated(array, width, count, Kind) {   // each of the first count rows 6 times
     var out = new Kind(6 * width * count);
@@ -282,7 +284,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     gl.bindVertexArray(pointsVao);
     attribute(1, decoded.position, 3, gl.FLOAT, false);
     attribute(2, decoded.normal, 3, gl.FLOAT, false);
-    attribute(3, decoded.color, 3, gl.UNSIGNED_BYTE, true);
+    colorBuffers = [attribute(3, decoded.color, 3, gl.UNSIGNED_BYTE, true)];
     attribute(4, decoded.u, 3, gl.FLOAT, false);
     attribute(5, decoded.v, 3, gl.FLOAT, false);
     if (H.lod) {   // the drawn entries: an index list chosen per view (selectCut)
@@ -300,12 +302,68 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     attribute(0, corners, 2, gl.FLOAT, false);
     attribute(1, repeated(decoded.position, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
     attribute(2, repeated(decoded.normal, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
-    attribute(3, repeated(decoded.color, 3, quadCount, Uint8Array), 3, gl.UNSIGNED_BYTE, true);
+    colorBuffers.push(attribute(3, repeated(decoded.color, 3, quadCount, Uint8Array), 3, gl.UNSIGNED_BYTE, true));
     attribute(4, repeated(decoded.u, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
     attribute(5, repeated(decoded.v, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
     gl.bindVertexArray(null);
     gl.vertexAttrib2f(0, 0, 0);   // a point has no corner
     for (i = 6; i < ATTRIBUTES.length; ++i) gl.vertexAttrib4f(i, 0, 0, 0, 0);   // no clip lines, no normal field
+  }
+
+  // ---- colour by attribute (surfsplat.web.colors): the desktop viewer's C key --------------------------
+  // A mode maps each splat's value (an exported attribute, or the elevation of its decoded position along
+  // the up axis) to t = (value - lo) / (hi - lo) in [0, 1] and takes entry min(floor(256 t), 255) of its
+  // colormap's table (matplotlib's indexing); the ASPRS palette is indexed by the class code.
+  var colorBuffers = [], colorTables = {}, OWN_COLORS = 'own colours';
+  function colorModes() { return [OWN_COLORS].concat((H.color ? H.color.modes : []).map(function (m) { return m.name; })); }
+  function attributeValues(info, b64) {
+    var b = bytes(b64), codes = info.type === 'u8' ? b : new Uint16Array(b.buffer, b.byteOffset, b.length / 2);
+    var out = new Float64Array(codes.length);
+    for (var i = 0; i < codes.length; ++i) out[i] = info.offset + codes[i] * info.scale;
+    return out;
+  }
+  // the colours of splats (the page's, or a streamed cell's: its header, streams, decoded positions and
+  // own colours) coloured by the mode name
+  function modeColors(name, hd, streams, position, own) {
+    if (name === OWN_COLORS) return own;
+    var m = null;
+    H.color.modes.forEach(function (x) { if (x.name === name) m = x; });
+    if (!m) throw new Error('no colouring ' + name + ' on this page');
+    var n = hd.count, values, i;
+    if (m.up) {
+      values = new Float64Array(n);
+      for (i = 0; i < n; ++i) values[i] = position[3 * i] * m.up[0] + position[3 * i + 1] * m.up[1] + position[3 * i + 2] * m.up[2];
+    } else values = attributeValues((hd.color || hd).attributes[m.attribute], streams['attr_' + m.attribute]);
+    if (!(m.colormap in colorTables)) colorTables[m.colormap] = bytes(H.color.tables[m.colormap]);
+    var table = colorTables[m.colormap], out = new Uint8Array(3 * n), lo = m.range[0], w = m.range[1] - m.range[0];
+    for (i = 0; i < n; ++i) {
+      var v = values[i], k;
+      if (m.colormap === 'asprs') k = (v >= 0 && v <= 255 && v === Math.round(v)) ? v : 255;
+      else k = Math.min(Math.floor(Math.min(1, Math.max(0, (v - lo) / w)) * 256), 255);
+      out[3 * i] = table[3 * k]; out[3 * i + 1] = table[3 * k + 1]; out[3 * i + 2] = table[3 * k + 2];
+    }
+    return out;
+  }
+  function recolorCell(c) {   // a loaded cell in the page's colouring
+    var x = c.tree;
+    gl.bindBuffer(gl.ARRAY_BUFFER, x.buffers[2]);
+    gl.bufferData(gl.ARRAY_BUFFER, modeColors(state.colorBy, x.data.header, x.data.streams, x.position, x.color),
+                  gl.STATIC_DRAW);
+  }
+  function setColorBy(name) {
+    if (colorModes().indexOf(name) < 0) return;
+    state.colorBy = name;
+    var colors = modeColors(name, H, DATA.streams, splats.position, splats.color);
+    gl.bindBuffer(gl.ARRAY_BUFFER, colorBuffers[0]);
+    gl.bufferData(gl.ARRAY_BUFFER, colors, gl.STATIC_DRAW);
+    if (colorBuffers.length > 1) {
+      gl.bindBuffer(gl.ARRAY_BUFFER, colorBuffers[1]);
+      gl.bufferData(gl.ARRAY_BUFFER, repeated(colors, 3, quadCount, Uint8Array), gl.STATIC_DRAW);
+    }
+    if (cells) cells.forEach(function (c) { if (c.tree) recolorCell(c); });
+    syncControls();
+    saveUrl();
+    request();
   }
 
   // passes.point_scale and point_radius: the largest radius drawn as a point in this frame (model units).
@@ -344,70 +402,229 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   var tree = null, elements = null;
   function i32(b64) { var b = bytes(b64); return new Int32Array(b.buffer, b.byteOffset, b.length / 4); }
   function f32(b64) { var b = bytes(b64); return new Float32Array(b.buffer, b.byteOffset, b.length / 4); }
-  function readTree() {
-    var s = DATA.streams;
+  function readTree(s) {
     return {childStart: i32(s.child_start), childCount: i32(s.child_count), pointStart: i32(s.point_start),
             pointCount: i32(s.point_count), center: f32(s.center), radius: f32(s.radius), extent: f32(s.extent)};
   }
   // The entries to draw for a camera: the tolerance cut (a node refined while f 2 a / (|c - eye| - R) exceeds
   // the tolerance; nodes outside the frustum dropped with their subtrees), and where it holds more than the
   // budget, its refinements largest projected size first (a child's priority at most its parent's; ties:
-  // shallower first), the longest prefix within the budget (Schuetz 2016, sec. 3.3).
+  // shallower first), the longest prefix within the budget (Schuetz 2016, sec. 3.3). A streamed chunked
+  // hierarchy (surfsplat.web.stream) is a forest: the points of the top hierarchy's leaves are the cells'
+  // roots, and a loaded cell's tree continues below its root as ChunkedHierarchy.view_splats cuts it.
+  var topTree = null, cells = null, cellOf = null, roots = null, cutId = 0;
   function selectCut(cam, w, h) {
-    var L = H.lod, T = tree, M = L.nodes, budget = Math.max(1, state.budget | 0);
+    var L = H.lod, budget = Math.max(1, state.budget | 0), tol = L.tolerance;
     var f = 0.5 * h / Math.tan(cam.fov * Math.PI / 360), o = H.origin;
     var eye = sub(cam.eye, o), r = viewRows(eye, sub(cam.target, o), cam.up), nf = nearFar(cam.eye, cam.target, cam.up);
     var sx = Math.hypot(f, w / 2), sy = Math.hypot(f, h / 2);
-    function visible(n) {
-      var c = [T.center[3 * n], T.center[3 * n + 1], T.center[3 * n + 2]], R = T.radius[n];
+    function sphereVisible(C, i, R) {
+      var c = [C[3 * i], C[3 * i + 1], C[3 * i + 2]];
       var x = dot(r[0], c) + r[3][0], y = dot(r[1], c) + r[3][1], z = -(dot(r[2], c) + r[3][2]);
       if (z + R < nf[0] || z - R > nf[1]) return false;
       return f * Math.abs(x) - (w / 2) * z <= R * sx && f * Math.abs(y) - (h / 2) * z <= R * sy;
     }
-    function size(n) {
-      var d = Math.hypot(T.center[3 * n] - eye[0], T.center[3 * n + 1] - eye[1], T.center[3 * n + 2] - eye[2]) - T.radius[n];
-      return d < nf[0] ? Infinity : f * 2 * T.extent[n] / d;
+    function sphereSize(C, i, R, a) {
+      var d = Math.hypot(C[3 * i] - eye[0], C[3 * i + 1] - eye[1], C[3 * i + 2] - eye[2]) - R;
+      return d < nf[0] ? Infinity : f * 2 * a / d;
     }
-    var refined = [], base = 0, stack = [], n, k;
-    for (n = L.level_offsets[0]; n < L.level_offsets[1]; ++n) if (visible(n)) { stack.push([n, Infinity, 0]); base += 1; }
+    function visible(t, n) { return sphereVisible(t.T.center, n, t.T.radius[n]); }
+    function size(t, n) { return sphereSize(t.T.center, n, t.T.radius[n], t.T.extent[n]); }
+    // a top leaf's point k: the root of a cell, continued by its tree where loaded and refined
+    function cellRoot(t, n, k) {
+      if (!cells || t !== topTree) return null;
+      var c = cellOf[t.T.pointStart[n] + k];
+      return {cell: c, size: sphereSize(roots.center, c, roots.radius[c], roots.extent[c])};
+    }
+    cutId += 1;
+    var refined = [], base = 0, stack = [], wanted = [], n, k, t;
+    for (n = topTree.offsets[0]; n < topTree.offsets[1]; ++n) if (visible(topTree, n)) { stack.push([topTree, n, Infinity, 0]); base += 1; }
     var total = base;
     while (stack.length) {
-      var item = stack.pop(); n = item[0];
-      var own = size(n);
-      if (!(own > L.tolerance)) continue;
-      var p = Math.min(own, item[1]), cost;
-      if (T.childCount[n] === 0) cost = T.pointCount[n] - 1;
-      else {
+      var item = stack.pop(); t = item[0]; n = item[1];
+      var own = size(t, n);
+      if (!(own > tol)) continue;
+      var p = Math.min(own, item[2]), cost;
+      if (t.T.childCount[n] === 0) {
+        cost = t.T.pointCount[n] - 1;
+        for (k = 0; cells && t === topTree && k < t.T.pointCount[n]; ++k) {
+          var cr = cellRoot(t, n, k), cell = cells[cr.cell];
+          if (!(cr.size > tol)) continue;
+          var pc = Math.min(cr.size, p);
+          var inView = sphereVisible(roots.center, cr.cell, roots.radius[cr.cell]);
+          if (cell.tree) {
+            if (inView) {   // in use, and what it is worth to this view, by the rule that requests it
+              cell.lastUsed = cell.priorityCut = cutId;
+              cell.priority = pc;
+            }
+            if (visible(cell.tree, 0)) stack.push([cell.tree, 0, p, item[3] + 1]);   // its root node for its root splat
+            else refined.push([pc, item[3] + 1, cell.tree, -1, -1]);   // culled whole: refining its root drops it
+          } else if (inView) wanted.push([pc, cr.cell]);
+        }
+      } else {
         cost = -1;
-        for (k = 0; k < T.childCount[n]; ++k) {
-          var child = T.childStart[n] + k;
-          if (visible(child)) { cost += 1; stack.push([child, p, item[2] + 1]); }
+        for (k = 0; k < t.T.childCount[n]; ++k) {
+          var child = t.T.childStart[n] + k;
+          if (visible(t, child)) { cost += 1; stack.push([t, child, p, item[3] + 1]); }
         }
       }
-      refined.push([p, item[2], n, cost]);
+      refined.push([p, item[3], t, n, cost]);
       total += cost;
     }
-    var open = new Uint8Array(M);
-    if (total <= budget) refined.forEach(function (x) { open[x[2]] = 1; });
+    var trees = [topTree];
+    if (cells) cells.forEach(function (c) { if (c.tree) trees.push(c.tree); });
+    trees.forEach(function (x) { x.open = new Uint8Array(x.M); x.dropped = false; x.out = []; });
+    var stop = -Infinity;   // the priority of the first refinement the budget leaves out
+    function open(x) { if (x[3] < 0) x[2].dropped = true; else x[2].open[x[3]] = 1; }
+    if (total <= budget) refined.forEach(open);
     else {
-      refined.sort(function (a, b) { return b[0] - a[0] || a[1] - b[1] || a[2] - b[2]; });
+      refined.sort(function (a, b) { return b[0] - a[0] || a[1] - b[1] || a[3] - b[3]; });
       var sum = base;
-      for (k = 0; k < refined.length && sum + refined[k][3] <= budget; ++k) { sum += refined[k][3]; open[refined[k][2]] = 1; }
+      for (k = 0; k < refined.length && sum + refined[k][4] <= budget; ++k) { sum += refined[k][4]; open(refined[k]); }
+      if (k < refined.length) stop = refined[k][0];
     }
-    var out = [], todo = [];
-    for (n = L.level_offsets[0]; n < L.level_offsets[1]; ++n) if (visible(n)) todo.push(n);
+    var todo = [];
+    for (n = topTree.offsets[0]; n < topTree.offsets[1]; ++n) if (visible(topTree, n)) todo.push([topTree, n]);
     while (todo.length) {
-      n = todo.pop();
-      if (!open[n]) { out.push(n); continue; }
-      if (T.childCount[n] === 0) { for (k = 0; k < T.pointCount[n]; ++k) out.push(M + T.pointStart[n] + k); continue; }
-      for (k = 0; k < T.childCount[n]; ++k) if (visible(T.childStart[n] + k)) todo.push(T.childStart[n] + k);
+      var next = todo.pop(); t = next[0]; n = next[1];
+      if (!t.open[n]) { t.out.push(n); continue; }
+      if (t.T.childCount[n] === 0) {
+        for (k = 0; k < t.T.pointCount[n]; ++k) {
+          var root = cellRoot(t, n, k), sub_ = root && cells[root.cell].tree;
+          if (sub_ && root.size > tol) { if (!sub_.dropped) todo.push([sub_, 0]); }
+          else t.out.push(t.M + t.T.pointStart[n] + k);
+        }
+        continue;
+      }
+      for (k = 0; k < t.T.childCount[n]; ++k) if (visible(t, t.T.childStart[n] + k)) todo.push([t, t.T.childStart[n] + k]);
     }
-    var list = Uint32Array.from(out);
-    gl.bindVertexArray(pointsVao);
-    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, list, gl.DYNAMIC_DRAW);
-    gl.bindVertexArray(null);
-    state.drawn = list.length;
-    return list.length;
+    var drawn = 0;
+    trees.forEach(function (x) {
+      var list = Uint32Array.from(x.out);
+      gl.bindVertexArray(x.vao);
+      gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, list, gl.DYNAMIC_DRAW);
+      gl.bindVertexArray(null);
+      x.drawn = list.length;
+      drawn += list.length;
+      if (x.cell !== undefined && list.length) cells[x.cell].lastUsed = cutId;
+      x.out = null;
+    });
+    state.drawn = drawn;
+    if (cells) {   // the cells worth loading: those the budget would refine, largest on screen first
+      wanted = wanted.filter(function (x) { return x[0] > stop; });
+      wanted.sort(function (a, b) { return b[0] - a[0] || a[1] - b[1]; });
+      stream.wanted = wanted.map(function (x) { return x[1]; });
+      stream.wantedPriority = wanted.map(function (x) { return x[0]; });
+    }
+    return drawn;
+  }
+
+  // ---- streaming the cells of a chunked hierarchy (surfsplat.web.stream) -----------------------------
+  // Each cell file is a script calling surfsplatCell(index, data): scripts load from a server and from
+  // file:// alike. Requests go out when the camera stops (after a full-quality frame), a few at a time;
+  // loaded cells stay within the memory budget, the least recently drawn let go first.
+  var stream = {requests: 0, loads: 0, evictions: 0, bytes: 0, peakBytes: 0, inflight: 0, inflightBytes: 0,
+                wanted: [], wantedPriority: [], blocked: false, memoryBudget: 0, loaded: 0};
+  state.stream = stream;
+  function startStreaming() {
+    var S = H.lod.streamed, s = DATA.streams;
+    cellOf = i32(s.cell_of_point);
+    roots = {center: f32(s.root_center), radius: f32(s.root_radius), extent: f32(s.root_extent)};
+    cells = S.cells.map(function (c, i) { return {index: i, key: c.key, bytes: c.bytes, tree: null, loading: false, lastUsed: 0,
+                                                  priority: 0, priorityCut: 0}; });
+    stream.memoryBudget = Number(params.memory) >= 1 ? Math.floor(Number(params.memory)) : S.memory_budget;
+    window.surfsplatCell = cellLoaded;
+  }
+  // The cell to let go for a request of priority p: the least recently drawn loaded cell the current cut
+  // does not draw, else the drawn one of least priority in this view if below p (Potree's order: what is
+  // largest on screen is kept), else null.
+  function evictable(p) {
+    var best = null, least = null;
+    cells.forEach(function (c) {
+      if (!c.tree) return;
+      if (c.lastUsed < cutId) { if (!best || c.lastUsed < best.lastUsed) best = c; return; }
+      var q = c.priorityCut === cutId ? c.priority : 0;
+      if (q < p && (!least || q < (least.priorityCut === cutId ? least.priority : 0))) least = c;
+    });
+    return best || least;
+  }
+  function evict(c) {
+    var x = c.tree;
+    x.buffers.forEach(function (b) { gl.deleteBuffer(b); });
+    gl.deleteVertexArray(x.vao);
+    c.tree = null;
+    stream.bytes -= c.bytes;
+    stream.loaded -= 1;
+    stream.evictions += 1;
+  }
+  function requestCells() {
+    if (!cells) return;
+    stream.blocked = false;
+    var recut = false;
+    for (var i = 0; i < stream.wanted.length && stream.inflight < H.lod.streamed.concurrent; ++i) {
+      var c = cells[stream.wanted[i]];
+      if (c.tree || c.loading) continue;
+      while (stream.bytes + stream.inflightBytes + c.bytes > stream.memoryBudget) {
+        var old = evictable(stream.wantedPriority[i]);
+        if (!old) break;
+        recut = recut || old.lastUsed === cutId;
+        evict(old);
+      }
+      if (stream.bytes + stream.inflightBytes + c.bytes > stream.memoryBudget) { stream.blocked = true; break; }
+      c.loading = true;
+      stream.requests += 1;
+      stream.inflight += 1;
+      stream.inflightBytes += c.bytes;
+      var tag = document.createElement('script');
+      tag.src = H.lod.streamed.folder + '/' + encodeURIComponent(c.key) + '.js';
+      tag.onload = function () { this.remove(); };
+      tag.onerror = (function (cell, src) { return function () { fail('could not load ' + src); cell.loading = false; stream.inflight -= 1; stream.inflightBytes -= cell.bytes; }; })(c, tag.src);
+      document.head.appendChild(tag);
+    }
+    stream.idle = stream.inflight === 0 && (stream.blocked || !stream.wanted.some(function (k) { return !cells[k].tree; }));
+    if (recut) { clearTimeout(refineSoon); refineSoon = setTimeout(full, 0); }   // its root splat for it meanwhile
+    // for the tests: the most a cell left out is worth, and the least a loaded cell drawn is worth
+    stream.wantedTop = 0;
+    stream.wanted.forEach(function (k, j) { if (!cells[k].tree && !cells[k].loading) stream.wantedTop = Math.max(stream.wantedTop, stream.wantedPriority[j]); });
+    stream.loadedLeast = Infinity;
+    cells.forEach(function (c) { if (c.tree && c.lastUsed === cutId && c.priorityCut === cutId) stream.loadedLeast = Math.min(stream.loadedLeast, c.priority); });
+  }
+  var refineSoon = null;
+  function cellLoaded(index, data) {
+    var c = cells[index];
+    if (!c || !c.loading) return;
+    c.loading = false;
+    stream.inflight -= 1;
+    stream.inflightBytes -= c.bytes;
+    try {
+      var d = decode(data.header, data.streams), vao = gl.createVertexArray(), buffers = [];
+      gl.bindVertexArray(vao);
+      buffers.push(attribute(1, d.position, 3, gl.FLOAT, false), attribute(2, d.normal, 3, gl.FLOAT, false),
+                   attribute(3, d.color, 3, gl.UNSIGNED_BYTE, true), attribute(4, d.u, 3, gl.FLOAT, false),
+                   attribute(5, d.v, 3, gl.FLOAT, false));
+      var el = gl.createBuffer();
+      gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, el);
+      buffers.push(el);
+      gl.bindVertexArray(null);
+      c.tree = {T: readTree(data.streams), M: data.header.lod.nodes, offsets: data.header.lod.level_offsets, vao: vao,
+                elements: el, buffers: buffers, drawn: 0, cell: index};
+      if (H.color.modes.length) {   // what recolouring it needs (not the rest of its streams)
+        var attrs = {};
+        for (var key in data.streams) if (key.indexOf('attr_') === 0) attrs[key] = data.streams[key];
+        c.tree.data = {header: data.header, streams: attrs};
+        c.tree.position = d.position;
+        c.tree.color = d.color;
+      }
+      if (state.colorBy !== OWN_COLORS) recolorCell(c);
+    } catch (e) { fail(String(e && e.message || e)); return; }
+    c.lastUsed = cutId;
+    stream.loads += 1;
+    stream.loaded += 1;
+    stream.bytes += c.bytes;
+    stream.peakBytes = Math.max(stream.peakBytes, stream.bytes);
+    stream.idle = false;
+    clearTimeout(refineSoon);   // a full frame with it once the camera is still (and more requests)
+    refineSoon = setTimeout(function () { if (performance.now() - lastChange >= SETTLE_MS) full(); else request(); }, 30);
   }
 
   // ---- targets ------------------------------------------------------------------------------------
@@ -471,8 +688,13 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   function drawSplats(name, values, frame, technique) {
     if (H.lod) {   // every entry of the cut as a point (node splats stay within the tolerance or the budget's)
       setUniforms(programs[name + '_points'], Object.assign({u_max_point: maxPoint}, values));
-      gl.bindVertexArray(pointsVao);
-      gl.drawElements(gl.POINTS, state.drawn, gl.UNSIGNED_INT, 0);
+      var trees = [topTree];
+      if (cells) cells.forEach(function (c) { if (c.tree) trees.push(c.tree); });
+      trees.forEach(function (x) {
+        if (!x.drawn) return;
+        gl.bindVertexArray(x.vao);
+        gl.drawElements(gl.POINTS, x.drawn, gl.UNSIGNED_INT, 0);
+      });
       gl.bindVertexArray(null);
       return;
     }
@@ -602,7 +824,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     urlTimer = setTimeout(function () {
       var c = state.camera;
       var hash = '#eye=' + fmt(c.eye) + '&target=' + fmt(c.target) + '&up=' + fmt(c.up) + '&fov=' + c.fov +
-                 '&technique=' + state.technique + (state.edl !== (state.technique === 'points') ? '&edl=' + (state.edl ? 1 : 0) : '');
+                 '&technique=' + state.technique + (state.colorBy !== OWN_COLORS ? '&color=' + encodeURIComponent(state.colorBy) : '') + (state.edl !== (state.technique === 'points') ? '&edl=' + (state.edl ? 1 : 0) : '');
       if (options.url) {
         try { history.replaceState(null, '', location.pathname + location.search + hash); } catch (e) { /* file:// in some browsers */ }
       }
@@ -692,6 +914,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     else if (e.key === 't' || e.key === 'T') { var ts = H.techniques; setTechnique(ts[(ts.indexOf(state.technique) + 1) % ts.length]); }
     else if (e.key === 'e' || e.key === 'E') { state.edl = !state.edl; syncControls(); changed(); }
     else if (e.key === 'p' || e.key === 'P') screenshot();
+    else if (e.key === 'c' || e.key === 'C') { var cs = colorModes(); setColorBy(cs[(cs.indexOf(state.colorBy) + 1) % cs.length]); }
   });
 
   function setTechnique(name) {
@@ -721,9 +944,13 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     });
   }
   H.techniques.forEach(function (t) { var o = document.createElement('option'); o.value = o.textContent = t; select.appendChild(o); });
+  var colorSelect = $('color');
+  colorModes().forEach(function (t) { var o = document.createElement('option'); o.value = o.textContent = t; colorSelect.appendChild(o); });
+  colorSelect.addEventListener('change', function () { setColorBy(colorSelect.value); });
   function hex(c) { return '#' + c.map(function (x) { return ('0' + Math.round(Math.min(1, Math.max(0, x)) * 255).toString(16)).slice(-2); }).join(''); }
   function syncControls() {
     select.value = state.technique; bg.value = hex(state.background); edlBox.checked = state.edl;
+    colorSelect.value = state.colorBy;
     if (H.lod) $('budget').value = state.budget;
   }
   select.addEventListener('change', function () { setTechnique(select.value); });
@@ -741,8 +968,25 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     help.style.display = open ? 'block' : 'none';
     helpButton.setAttribute('aria-expanded', String(open));
   });
-  window.addEventListener('resize', function () { if (sizeCanvas()) request(); });
-  if (window.ResizeObserver) new ResizeObserver(function () { if (sizeCanvas()) request(); }).observe(canvas);
+  // Below COMPACT_WIDTH CSS pixels (a phone, a small notebook cell) the controls fold behind one button,
+  // so that they cover a corner of the picture rather than a third of it.
+  var COMPACT_WIDTH = 640, panel = $('panel'), menu = $('menu');
+  function fitControls() {
+    var compact = root.clientWidth < COMPACT_WIDTH;
+    if (compact !== root.classList.contains('compact')) {
+      root.classList.toggle('compact', compact);
+      panel.classList.remove('open');
+      menu.setAttribute('aria-expanded', 'false');
+    }
+    state.compact = compact;
+  }
+  menu.addEventListener('click', function () {
+    var open = panel.classList.toggle('open');
+    menu.setAttribute('aria-expanded', String(open));
+  });
+  fitControls();
+  window.addEventListener('resize', function () { fitControls(); if (sizeCanvas()) request(); });
+  if (window.ResizeObserver) new ResizeObserver(function () { fitControls(); if (sizeCanvas()) request(); }).observe(canvas);
 
   // Where a full-quality frame is slow (CPU WebGL: SwiftShader), a moving camera and the first frame are
   // drawn with "points" (one pass, the cheapest), and the full frame follows when the camera stops.
@@ -750,11 +994,18 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   var lastFullMs = null, lastChange = 0, refineTimer = null;
   function hudText(technique, ms, preview) {
     hud.textContent = (H.lod ? state.drawn : H.count).toLocaleString('en') + ' splats drawn \u00b7 ' + ms.toFixed(1) + ' ms/frame \u00b7 ' +
-                      technique + (state.edl ? ' + EDL' : '') + (preview ? ' (preview; full quality when still)' : '');
+                      technique + (state.edl ? ' + EDL' : '') +
+                      (cells ? ' \u00b7 ' + stream.loaded + '/' + cells.length + ' cells loaded' : '') + (preview ? ' (preview; full quality when still)' : '');
   }
   function full() {
     refineTimer = null;
     try { if (H.lod) selectCut(state.camera, canvas.width, canvas.height); render(); } catch (e) { fail(String(e && e.message || e)); return; }
+    state.fullFrames = (state.fullFrames || 0) + 1;
+    if (cells) {   // requests once the camera is still
+      var wait = SETTLE_MS - (performance.now() - lastChange);
+      clearTimeout(refineSoon);
+      if (wait <= 0) requestCells(); else refineSoon = setTimeout(full, wait);
+    }
     lastFullMs = state.frameMs;
     hudText(state.technique, state.frameMs, false);
     if (!state.ready) {
@@ -797,13 +1048,17 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     for (var p in SHADERS.programs) programs[p] = build(p);
     state.programs = Object.keys(programs);   // every shipped program compiled and linked
     state.timings.compile = performance.now() - t0;
-    splats = decode();
+    splats = decode(H, DATA.streams);
     if (H.lod) {
-      tree = readTree();
+      tree = readTree(DATA.streams);
       state.budget = Number(params.budget) >= 1 ? Math.floor(Number(params.budget)) : H.lod.budget;
     }
     state.timings.decode = performance.now() - t0 - state.timings.compile;
     upload(splats);
+    if (H.lod) {
+      topTree = {T: tree, M: H.lod.nodes, offsets: H.lod.level_offsets, vao: pointsVao, elements: elements, drawn: 0};
+      if (H.lod.streamed) startStreaming();
+    }
     state.timings.upload = performance.now() - t0 - state.timings.compile - state.timings.decode;
     sizeCanvas();
     home();
@@ -815,6 +1070,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     }
     if (H.lod) selectCut(state.camera, canvas.width, canvas.height);
     syncControls();
+    if (params.color && params.color !== OWN_COLORS) setColorBy(params.color);
     dirty = false;
     request();
   } catch (e) {
@@ -824,8 +1080,8 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
 }
 
 // The viewer's style and elements (ids are looked up inside its root element only).
-var SURFSPLAT_CSS = ".surfsplat-root { position: relative; overflow: hidden; font: 13px/1.4 system-ui, sans-serif; }\n.surfsplat-root #view { display: block; width: 100%; height: 100%; touch-action: none; outline: none; }\n.surfsplat-root #view:focus-visible { outline: 2px solid #3b82f6; outline-offset: -2px; }\n.surfsplat-root .overlay { position: absolute; background: rgba(255, 255, 255, 0.85); color: #111; border-radius: 6px;\n  padding: 6px 8px; box-shadow: 0 1px 4px rgba(0, 0, 0, 0.25); }\n.surfsplat-root #panel { top: 8px; left: 8px; display: flex; gap: 8px; align-items: center; flex-wrap: wrap; max-width: 95%; }\n.surfsplat-root #panel label { display: inline-flex; gap: 4px; align-items: center; }\n.surfsplat-root #hud { bottom: 8px; left: 8px; font-variant-numeric: tabular-nums; }\n.surfsplat-root #help { bottom: 8px; right: 8px; max-width: 22em; display: none; }\n.surfsplat-root #message { top: 50%; left: 50%; transform: translate(-50%, -50%); display: none; max-width: 40em; white-space: pre-wrap; }\n.surfsplat-root.noui .overlay { display: none !important; }\n.surfsplat-root button, .surfsplat-root select, .surfsplat-root input { font: inherit; }";
-var SURFSPLAT_MARKUP = "<canvas id=\"view\" tabindex=\"0\" role=\"img\" aria-label=\"3D view: drag or arrow keys to orbit, shift to pan, wheel or +/- to zoom\"></canvas>\n<div id=\"panel\" class=\"overlay\" role=\"toolbar\" aria-label=\"viewer controls\">\n  <label>Technique <select id=\"technique\" aria-label=\"technique\"></select></label>\n  <label>Background <input id=\"background\" type=\"color\" aria-label=\"background colour\"></label>\n  <label><input id=\"edl\" type=\"checkbox\"> Eye-dome lighting</label>\n  <button id=\"home\" type=\"button\" title=\"back to the default view (Home)\">Reset view</button>\n  <button id=\"screenshot\" type=\"button\" title=\"save the picture as PNG (P)\">Screenshot</button>\n  <button id=\"helpbutton\" type=\"button\" aria-expanded=\"false\" aria-controls=\"help\">Keys</button>\n</div>\n<div id=\"hud\" class=\"overlay\" aria-live=\"off\"></div>\n<div id=\"help\" class=\"overlay\">\n  Drag: orbit. Shift+drag or right drag: pan. Wheel or pinch: zoom.<br>\n  Arrows: orbit; Shift+arrows: pan; + / -: zoom; Home or 0: default view;\n  T: next technique; E: eye-dome lighting; P: screenshot. The address holds the camera: copy it to share the view.\n</div>\n<div id=\"message\" class=\"overlay\" role=\"alert\"></div>";
+var SURFSPLAT_CSS = ".surfsplat-root { position: relative; overflow: hidden; font: 13px/1.4 system-ui, sans-serif; }\n.surfsplat-root #view { display: block; width: 100%; height: 100%; touch-action: none; outline: none; }\n.surfsplat-root #view:focus-visible { outline: 2px solid #3b82f6; outline-offset: -2px; }\n.surfsplat-root .overlay { position: absolute; background: rgba(255, 255, 255, 0.85); color: #111; border-radius: 6px;\n  padding: 6px 8px; box-shadow: 0 1px 4px rgba(0, 0, 0, 0.25); }\n.surfsplat-root #panel { top: 8px; left: 8px; display: flex; gap: 8px; align-items: center; flex-wrap: wrap; max-width: 95%; }\n.surfsplat-root #panel label { display: inline-flex; gap: 4px; align-items: center; }\n.surfsplat-root #hud { bottom: 8px; left: 8px; font-variant-numeric: tabular-nums; }\n.surfsplat-root #help { bottom: 8px; right: 8px; max-width: 22em; display: none; }\n.surfsplat-root #message { top: 50%; left: 50%; transform: translate(-50%, -50%); display: none; max-width: 40em; white-space: pre-wrap; }\n.surfsplat-root.noui .overlay { display: none !important; }\n.surfsplat-root #menu { display: none; }\n.surfsplat-root.compact #menu { display: inline-block; }\n.surfsplat-root.compact #panel { top: 4px; left: 4px; padding: 3px 5px; gap: 4px; font-size: 12px; max-width: calc(100% - 8px); }\n.surfsplat-root.compact #panel:not(.open) > :not(#menu) { display: none; }\n.surfsplat-root.compact #panel.open { flex-direction: column; align-items: flex-start; max-height: calc(100% - 8px); overflow: auto; }\n.surfsplat-root.compact #hud { bottom: 4px; left: 4px; padding: 2px 5px; font-size: 11px; max-width: calc(100% - 8px); }\n.surfsplat-root.compact #help { right: 4px; bottom: 4px; font-size: 12px; }\n.surfsplat-root button, .surfsplat-root select, .surfsplat-root input { font: inherit; }";
+var SURFSPLAT_MARKUP = "<canvas id=\"view\" tabindex=\"0\" role=\"img\" aria-label=\"3D view: drag or arrow keys to orbit, shift to pan, wheel or +/- to zoom\"></canvas>\n<div id=\"panel\" class=\"overlay\" role=\"toolbar\" aria-label=\"viewer controls\">\n  <button id=\"menu\" type=\"button\" aria-expanded=\"false\" aria-controls=\"panel\" title=\"show the controls\">\u2630 Controls</button>\n  <label>Technique <select id=\"technique\" aria-label=\"technique\"></select></label>\n  <label>Colour <select id=\"color\" aria-label=\"colour by\"></select></label>\n  <label>Background <input id=\"background\" type=\"color\" aria-label=\"background colour\"></label>\n  <label><input id=\"edl\" type=\"checkbox\"> Eye-dome lighting</label>\n  <button id=\"home\" type=\"button\" title=\"back to the default view (Home)\">Reset view</button>\n  <button id=\"screenshot\" type=\"button\" title=\"save the picture as PNG (P)\">Screenshot</button>\n  <button id=\"helpbutton\" type=\"button\" aria-expanded=\"false\" aria-controls=\"help\">Keys</button>\n</div>\n<div id=\"hud\" class=\"overlay\" aria-live=\"off\"></div>\n<div id=\"help\" class=\"overlay\">\n  Drag: orbit. Shift+drag or right drag: pan. Wheel or pinch: zoom.<br>\n  Arrows: orbit; Shift+arrows: pan; + / -: zoom; Home or 0: default view;\n  T: next technique; C: colour by (own colours, elevation, each attribute); E: eye-dome lighting; P: screenshot. The address holds the camera: copy it to share the view.\n</div>\n<div id=\"message\" class=\"overlay\" role=\"alert\"></div>";
 
 // The query and hash of the page's address as a dictionary (the camera, technique, ui, ...).
 function surfsplatParams() {
