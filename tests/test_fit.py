@@ -114,7 +114,7 @@ def test_fit_command_reads_cameras_and_images_and_writes_a_ply(scene, tmp_path):
     save_ply(surfsplat.SplatCloud(points), tmp_path / "points.ply")
     out = tmp_path / "model.ply"
     code = main(["fit", str(folder / "cameras.json"), "--init", str(tmp_path / "points.ply"), "-o", str(out),
-                 "--iterations", "20", "-q"])
+                 "--iterations", "20", "--coarse-fraction", "0.25", "--plane-weight", "0.1", "-q"])
     assert code == 0
     model = load_points(out)
     assert model.u is not None and len(model) >= 300

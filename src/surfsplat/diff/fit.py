@@ -10,7 +10,15 @@ step, so colour cannot stand in for coverage).
 The initial splats: a cloud given (``init``: a file, an array or a SplatCloud, made into splats by the
 view plan: normals and radii from its neighbours) or a COLMAP model's ``points3D.txt``. Parameters:
 positions, normals and log radii (circular splats), colour and opacity logits; Adam with the steps of
-the geometry (positions, normals, radii) decaying tenfold over the run. Every ``densify_every`` steps
+the geometry (positions, normals, radii) decaying tenfold over the run. Coarse to fine: the first
+``coarse_fraction`` of the steps see the views at half the resolution (half the focal length, 2 x 2
+means of the premultiplied colours and of alpha), four times fewer pixels while the splats move most.
+The loss: the L1 distance of the colours, plus ``alpha_weight`` times that of the coverage where the
+images have alpha, plus ``plane_weight`` times the plane term: the mean squared sine of the angle
+between each splat's plane and the directions to its ``neighbours`` nearest splats (found again every
+``densify_every`` steps), which ties the normals to the surface the centres describe and pulls centres
+that stray off their neighbours' planes back (a local plane fit's residual, as in point-cloud normal
+estimation; the photographs alone barely constrain an unlit splat's normal). Every ``densify_every`` steps
 until ``densify_until`` of the run, splats whose mean position gradient is in the top
 ``densify_fraction`` are split in two (each with 0.7 of the radius, half a radius apart along a random
 tangent direction) and splats of opacity below ``prune_opacity`` are dropped.
@@ -63,6 +71,9 @@ class FitOptions:
             gradient every this many steps, until this fraction of the run, this fraction of them.
         prune_opacity: drop splats of lower opacity at each densification step.
         max_splats: never grow beyond this many splats.
+        plane_weight: weight of the plane term (0: none); neighbours: how many nearest splats it uses.
+        coarse_fraction: the fraction of the steps (the first ones) on the views at half the resolution
+            (views of odd width or height: none).
         render: the renderer's options (soft rims and depth tests carry the gradients of the silhouettes).
         seed: random seed (view order, background colours, split directions).
     """
