@@ -159,6 +159,7 @@ def main() -> None:
     for name in args.models:
         model_rows, picture = run_model(name, MODELS[name], args)
         rows += model_rows
+        print(model_rows, flush=True)
         args.pictures.mkdir(parents=True, exist_ok=True)
         Image.fromarray(picture).save(args.pictures / f"diff_fit_{name}.png", optimize=True)
     columns = ["model", "stage", "splats", "held-out PSNR dB", "centre distance / diagonal %",
