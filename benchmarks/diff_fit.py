@@ -15,7 +15,7 @@ diagonal; distance to the nearest of 2,000,000 surface samples) and the angle be
 and the surface's normal there (median, degrees, unsigned); wall-clock and CPU time of the fit.
 
     python benchmarks/diff_fit.py [--models bunny featuretype] [--views 32] [--size 256] [--points 5000]
-                                  [--iterations 1200]
+                                  [--iterations 600]
 
 Writes benchmarks/results/diff_fit.md and .json, and docs/images/diff_fit_MODEL.png (two held-out views:
 mesh | fitted splats).
@@ -150,7 +150,7 @@ def main() -> None:
     parser.add_argument("--size", type=int, default=256)
     parser.add_argument("--points", type=int, default=5000)
     parser.add_argument("--noise", type=float, default=0.002)
-    parser.add_argument("--iterations", type=int, default=1200)
+    parser.add_argument("--iterations", type=int, default=600)
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--pictures", type=Path, default=ROOT / "docs" / "images")
     args = parser.parse_args()
