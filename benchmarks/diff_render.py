@@ -14,7 +14,9 @@ lights. For 256 x 256 and 512 x 512 pixels:
   and not in the other;
 - time of one forward pass without gradients, and of a forward + backward pass with gradients to
   positions, axes, colours, opacity and focal length (median of 3 after a warm-up), with 1 and 2 CPU
-  threads (``torch.set_num_threads``).
+  threads (``torch.set_num_threads``); wall-clock, and for the forward + backward pass also the CPU time
+  of the process (all its threads: on a machine other jobs share, the wall-clock time grows with their
+  load, the CPU time much less).
 
     python benchmarks/diff_render.py [--images /tmp/diff_render] [--bunny PATH] [--threads 1 2]
 
@@ -58,15 +60,16 @@ def bunny(path: Path, n: int) -> surfsplat.SplatCloud:
     return cloud
 
 
-def timed(fn, repeats: int = 3) -> float:
-    """Median seconds of ``repeats`` calls after one warm-up call."""
+def timed(fn, repeats: int = 3) -> tuple[float, float]:
+    """Median wall-clock and CPU seconds (this process, all threads) of ``repeats`` calls after a warm-up call."""
     fn()
-    times = []
+    times, cpu = [], []
     for _ in range(repeats):
-        start = time.perf_counter()
+        start, start_cpu = time.perf_counter(), time.process_time()
         fn()
         times.append(time.perf_counter() - start)
-    return statistics.median(times)
+        cpu.append(time.process_time() - start_cpu)
+    return statistics.median(times), statistics.median(cpu)
 
 
 def run_case(name: str, cloud, size: int, images: Path, threads: tuple[int, ...]) -> list:
@@ -102,7 +105,8 @@ def run_case(name: str, cloud, size: int, images: Path, threads: tuple[int, ...]
     times = []
     for count in threads:
         torch.set_num_threads(count)
-        times += [round(timed(forward), 3), round(timed(forward_backward), 3)]
+        (f_wall, _), (fb_wall, fb_cpu) = timed(forward), timed(forward_backward)
+        times += [round(f_wall, 3), round(fb_wall, 3), round(fb_cpu, 3)]
     return [name, f"{size}x{size}", len(cloud), round(metrics.psnr(image, gl.color), 2),
             round(metrics.psnr(image, gl.color, mask=inner), 2), round(metrics.psnr(hard.color.numpy(), gl.color), 2),
             holes, rim, *times]
@@ -124,7 +128,8 @@ def main() -> None:
     rows = [run_case(name, cloud, size, args.images, threads) for name, cloud in cases for size in (256, 512)]
     columns = ["scene", "pixels", "splats", "PSNR dB", "PSNR inside dB", "PSNR hard dB", "holes", "rim pixels"]
     for count in threads:
-        columns += [f"forward s ({count} thr.)", f"forward+backward s ({count} thr.)"]
+        columns += [f"forward s ({count} thr.)", f"forward+backward s ({count} thr.)",
+                    f"forward+backward CPU s ({count} thr.)"]
     machine = machine_description() + f", torch {torch.__version__}"
     write_table("diff_render", columns, rows, machine)
     print("command: python benchmarks/diff_render.py " + " ".join(sys.argv[1:]))

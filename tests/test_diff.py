@@ -215,3 +215,21 @@ def test_tiles_give_the_image_of_one_pass_and_the_same_gradients():
     (g_many,) = torch.autograd.grad(many.sum(), splats.positions)
     torch.testing.assert_close(many, one, rtol=1e-12, atol=1e-12)
     torch.testing.assert_close(g_many, g_one, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("dtype", [torch.float64, torch.float32])
+def test_the_visibility_filter_keeps_the_pairs_of_the_formulas(dtype):
+    # the differentiable pass leaves out the pairs whose soft depth test passes less than min_visibility,
+    # chosen by per-splat dot products; the formulas (surfsplat.reference) on every pair choose the same
+    cloud = scenes.sphere(3000, color="bands")
+    camera = DiffCamera.from_camera(Camera(eye=(0.3, 0.5, 3.0), width=64, height=48, fov=45), dtype=dtype)
+    options = DiffOptions(edge_softness=0.5, depth_softness=0.3)
+    table, box = render_module._splat_table(Splats.from_cloud(cloud, dtype=dtype), camera, Lights(), options)
+    sid, ix, iy = render_module._band_pairs(box, 0, camera.height)
+    pixel = iy * camera.width + ix
+    npix = camera.width * camera.height
+    terms = render_module._pair_terms(table, sid, ix, iy, pixel, npix, camera, options)
+    expected = torch.isfinite(terms["hit"]) & (terms["hit"] > 0) & (terms["vis"] >= options.min_visibility)
+    kept = render_module._visible_pairs(table, sid, ix, iy, pixel, npix, camera, options)
+    assert 0.2 * len(sid) < int(expected.sum()) < 0.8 * len(sid)   # the far side of the sphere is left out
+    assert torch.equal(kept, expected)

@@ -35,6 +35,10 @@ def add_fit_command(subparsers) -> argparse.ArgumentParser:
                    help="optimizer steps, one view each (default 1000)")
     p.add_argument("--max-splats", type=opt.number(int, low=1), default=None, metavar="N",
                    help="most splats densification may grow to (default 500,000)")
+    p.add_argument("--coarse-fraction", type=opt.number(float, low=0, high=1), default=None, metavar="F",
+                   help="fraction of the steps (the first) on the images at half the resolution (default 0.5)")
+    p.add_argument("--plane-weight", type=opt.number(float, low=0), default=None, metavar="W",
+                   help="weight of the term tying each splat's normal to its neighbours' plane (default 0.2; 0: off)")
     p.add_argument("--seed", type=opt.number(int, low=0, high=2**63 - 1), default=0, help="random seed (default 0)")
     p.add_argument("--device", default=None, help="PyTorch device: cpu (default), cuda, mps")
     p.add_argument("--loss", metavar="FILE.json", help="where to write the loss curve (default: OUTPUT.loss.json)")
@@ -50,6 +54,7 @@ def cmd_fit(args) -> None:
     loss = Path(args.loss) if args.loss else out.with_name(out.name + ".loss.json")
     check_output(loss, inputs_of(args))
     settings = {k: v for k, v in (("iterations", args.iterations), ("max_splats", args.max_splats),
+                                  ("coarse_fraction", args.coarse_fraction), ("plane_weight", args.plane_weight),
                                   ("seed", args.seed)) if v is not None}
     result = fit(args.cameras, init=args.init, images=args.images, device=args.device, **settings)
     save_ply(result.cloud, out)

@@ -10,7 +10,15 @@ step, so colour cannot stand in for coverage).
 The initial splats: a cloud given (``init``: a file, an array or a SplatCloud, made into splats by the
 view plan: normals and radii from its neighbours) or a COLMAP model's ``points3D.txt``. Parameters:
 positions, normals and log radii (circular splats), colour and opacity logits; Adam with the steps of
-the geometry (positions, normals, radii) decaying tenfold over the run. Every ``densify_every`` steps
+the geometry (positions, normals, radii) decaying tenfold over the run. Coarse to fine: the first
+``coarse_fraction`` of the steps see the views at half the resolution (half the focal length, 2 x 2
+means of the premultiplied colours and of alpha), four times fewer pixels while the splats move most.
+The loss: the L1 distance of the colours, plus ``alpha_weight`` times that of the coverage where the
+images have alpha, plus ``plane_weight`` times the plane term: the mean squared sine of the angle
+between each splat's plane and the directions to its ``neighbours`` nearest splats (found again every
+``densify_every`` steps), which ties the normals to the surface the centres describe and pulls centres
+that stray off their neighbours' planes back (a local plane fit's residual, as in point-cloud normal
+estimation; the photographs alone barely constrain an unlit splat's normal). Every ``densify_every`` steps
 until ``densify_until`` of the run, splats whose mean position gradient is in the top
 ``densify_fraction`` are split in two (each with 0.7 of the radius, half a radius apart along a random
 tangent direction) and splats of opacity below ``prune_opacity`` are dropped.
@@ -21,13 +29,14 @@ from __future__ import annotations
 import json
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 import torch
 from PIL import Image
+from scipy.spatial import cKDTree
 
 from .. import progress
 from ..camera import Camera
@@ -62,6 +71,9 @@ class FitOptions:
             gradient every this many steps, until this fraction of the run, this fraction of them.
         prune_opacity: drop splats of lower opacity at each densification step.
         max_splats: never grow beyond this many splats.
+        plane_weight: weight of the plane term (0: none); neighbours: how many nearest splats it uses.
+        coarse_fraction: the fraction of the steps (the first ones) on the views at half the resolution
+            (views of odd width or height: none).
         render: the renderer's options (soft rims and depth tests carry the gradients of the silhouettes).
         seed: random seed (view order, background colours, split directions).
     """
@@ -78,6 +90,9 @@ class FitOptions:
     densify_fraction: float = 0.05
     prune_opacity: float = 0.05
     max_splats: int = 500_000
+    plane_weight: float = 0.2
+    neighbours: int = 8
+    coarse_fraction: float = 0.5
     render: DiffOptions = field(default_factory=lambda: DiffOptions(edge_softness=0.5, depth_softness=0.3))
     seed: int = 0
 
@@ -85,12 +100,14 @@ class FitOptions:
         if int(self.iterations) < 1:
             raise InputError(f"iterations must be >= 1, got {self.iterations!r}", argument="iterations")
         for name in ("position_lr", "normal_lr", "radius_lr", "color_lr", "opacity_lr", "alpha_weight",
-                     "densify_until", "densify_fraction", "prune_opacity"):
+                     "densify_until", "densify_fraction", "prune_opacity", "plane_weight", "coarse_fraction"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise InputError(f"{name} must be a finite number >= 0, got {value!r}", argument=name)
-        if int(self.densify_every) < 1 or int(self.max_splats) < 1:
-            raise InputError("densify_every and max_splats must be >= 1")
+        if int(self.densify_every) < 1 or int(self.max_splats) < 1 or int(self.neighbours) < 1:
+            raise InputError("densify_every, max_splats and neighbours must be >= 1")
+        if self.coarse_fraction > 1:
+            raise InputError(f"coarse_fraction must be <= 1, got {self.coarse_fraction!r}", argument="coarse_fraction")
 
 
 @dataclass
@@ -201,6 +218,27 @@ class _Params:
         self.geometry = {k: lrs[k] for k in ("positions", "normals", "log_radii")}
         self.optimizer = torch.optim.Adam([{"params": [self.t[k]], "lr": lr, "name": k} for k, lr in lrs.items()],
                                           eps=ADAM_EPS)
+        self.find_neighbours()
+
+    def find_neighbours(self) -> None:
+        """The ``options.neighbours`` nearest other splats of every splat (the plane term's pairs)."""
+        p = self.t["positions"].detach().cpu().numpy()
+        k = min(int(self.options.neighbours), len(p) - 1)
+        if k < 1 or self.options.plane_weight <= 0:
+            self.pairs = None
+            return
+        _, index = cKDTree(p).query(p, k + 1)
+        self.pairs = torch.as_tensor(index[:, 1:], device=self.t["positions"].device)
+
+    def plane_loss(self) -> torch.Tensor | None:
+        """Mean squared sine of the angle between each splat's plane and the directions to its neighbours."""
+        if self.pairs is None:
+            return None
+        p, n = self.t["positions"], self.t["normals"]
+        n = n / torch.linalg.vector_norm(n, dim=1, keepdim=True)
+        d = p[self.pairs] - p[:, None, :]
+        along = (d * n[:, None, :]).sum(-1)
+        return (along ** 2 / ((d * d).sum(-1) + 1e-20)).mean()
 
     def splats(self) -> Splats:
         t = self.t
@@ -242,6 +280,31 @@ def _densify(params: _Params, options: FitOptions, rng: np.random.Generator) -> 
     return _Params(merged, options, params.scale)
 
 
+def _target(view: FitView, dtype: torch.dtype, device) -> tuple[DiffCamera, torch.Tensor, torch.Tensor | None]:
+    """A view's camera, premultiplied colours (H, W, 3) and alpha (H, W) or None as tensors."""
+    image = np.asarray(view.image, np.float64)
+    alpha = None if view.alpha is None else np.asarray(view.alpha, np.float64)
+    premultiplied = image if alpha is None else image * alpha[..., None]
+    def tensor(a: np.ndarray) -> torch.Tensor:
+        return torch.as_tensor(a, dtype=dtype, device=device)
+
+    camera = DiffCamera.from_camera(view.camera, dtype, device)
+    return camera, tensor(premultiplied), None if alpha is None else tensor(alpha)
+
+
+def _halved(target: tuple[DiffCamera, torch.Tensor, torch.Tensor | None]
+            ) -> tuple[DiffCamera, torch.Tensor, torch.Tensor | None]:
+    """The view at half the resolution: half the focal length, 2 x 2 pixel means (of premultiplied colour)."""
+    camera, premultiplied, alpha = target
+
+    def pool(x: torch.Tensor) -> torch.Tensor:
+        h, w = x.shape[:2]
+        return x.reshape(h // 2, 2, w // 2, 2, *x.shape[2:]).mean(dim=(1, 3))
+
+    small = replace(camera, focal=camera.focal / 2, width=camera.width // 2, height=camera.height // 2)
+    return small, pool(premultiplied), None if alpha is None else pool(alpha)
+
+
 def fit(views: list[FitView], init: SplatCloud, *, options: FitOptions | None = None,
         device: str | torch.device | None = None, on_step: Callable[[int, float, int], None] | None = None
         ) -> FitResult:
@@ -269,26 +332,32 @@ def fit(views: list[FitView], init: SplatCloud, *, options: FitOptions | None = 
                "opacity": np.full(len(init), _logit(np.array(0.9)))}
     params = _Params({k: torch.as_tensor(np.asarray(v), dtype=dtype, device=device) for k, v in initial.items()},
                      options, scale)
-    targets = [(DiffCamera.from_camera(v.camera, dtype, device), torch.as_tensor(v.image, dtype=dtype, device=device),
-                None if v.alpha is None else torch.as_tensor(v.alpha, dtype=dtype, device=device)) for v in views]
+    fine = [_target(v, dtype, device) for v in views]
+    coarse = [_halved(t) for t in fine] if all(t[0].width % 2 == 0 and t[0].height % 2 == 0 for t in fine) else fine
     losses: list[float] = []
     order: list[int] = []
     iterations = int(options.iterations)
+    coarse_steps = int(round(options.coarse_fraction * iterations)) if coarse is not fine else 0
     with progress.stage("fitting", total=iterations, unit="steps") as bar:
         for step in range(iterations):
             if not order:
-                order = list(rng.permutation(len(targets)))
-            camera, image, alpha = targets[order.pop()]
+                order = list(rng.permutation(len(fine)))
+            camera, premultiplied, alpha = (coarse if step < coarse_steps else fine)[order.pop()]
             background = rng.uniform(0.0, 1.0, 3) if alpha is not None else np.ones(3)
             frame = render_frame(params.splats(), camera, lights=UNLIT, background=tuple(background),
                                  options=options.render)
-            bg = torch.as_tensor(background, dtype=dtype, device=image.device)
-            target = image if alpha is None else alpha[..., None] * image + (1.0 - alpha[..., None]) * bg
+            if alpha is None:
+                target = premultiplied
+            else:
+                bg = torch.as_tensor(background, dtype=dtype, device=premultiplied.device)
+                target = premultiplied + (1.0 - alpha[..., None]) * bg
             loss = torch.abs(frame.color - target).mean()
             if alpha is not None:
                 loss = loss + options.alpha_weight * torch.abs(frame.alpha - alpha).mean()
+            plane = params.plane_loss()
+            total = loss if plane is None else loss + options.plane_weight * plane
             params.optimizer.zero_grad(set_to_none=True)
-            loss.backward()
+            total.backward()
             grad = params.t["positions"].grad
             if grad is not None:
                 g = torch.linalg.vector_norm(grad.detach(), dim=1).cpu()
@@ -300,9 +369,11 @@ def fit(views: list[FitView], init: SplatCloud, *, options: FitOptions | None = 
             bar.update()
             if on_step is not None:
                 on_step(step, losses[-1], len(params.t["positions"]))
-            if ((step + 1) % int(options.densify_every) == 0 and step + 1 < options.densify_until * iterations
-                    and step + 1 < iterations):
-                params = _densify(params, options, rng)
+            if (step + 1) % int(options.densify_every) == 0 and step + 1 < iterations:
+                if step + 1 < options.densify_until * iterations:
+                    params = _densify(params, options, rng)
+                else:
+                    params.find_neighbours()
     with torch.no_grad():
         cloud = params.splats().to_cloud()
     return FitResult(cloud, losses, time.perf_counter() - start)

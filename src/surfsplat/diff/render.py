@@ -100,15 +100,16 @@ class DiffFrame:
     weight: torch.Tensor
 
 
-# Columns of the per-splat feature table that the pairs gather in one indexing: p, u, v, n (3 each), the
-# projected centre (2), the conic V^-1 (xx, xy, yy), the peak weight, the lit colour (3), opacity, radius, rho.
+# Rows of the per-splat feature table (column-major, one column per splat: a pair's gather is one indexing
+# and each feature a contiguous row of it): p, u, v, n (3 each), the projected centre (2), the conic V^-1
+# (xx, xy, yy), the peak weight, the lit colour (3), opacity, radius, rho, seen from the back.
 _P, _N, _CENTER = slice(0, 3), slice(9, 12), slice(12, 14)
 _COLUMNS = [3, 3, 3, 3, 2, 1, 1, 1, 1, 3, 1, 1, 1, 1]
 
 
 def _splat_table(splats: Splats, camera: DiffCamera, lights: Lights, options: DiffOptions):
-    """Per-splat stage (the vertex shader's work): the feature table of the drawn splats and their
-    inclusive pixel boxes (x0, x1, y0, y1) in window pixels (y up)."""
+    """Per-splat stage (the vertex shader's work): the (features, splats) table of the drawn splats and
+    their inclusive pixel boxes (x0, x1, y0, y1) in window pixels (y up)."""
     r, f = camera.rotation, camera.focal
     p = ref.transform_points(r, camera.translation, splats.positions)
     u = splats.u @ r.T
@@ -147,7 +148,7 @@ def _splat_table(splats: Splats, camera: DiffCamera, lights: Lights, options: Di
     rho = torch.sqrt(torch.abs(ref.det2(jac)) + 1e-12)   # projected radius, pixels (geometric mean)
     table = torch.cat([p, u, v, plane, center, conic[:, 0, 0, None], conic[:, 0, 1, None], conic[:, 1, 1, None],
                        scale[:, None], color, opacity[:, None], radius[:, None], rho[:, None],
-                       back[idx].to(p.dtype)], dim=1)
+                       back[idx].to(p.dtype)], dim=1).t().contiguous()
     with torch.no_grad():
         c, h = center.detach(), half.detach()
         lo = torch.ceil(c - h - 0.5)
@@ -175,31 +176,15 @@ def _band_pairs(box: torch.Tensor, row0: int, row1: int) -> tuple[torch.Tensor, 
     return sid, box[sid, 0] + k % w, y0[sid] + k // w
 
 
-def _pair_terms(table: torch.Tensor, sid: torch.Tensor, ix: torch.Tensor, iy: torch.Tensor, pixel: torch.Tensor,
-                npix: int, camera: DiffCamera, options: DiffOptions) -> dict[str, torch.Tensor]:
-    """The per-pair terms of pairs (splat ``sid``, window pixel ``(ix, iy)``, band pixel index ``pixel``)."""
-    dtype, device = table.dtype, table.device
-    f, principal = camera.focal, camera.principal
-    # one gather and one split: their backward is one scatter and one concatenation
-    rows = torch.index_select(table, 0, sid)
-    p, u, v, n, center, cxx, cxy, cyy, scale, color, opacity, radius, rho, back = rows.split(_COLUMNS, dim=1)
-    pix = torch.stack([ix, iy], dim=1).to(dtype) + 0.5
-    offset = pix - center
-    beta = ref.conic_beta(cxx[:, 0], cxy[:, 0], cyy[:, 0], offset[:, 0], offset[:, 1])
-    rays = ref.rays_through(pix, f, principal)
-    hit = ref.ray_plane_distance(rays, p, n)
-    st = ref.splat_coordinates(rays, hit, p, u, v)
-    r2 = ref.dot(st, st)
-    z = ref.footprint_depth(st, p, u, v)
-    band = options.depth_epsilon * radius[:, 0] / ref.norm(rays)
-    with torch.no_grad():
-        inside = (r2 <= 1.0) & (hit > 0)   # a ray meeting the plane behind the eye does not hit the disk
+def _visibility(hit: torch.Tensor, z: torch.Tensor, band: torch.Tensor, inside: torch.Tensor,
+                from_back: torch.Tensor, pixel: torch.Tensor, npix: int, options: DiffOptions) -> torch.Tensor:
+    """The soft depth test's factor of each pair (ray/plane distance ``hit``, fragment depth ``z``, epsilon
+    ``band``, ``inside`` its disk, the splat seen ``from_back``) against the nearest disk at its pixel."""
+    dtype, device = hit.dtype, hit.device
     # Guennebaud 2003, sec. 5: the nearest disk's depth at the pixel, offset by epsilon along the ray
     # for each side of the splats (seen from the front, from the back) apart: the side the eye sees
     # nearest is the pixel's (visibility.glsl's record), and with separate sides only it blends
     offset_depth = hit + band
-    with torch.no_grad():
-        from_back = back[:, 0] > 0.5
     nearest = []
     for side in (~from_back, from_back):
         sel = inside & side
@@ -219,7 +204,64 @@ def _pair_terms(table: torch.Tensor, sid: torch.Tensor, ix: torch.Tensor, iy: to
     vis = torch.where(inside, vis, vis * fringe)
     if options.separate_sides:
         vis = torch.where(pixel_back[pixel] == from_back, vis, torch.zeros_like(vis))
-    vis = torch.where(covered[pixel], vis, torch.ones_like(vis))
+    return torch.where(covered[pixel], vis, torch.ones_like(vis))
+
+
+@torch.no_grad()
+def _visible_pairs(table: torch.Tensor, sid: torch.Tensor, ix: torch.Tensor, iy: torch.Tensor, pixel: torch.Tensor,
+                   npix: int, camera: DiffCamera, options: DiffOptions) -> torch.Tensor:
+    """Which pairs the differentiable pass keeps: the ray meets the splat's plane in front of the eye and the
+    soft depth test passes at least ``min_visibility``. The quantities of :func:`_pair_terms` that decide
+    it (ray/plane distance, disk coordinates, footprint depth), with their dot products taken per splat
+    (``n.ray = n_x x + n_y y - n_z`` for the ray ``(x, y, -1)``, ``s = (hit u.ray - u.p) / u.u``): one
+    gather of a column-major table and flat arithmetic, no (pairs, 3) temporaries."""
+    t = table.detach()
+    p, u, v, n = t[_P].T, t[3:6].T, t[6:9].T, t[_N].T
+    uu, vv = (u * u).sum(1), (v * v).sum(1)
+    columns = torch.stack([n[:, 0], n[:, 1], n[:, 2], (n * p).sum(1),
+                           u[:, 0] / uu, u[:, 1] / uu, u[:, 2] / uu, (p * u).sum(1) / uu,
+                           v[:, 0] / vv, v[:, 1] / vv, v[:, 2] / vv, (p * v).sum(1) / vv,
+                           p[:, 2], u[:, 2], v[:, 2], t[22], t[24]])
+    (nx, ny, nz, n_p, ux, uy, uz, u_p, vx, vy, vz, v_p, pz, uz_, vz_, radius, back) = columns.index_select(1, sid)
+    f = float(camera.focal.detach())
+    cx, cy = camera.principal
+    x = (ix.to(t.dtype) + 0.5 - cx) / f
+    y = (iy.to(t.dtype) + 0.5 - cy) / f
+    hit = n_p / (nx * x + ny * y - nz)
+    s = hit * (ux * x + uy * y - uz) - u_p
+    r = hit * (vx * x + vy * y - vz) - v_p
+    r2 = s * s + r * r
+    shrink = torch.rsqrt(torch.clamp(r2, min=1.0))   # fringe fragments: the nearest disk point's depth
+    z = -(pz + shrink * (s * uz_ + r * vz_))
+    band = options.depth_epsilon * radius * torch.rsqrt(x * x + y * y + 1.0)
+    inside = (r2 <= 1.0) & (hit > 0)
+    vis = _visibility(hit, z, band, inside, back > 0.5, pixel, npix, options)
+    return torch.isfinite(hit) & (hit > 0) & (vis >= options.min_visibility)
+
+
+def _pair_terms(table: torch.Tensor, sid: torch.Tensor, ix: torch.Tensor, iy: torch.Tensor, pixel: torch.Tensor,
+                npix: int, camera: DiffCamera, options: DiffOptions) -> dict[str, torch.Tensor]:
+    """The per-pair terms of pairs (splat ``sid``, window pixel ``(ix, iy)``, band pixel index ``pixel``)."""
+    dtype = table.dtype
+    f, principal = camera.focal, camera.principal
+    # one gather and one split: their backward is one scatter and one concatenation; the vectors are made
+    # (pairs, 3) contiguous so that the formulas and the sums of their gradients run on one layout
+    rows = torch.index_select(table, 1, sid)
+    p, u, v, n, center, cxx, cxy, cyy, scale, color, opacity, radius, rho, back = (
+        c.T.contiguous() if len(c) > 1 else c.T for c in rows.split(_COLUMNS, dim=0))
+    pix = torch.stack([ix, iy], dim=1).to(dtype) + 0.5
+    offset = pix - center
+    beta = ref.conic_beta(cxx[:, 0], cxy[:, 0], cyy[:, 0], offset[:, 0], offset[:, 1])
+    rays = ref.rays_through(pix, f, principal)
+    hit = ref.ray_plane_distance(rays, p, n)
+    st = ref.splat_coordinates(rays, hit, p, u, v)
+    r2 = ref.dot(st, st)
+    z = ref.footprint_depth(st, p, u, v)
+    band = options.depth_epsilon * radius[:, 0] / ref.norm(rays)
+    with torch.no_grad():
+        inside = (r2 <= 1.0) & (hit > 0)   # a ray meeting the plane behind the eye does not hit the disk
+        from_back = back[:, 0] > 0.5
+    vis = _visibility(hit, z, band, inside, from_back, pixel, npix, options)
     return {"beta": beta, "r2": r2, "z": z, "vis": vis, "inside": inside, "scale": scale[:, 0],
             "color": color, "opacity": opacity[:, 0], "rho": rho[:, 0], "hit": hit}
 
@@ -236,20 +278,18 @@ def _band(table: torch.Tensor, box: torch.Tensor, camera: DiffCamera, options: D
         # (those hidden far behind the nearest surface weigh nothing) whose soft depth test passes
         sid, ix, iy = _band_pairs(box, row0, row1)
         t = table.detach()
-        rows = torch.index_select(t[:, 12:17], 0, sid)   # centre and conic: one gather
-        offset = torch.stack([ix, iy], dim=1).to(dtype) + 0.5 - rows[:, :2]
-        keep = ref.conic_beta(rows[:, 2], rows[:, 3], rows[:, 4], offset[:, 0], offset[:, 1]) <= options.cutoff
+        rows = torch.index_select(t[12:17], 1, sid)   # centre and conic: one gather
+        keep = ref.conic_beta(rows[2], rows[3], rows[4], ix.to(dtype) + 0.5 - rows[0],
+                              iy.to(dtype) + 0.5 - rows[1]) <= options.cutoff
         sid, ix, iy = sid[keep], ix[keep], iy[keep]
         pixel = (iy - row0) * width + ix
         if options.min_visibility > 0 and differentiable:
-            terms = _pair_terms(t, sid, ix, iy, pixel, npix, camera, options)
-            hit = terms["hit"]
-            keep = torch.isfinite(hit) & (hit > 0) & (terms["vis"] >= options.min_visibility)
+            keep = _visible_pairs(t, sid, ix, iy, pixel, npix, camera, options)
         else:
-            rows = torch.index_select(t, 0, sid)
+            rows = torch.index_select(t, 1, sid)
             pix = torch.stack([ix, iy], dim=1).to(dtype) + 0.5
             rays = ref.rays_through(pix, camera.focal.detach(), camera.principal)
-            hit = ref.ray_plane_distance(rays, rows[:, _P], rows[:, _N])
+            hit = ref.ray_plane_distance(rays, rows[_P].T, rows[_N].T)
             keep = torch.isfinite(hit) & (hit > 0)
         sid, ix, iy, pixel = sid[keep], ix[keep], iy[keep], pixel[keep]
     terms = _pair_terms(table, sid, ix, iy, pixel, npix, camera, options)
