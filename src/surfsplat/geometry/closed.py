@@ -151,12 +151,25 @@ def eye_outside(bounds: tuple[np.ndarray, np.ndarray], eye) -> bool:
     return bool(np.any(e < lo) or np.any(e > hi))
 
 
-def automatic_culling(outward: bool, bounds: tuple[np.ndarray, np.ndarray], eye) -> bool:
+def automatic_culling(outward: bool, bounds: tuple[np.ndarray, np.ndarray], eye, *, sampled_mesh: bool = False,
+                      fringe: bool = True) -> bool:
     """Whether back faces are culled where the options leave it automatic
-    (``VisibilityOptions.cull_backfaces=None``): never. A closed surface with outward normals
-    (``outward``) seen from outside its ``bounds`` (:func:`eye_outside`) hides its back side, but a
-    back-facing splat may still be the only one covering a pixel of the front (module docstring:
-    silhouettes, thin parts, cracks of a slanted front layer, normals that do not follow the
-    geometry), so culling by the splats' facing is no conservative default; ``cull_backfaces=True``
-    culls on request."""
-    return False
+    (``VisibilityOptions.cull_backfaces=None``): for the splats sampled from a closed mesh
+    (``sampled_mesh``, oriented outward: ``outward``) seen from outside their ``bounds``
+    (:func:`eye_outside`) by a technique whose footprints reach beyond the splats' disks (``fringe``:
+    ``ewa``, ``perspective``), else never.
+
+    A closed surface seen from outside hides its back side. Splats sampled from the mesh carry its
+    faces' normals (clip lines at the sharp edges), so the few pixels of the front that only a
+    back-facing splat covers lie on the silhouette, where the front's prefiltered fringe and edge
+    coverage cover them: measured at 512 x 512 (the bunny and the CAD part, six orbit views each,
+    against the 4 x 4 mesh, ``ewa`` with edge coverage), culling leaves no hole inside the mesh's
+    silhouette and is 0.3-1.2 dB better over the image (the back side no longer widens the outlines
+    or dots the rims of pockets). Techniques drawing only inside their disks (``phong``, ``blend``,
+    ``flat``) lose pixels of thin tips there (32 of the bunny's ears at 256 x 256) and stay
+    two-sided. A point cloud is never culled automatically, closed or not: its normals need not
+    follow the geometry (a CAD part with smooth normals loses whole thin faces, 241 pixels inside
+    its silhouette at 256 x 256) and a fitted front layer may leave cracks only the far side covers
+    (Phong splats of a sphere: 3 pixels of its rim with ``phong``, ``blend`` and ``flat``); see the
+    module docstring. ``cull_backfaces=True`` culls on request."""
+    return bool(sampled_mesh and fringe and outward and eye_outside(bounds, eye))

@@ -122,7 +122,7 @@ class VisibilityOptions:
     cull_backfaces: bool | None = None
     separate_sides: bool = True
     clip_fringe: bool = True
-    edge_coverage: bool = False
+    edge_coverage: bool = True
 
     def __post_init__(self) -> None:
         if not (_is_number(self.depth_epsilon) and 0 <= self.depth_epsilon <= MAX_DEPTH_EPSILON):
