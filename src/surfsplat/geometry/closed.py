@@ -2,10 +2,12 @@
 
 A closed, consistently wound surface is seen only from outside, so its back side is never visible.
 Culling the splats whose normal faces away from the eye (Botsch et al. 2004, sec. 4.1; Guennebaud &
-Paulin 2003, sec. 6) is nonetheless no default (:func:`automatic_culling`): the splats stand for the
-surface only together, and a back-facing splat is the only one covering some pixels of the front
-wherever its front-facing neighbours leave them open, which no test of the splat alone can tell.
-Measured at 512 x 512 (default views, every pixel a hole the unculled picture covers):
+Paulin 2003, sec. 6) is the default only for a closed mesh's samples drawn by a technique whose
+footprints reach past the disks (:func:`automatic_culling`): the splats stand for the surface only
+together, and a back-facing splat is the only one covering some pixels of the front wherever its
+front-facing neighbours leave them open, which no test of the splat alone can tell.
+Measured at 512 x 512, before edge coverage and hole filling were on by default (default views, every
+pixel a hole the unculled picture covers):
 
 - the bunny, flat splats sampled from its mesh: 80 pixels of the silhouette band, 75 of them
   inside the mesh's silhouette. Front splats near a silhouette are seen nearly edge-on and cover
@@ -24,8 +26,9 @@ Measured at 512 x 512 (default views, every pixel a hole the unculled picture co
 
 Culled, the bunny's silhouette band matched the mesh better (its PSNR at 1024 x 1024, 4 x 4
 supersampling, rose from 20.5 to 22.3 dB, benchmarks/edge_quality.py: the splats pushed past the
-silhouette by a flat disk went with the holes) and a frame took 0.6-0.8 of the time; both are
-``VisibilityOptions(cull_backfaces=True)`` now, where holes are accepted.
+silhouette by a flat disk went with the holes) and a frame took 0.6-0.8 of the time. With edge coverage
+and the hole filling (both default now), ``ewa`` and ``perspective`` leave none of these holes on the
+meshes' samples (their prefiltered fringe reaches the silhouette pixels): :func:`automatic_culling`.
 """
 
 from __future__ import annotations
