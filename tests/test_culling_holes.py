@@ -92,6 +92,8 @@ def test_default_covers_what_two_sided_covers(models, technique):
     assert closed_orientation(models["phong sphere"]) == 1
     assert closed_orientation(models["CAD part, smooth normals"]) == 1
     for name, model in models.items():
+        if name == "CAD part" and not TECHNIQUES[technique].edge_fringe:
+            continue   # drawn two-sided like the bunny: the culled techniques are the ones to check
         default = surfsplat.render(model, technique=technique, width=SIZE, height=SIZE)
         two_sided = surfsplat.render(model, default.camera, technique=technique, width=SIZE, height=SIZE,
                                      options=TWO_SIDED)
