@@ -1,5 +1,6 @@
 """The default pictures before and after a change of the defaults (``--compare``): hole filling
-(``RenderOptions.fill_holes``, the default) or edge coverage (``VisibilityOptions.edge_coverage``).
+(``RenderOptions.fill_holes``, the default) or edge coverage (``VisibilityOptions.edge_coverage``) with
+the automatic culling of closed meshes (against both off: the defaults before).
 
 Each source is rendered as ``surfsplat render`` renders it by default (automatic camera, headlight, ``ewa``
 unless named; a mesh sampled for the view), once with ``fill_holes=False`` and once with the fill, at
@@ -38,8 +39,9 @@ DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 #: ``--compare``: (results name, options before, options after, what changes).
 COMPARISONS = {
     "fill": ("hole_filling", RenderOptions(fill_holes=False), RenderOptions(fill_holes=True), "the hole filling"),
-    "edge-coverage": ("edge_coverage_default", RenderOptions(visibility=VisibilityOptions(edge_coverage=False)),
-                      RenderOptions(visibility=VisibilityOptions(edge_coverage=True)), "edge coverage"),
+    "edge-coverage": ("edge_coverage_default",
+                      RenderOptions(visibility=VisibilityOptions(edge_coverage=False, cull_backfaces=False)),
+                      RenderOptions(), "edge coverage and automatic culling (before: neither, back faces drawn)"),
 }
 
 

@@ -1,6 +1,9 @@
-"""Automatic back-face culling never opens holes: the default picture of a closed model covers the pixels
-the two-sided one covers, for every technique (surfsplat.geometry.closed.automatic_culling), and the
-GPU's back-face test of a splat is conservative for its linear normal field (splat_vertex.glsl)."""
+"""Automatic back-face culling never opens holes (surfsplat.geometry.closed.automatic_culling): a closed
+mesh's samples, culled by default where the technique's footprints reach past the disks (ewa, perspective),
+cover every pixel of the mesh's silhouette the two-sided picture covers; everything else (a closed point
+cloud, or the other techniques) is drawn two-sided by default, covering exactly what the two-sided picture
+covers. The GPU's back-face test of a splat is conservative for its linear normal field
+(splat_vertex.glsl)."""
 
 from __future__ import annotations
 
@@ -9,7 +12,7 @@ import pytest
 import trimesh
 
 import surfsplat
-from surfsplat import RenderOptions, SplatCloud, VisibilityOptions
+from surfsplat import Lights, RenderOptions, SplatCloud, VisibilityOptions
 from surfsplat.camera import Camera
 from surfsplat.geometry.closed import closed_orientation
 from surfsplat.io.mesh import Mesh
@@ -62,25 +65,45 @@ def cad_part(shared_data, samples: int = 30_000) -> SplatCloud:
     return surfsplat.preprocess(SplatCloud(positions=points.astype(np.float32), normals=normals.astype(np.float32)))
 
 
+def triangles(path) -> Mesh:
+    """The triangle mesh of a PLY file, as it is."""
+    mesh = trimesh.load(path)
+    return Mesh(np.asarray(mesh.vertices, np.float32), np.asarray(mesh.faces, np.int64))
+
+
 @pytest.fixture(scope="module")
 def models(shared_data):
-    """The closed models: a Phong-splat sphere, the CAD part and the bunny mesh (sampled per view)."""
-    bunny = trimesh.load(shared_data / "bunny.ply")
-    return {"phong sphere": phong_sphere(), "CAD part": cad_part(shared_data),
-            "bunny": Mesh(np.asarray(bunny.vertices, np.float32), np.asarray(bunny.faces, np.int64))}
+    """The closed point clouds (a Phong-splat sphere, the CAD part with smooth normals) and the closed
+    meshes (the bunny, the CAD part; sampled per view)."""
+    return {"phong sphere": phong_sphere(), "CAD part, smooth normals": cad_part(shared_data),
+            "bunny": triangles(shared_data / "bunny.ply"), "CAD part": triangles(shared_data / "featuretype.ply")}
 
 
 @pytest.mark.parametrize("technique", sorted(TECHNIQUES))
 def test_default_covers_what_two_sided_covers(models, technique):
-    """Closed models seen from outside, where culling was automatic: the default picture covers
-    exactly the pixels the two-sided one covers (before, culling left 1-105 pixels of the sphere,
-    about 800 of the CAD part's thin faces and about 40 of the bunny's silhouette open), and the
-    sphere has no hole inside its analytic disk."""
-    assert closed_orientation(models["phong sphere"]) == 1 and closed_orientation(models["CAD part"]) == 1
+    """Closed models seen from outside: the clouds' default pictures (not culled: their normals need not
+    follow the surface, and a fitted front layer may leave cracks the far side covers) cover exactly the
+    pixels the two-sided ones cover (culled, they lost 3 pixels of the sphere's rim and 241-352 pixels
+    inside the smooth-normal CAD part's silhouette at this size), and the sphere has no hole inside its
+    analytic disk; the meshes' default pictures with ewa and perspective (culled) lose no pixel of the
+    mesh's own silhouette (``render_mesh``, pixel centres) that the two-sided ones cover: what culling
+    drops is the back side's reach past the silhouette. (Culled, phong, blend and flat lost 32 pixels of
+    the bunny's ear tips: they are drawn two-sided.)"""
+    assert closed_orientation(models["phong sphere"]) == 1
+    assert closed_orientation(models["CAD part, smooth normals"]) == 1
     for name, model in models.items():
+        if name == "CAD part" and not TECHNIQUES[technique].edge_fringe:
+            continue   # drawn two-sided like the bunny: the culled techniques are the ones to check
         default = surfsplat.render(model, technique=technique, width=SIZE, height=SIZE)
         two_sided = surfsplat.render(model, default.camera, technique=technique, width=SIZE, height=SIZE,
                                      options=TWO_SIDED)
+        if isinstance(model, Mesh) and TECHNIQUES[technique].edge_fringe:
+            inside = surfsplat.render_mesh(model, default.camera, lights=Lights(enabled=False)).alpha > 0
+            lost = int(np.count_nonzero(inside & two_sided.mask & ~default.mask))
+            assert lost == 0, f"{name}, {technique}: {lost} pixels of the mesh open"
+            dropped = int(np.count_nonzero(two_sided.mask & ~default.mask))
+            assert dropped > 0, f"{name}, {technique}: not culled"
+            continue
         differ = int(np.count_nonzero(default.mask != two_sided.mask))
         assert differ == 0, f"{name}, {technique}: {differ} pixels covered differently"
         if name == "phong sphere":

@@ -16,7 +16,7 @@ from surfsplat.rendering.renderer import Renderer
 
 UNLIT = Lights(enabled=False)
 EDGE_ON = RenderOptions(visibility=VisibilityOptions(edge_coverage=True))
-EDGE_OFF = RenderOptions()
+EDGE_OFF = RenderOptions(visibility=VisibilityOptions(edge_coverage=False))
 
 
 @pytest.fixture(scope="module")

@@ -184,20 +184,21 @@ def test_layout_intervals(torus):
 
 @pytest.mark.parametrize("scene", ["sphere", "plane"])
 def test_no_holes_at_any_distance(renderer, scene):
-    """Coverage of the GPU cut at one pixel equals the full-resolution cloud's within 1%, near and far;
-    at three pixels (coarse node ellipses reach up to the tolerance past the rim) the CPU cut's."""
+    """Coverage (summed alpha: edge coverage makes rim pixels fractional) of the GPU cut at one pixel equals
+    the full-resolution cloud's within 1%, near and far; at three pixels (coarse node ellipses reach up to
+    the tolerance past the rim) the CPU cut's."""
     cloud = sphere(40_000) if scene == "sphere" else checkerboard(200)
     h, _, gpu = gpu_model(renderer, cloud)
     try:
         for factor in (0.7, 2.0, 5.0):
             camera = view(cloud, factor, 200, turn=20)
-            full = renderer.render(cloud, camera, "ewa").mask.sum()
+            full = renderer.render(cloud, camera, "ewa").alpha.sum()
             for tolerance in (1.0, 3.0):
                 gpu.lod_tolerance = tolerance
-                cut = renderer.render(gpu, camera, "ewa").mask.sum()
+                cut = renderer.render(gpu, camera, "ewa").alpha.sum()
                 if tolerance > 1:
-                    full = renderer.render(pipeline.lod_splats(h, camera, tolerance)[0], camera, "ewa").mask.sum()
-                assert abs(int(cut) - int(full)) <= 0.01 * full, (factor, tolerance, cut, full)
+                    full = renderer.render(pipeline.lod_splats(h, camera, tolerance)[0], camera, "ewa").alpha.sum()
+                assert abs(float(cut) - float(full)) <= 0.01 * full, (factor, tolerance, cut, full)
     finally:
         gpu.release()
 

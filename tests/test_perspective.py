@@ -86,8 +86,9 @@ def expected_weight(cam: Camera, cloud: SplatCloud, options: RenderOptions):
     return weight, decided, fp
 
 
-#: The papers' full footprints: a lone splat's fringe over the background is not clipped.
-FULL = VisibilityOptions(clip_fringe=False)
+#: The papers' full footprints: a lone splat's fringe over the background is not clipped, nor its rim
+#: pixels given their area coverage (edge coverage: tests/test_edges.py).
+FULL = VisibilityOptions(clip_fringe=False, edge_coverage=False)
 
 
 def check_against_reference(renderer, cloud: SplatCloud, cam: Camera, options=RenderOptions(visibility=FULL),

@@ -137,9 +137,10 @@ def render_mode(renderer, splats, camera: Camera, mode: str, lights: Lights = LI
                 cull_backfaces: bool = False) -> Frame:
     """Render ``splats`` (a SplatCloud or uploaded GpuSplats) in one of :data:`MODES`."""
     technique, deferred = MODES[mode]
-    # the papers' EWA splatting (full prefiltered footprints), as Botsch 2004 compared against
-    options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=cull_backfaces, clip_fringe=False),
-                            deferred=deferred)
+    # the papers' EWA splatting (full prefiltered footprints, all-or-nothing rims: no edge coverage), as
+    # Botsch 2004 compared against
+    options = RenderOptions(visibility=VisibilityOptions(cull_backfaces=cull_backfaces, clip_fringe=False,
+                                                         edge_coverage=False), deferred=deferred)
     return renderer.render(splats, camera, technique, lights, options)
 
 

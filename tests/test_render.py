@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from surfsplat import reference, scenes
+from surfsplat import metrics, reference, scenes
 from surfsplat.camera import Camera, frame_bounds
 from surfsplat.cloud import SplatCloud
 from surfsplat.errors import InputError
@@ -69,8 +69,10 @@ def test_single_ewa_splat_weights_match_reference(renderer, tilt, prefilter):
     v = (0.0, 0.15 * np.cos(a), -0.15 * np.sin(a))
     cloud = single_splat(normal, u, v, position=(0.1, -0.05, 0.0))
     cam = Camera(eye=(0.2, 0.1, 3.0), target=(0, 0, 0), width=96, height=80, fov=30, near=0.5, far=10.0)
-    # the papers' full footprint (over the background the fringe beyond the disk is clipped by default)
-    options = RenderOptions(filter=FilterOptions(prefilter=prefilter), visibility=VisibilityOptions(clip_fringe=False))
+    # the papers' full footprint (over the background the fringe beyond the disk is clipped by default, and
+    # edge coverage weighs the rim pixels by their area: tests/test_edges.py)
+    options = RenderOptions(filter=FilterOptions(prefilter=prefilter),
+                            visibility=VisibilityOptions(clip_fringe=False, edge_coverage=False))
     frame = renderer.render(cloud, cam, "ewa", UNLIT, options)
 
     p = reference.to_camera(cam, cloud.positions)
@@ -276,7 +278,9 @@ def test_preprocessed_random_sphere_against_exact_ray_cast(renderer):
 @pytest.mark.parametrize("technique", ["flat", "ewa", "perspective"])
 def test_clip_lines_cut_every_technique_footprint(renderer, technique):
     """A slanted splat with two clip lines (a corner): pixels on the cut side get no weight,
-    pixels on the kept side keep exactly the unclipped weight (reference.clip_keep)."""
+    pixels on the kept side keep exactly the unclipped weight (reference.clip_keep). With edge coverage
+    (the default) the cut is antialiased over the background: a pixel whose centre lies on the cut side
+    is covered at most half."""
     a = np.radians(40)
     normal = (0.0, np.sin(a), np.cos(a))
     u, v = (0.35, 0.0, 0.0), (0.0, 0.3 * np.cos(a), -0.3 * np.sin(a))
@@ -284,8 +288,10 @@ def test_clip_lines_cut_every_technique_footprint(renderer, technique):
     plain = single_splat(normal, u, v)
     clipped = plain.replace(clip_lines=lines)
     cam = Camera(eye=(0.1, 0.2, 2.5), target=(0, 0, 0), width=80, height=80, fov=30, near=0.5, far=10.0)
-    full = renderer.render(plain, cam, technique, UNLIT)
-    cut = renderer.render(clipped, cam, technique, UNLIT)
+    footprint = RenderOptions(visibility=VisibilityOptions(edge_coverage=False))
+    full = renderer.render(plain, cam, technique, UNLIT, footprint)
+    cut = renderer.render(clipped, cam, technique, UNLIT, footprint)
+    edges = renderer.render(clipped, cam, technique, UNLIT)
 
     p = reference.to_camera(cam, plain.positions)
     n = reference.to_camera_dir(cam, plain.normals)
@@ -298,6 +304,7 @@ def test_clip_lines_cut_every_technique_footprint(renderer, technique):
     assert (full.weight[~keep & decided] > 0).sum() > 20, "the clip lines cut nothing: test is void"
     assert (cut.weight[~keep & decided] == 0).all()
     np.testing.assert_allclose(cut.weight[keep & decided], full.weight[keep & decided], rtol=1e-6)
+    assert edges.alpha[~keep & decided].max() <= 0.5 + 1e-6
 
 
 def exact_cube(cam: Camera, half: float = 0.5):
@@ -335,7 +342,7 @@ def test_clipped_cube_has_sharp_edges_and_corners(renderer, technique):
     assert np.unique(face[uniform]).size == 3
     # the control without clip lines draws the papers' full footprints (fringe clipping would hide
     # most of the blended footprints' overhang beyond the silhouette, not the one over other faces)
-    full = RenderOptions(visibility=VisibilityOptions(cull_backfaces=True, clip_fringe=False))
+    full = RenderOptions(visibility=VisibilityOptions(cull_backfaces=True, clip_fringe=False, edge_coverage=False))
     for model, sharp in ((cloud, True), (cloud.replace(clip_lines=None), False)):
         frame = renderer.render(model, cam, technique, UNLIT, options if sharp else full)
         assert (ndimage.binary_erosion(inside) & ~frame.mask).sum() == 0, "holes"
@@ -461,11 +468,18 @@ def test_tiled_rendering_equals_one_tile(renderer, torus_view, technique):
 
 
 def test_supersampling_is_the_box_filtered_larger_image(renderer, torus_view):
+    """Without edge coverage exactly; with it (the default) each sub-pixel's rim alpha looks K / 2
+    sub-pixels around (normalize.frag), so the two agree but on rims."""
     cloud, cam = torus_view
     k = 3
+    blocks = (cam.height, k, cam.width, k)
     small = renderer.render(cloud, cam, "ewa", Lights(), supersample=k)
     big = renderer.render(cloud, cam.resized(cam.width * k, cam.height * k), "ewa", Lights())
-    blocks = (cam.height, k, cam.width, k)
+    assert metrics.psnr(small.color, big.color.reshape(*blocks, 3).mean(axis=(1, 3))) > 45.0
+    assert abs(small.alpha.sum() - big.alpha.sum() / k ** 2) < 0.002 * small.alpha.sum()
+    options = RenderOptions(visibility=VisibilityOptions(edge_coverage=False))
+    small = renderer.render(cloud, cam, "ewa", Lights(), options, supersample=k)
+    big = renderer.render(cloud, cam.resized(cam.width * k, cam.height * k), "ewa", Lights(), options)
     np.testing.assert_allclose(small.color, big.color.reshape(*blocks, 3).mean(axis=(1, 3)), atol=1e-6)
     np.testing.assert_allclose(small.alpha, big.mask.reshape(blocks).mean(axis=(1, 3)), atol=1e-6)
     np.testing.assert_array_equal(small.depth, big.depth.reshape(blocks).min(axis=(1, 3)))
@@ -500,11 +514,13 @@ def test_transparent_and_16_bit_output(renderer, torus_view, tmp_path):
 
 def test_clip_fringe_ends_footprints_at_the_surface(renderer):
     """With clip_fringe (the default), a lone ewa splat's prefiltered fringe over the background is dropped (no
-    weight outside its disk), while inside a plane of touching splats the fringes still blend."""
+    weight outside its disk), while inside a plane of touching splats the fringes still blend. (Without edge
+    coverage: with it, the rim pixels beyond the disk take their area coverage, tests/test_edges.py.)"""
     cloud = single_splat((0.0, 0.0, 1.0), (0.3, 0.0, 0.0), (0.0, 0.2, 0.0))
     cam = Camera(eye=(0.0, 0.0, 3.0), target=(0, 0, 0), width=80, height=80, fov=30, near=0.5, far=10.0)
-    clipped = RenderOptions(visibility=VisibilityOptions(clip_fringe=True))
-    full = renderer.render(cloud, cam, "ewa", UNLIT, RenderOptions(visibility=VisibilityOptions(clip_fringe=False)))
+    clipped = RenderOptions(visibility=VisibilityOptions(clip_fringe=True, edge_coverage=False))
+    full = renderer.render(cloud, cam, "ewa", UNLIT,
+                           RenderOptions(visibility=VisibilityOptions(clip_fringe=False, edge_coverage=False)))
     lone = renderer.render(cloud, cam, "ewa", UNLIT, clipped)
     p = reference.to_camera(cam, cloud.positions)
     rays = reference.pixel_rays(cam, reference.pixel_centers(cam).reshape(-1, 2))[None]
@@ -516,7 +532,8 @@ def test_clip_fringe_ends_footprints_at_the_surface(renderer):
     assert not (lone.mask & ~inside_disk).any()              # clipped: nothing beyond it
     np.testing.assert_array_equal(lone.weight[inside_disk], full.weight[inside_disk])
     plane = grid_plane(40, 0.0, 1.0, (0.8, 0.5, 0.2))
-    a = renderer.render(plane, cam, "ewa", Lights())
+    a = renderer.render(plane, cam, "ewa", Lights(),
+                        RenderOptions(visibility=VisibilityOptions(clip_fringe=False, edge_coverage=False)))
     b = renderer.render(plane, cam, "ewa", Lights(), clipped)
     inner = ndimage.binary_erosion(a.mask, iterations=3)
     np.testing.assert_array_equal(a.color[inner], b.color[inner])

@@ -85,6 +85,7 @@ DISK = Technique(name="toy_disk", vertex="toy.vert", fragment="toy_disk.frag", b
 DISK_OFF = replace(DISK, point_footprint=None, compute_opaque=False)
 
 EDGES = RenderOptions(visibility=VisibilityOptions(edge_coverage=True))
+NO_EDGES = RenderOptions(visibility=VisibilityOptions(edge_coverage=False))
 
 
 @pytest.fixture(scope="module")
@@ -166,8 +167,9 @@ def test_toy_technique_gets_every_declared_path(toy_renderer, scene, paths):
         assert not getattr(step, "points", ()) and not getattr(step, "computed", ())
     assert indices(off.get("accumulation").quads) == indices(accumulated.quads + accumulated.points)
 
-    on_frame, on_paths = render(toy_renderer, scene, BOX, drawn=paths)
-    off_frame, off_paths = render(toy_renderer, scene, BOX_OFF, drawn=paths)
+    # without edge coverage, which BOX_OFF does not declare (compared on its own below)
+    on_frame, on_paths = render(toy_renderer, scene, BOX, NO_EDGES, drawn=paths)
+    off_frame, off_paths = render(toy_renderer, scene, BOX_OFF, NO_EDGES, drawn=paths)
     assert on_paths["points"] == count(vis.points) + count(accumulated.points)
     assert on_paths["computed"] == count(computed)
     assert off_paths == {"points": 0, "computed": 0}
@@ -195,19 +197,20 @@ def test_edge_coverage_and_fringe_follow_the_declarations(toy_renderer, scene):
     """Edge coverage declared: the option compiles EDGE_COVERAGE into the accumulation and normalization
     passes; with the fringe declared too, rim pixels no disk's distance reaches take the largest single
     disk's coverage (fractional alpha, as ewa's), without it they stay covered (as phong's). Edge
-    coverage declared off: the option changes nothing."""
+    coverage declared off: the option changes nothing. The option is on by default."""
     fringe = replace(BOX, edge_fringe=True)
     gpu = toy_renderer.upload(scene[0])
     try:
         assert toy_renderer.plan(gpu, scene[1], fringe, EDGES).edge_coverage
-        assert not toy_renderer.plan(gpu, scene[1], fringe).edge_coverage
+        assert toy_renderer.plan(gpu, scene[1], fringe).edge_coverage
+        assert not toy_renderer.plan(gpu, scene[1], fringe, NO_EDGES).edge_coverage
         assert not toy_renderer.plan(gpu, scene[1], replace(fringe, edge_coverage=False), EDGES).edge_coverage
         for technique in (BOX, fringe):
             normalization = toy_renderer.plan(gpu, scene[1], technique, EDGES).get("normalization")
             assert normalization.edge_fringe is technique.edge_fringe
     finally:
         gpu.release()
-    plain, _ = render(toy_renderer, scene, fringe)
+    plain, _ = render(toy_renderer, scene, fringe, NO_EDGES)
     assert np.isin(plain.alpha, (0.0, 1.0)).all() and plain.mask.mean() > 0.1
     soft, _ = render(toy_renderer, scene, fringe, EDGES)
     program = toy_renderer._fullscreen_pass("normalize.frag", {EDGE_COVERAGE_DEFINE: 1}).program
@@ -219,7 +222,7 @@ def test_edge_coverage_and_fringe_follow_the_declarations(toy_renderer, scene):
     assert program["u_edge_fringe"].value == 0
     assert np.isin(no_fringe.alpha, (0.0, 1.0)).all()
     off = replace(fringe, edge_coverage=False)
-    without, _ = render(toy_renderer, scene, off)
+    without, _ = render(toy_renderer, scene, off, NO_EDGES)
     asked, _ = render(toy_renderer, scene, off, EDGES)
     for name in ("color", "depth", "alpha"):
         np.testing.assert_array_equal(getattr(asked, name), getattr(without, name), err_msg=name)

@@ -167,7 +167,7 @@ def test_the_doors_share_the_defaults():
 def test_automatic_culling_is_decided_by_the_view(torus):
     view = View(torus)
     outside = view.camera(None, 64, 64)
-    assert not view.culls(outside)   # never automatically: a back-facing splat may fill a hole of the front
+    assert not view.culls(outside)   # a cloud never automatically: a back-facing splat may fill a hole of the front
     lo, hi = view.model.bounds()
     inside = view.camera(surfsplat.CameraSpec(eye=tuple(0.5 * (lo + hi)), target=tuple(hi)), 64, 64)
     assert not view.culls(inside)

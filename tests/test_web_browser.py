@@ -13,7 +13,7 @@ import pytest
 from surfsplat.camera import Camera
 from surfsplat.metrics import psnr
 from surfsplat.pipeline import View
-from surfsplat.rendering.options import EdlOptions, RenderOptions
+from surfsplat.rendering.options import EdlOptions, RenderOptions, VisibilityOptions
 from surfsplat.scenes import torus
 from surfsplat.web import export
 from surfsplat.pipeline import SourceOptions
@@ -99,6 +99,10 @@ def test_the_page_opens_from_a_file_url_at_the_render_default_view(browser, site
         page.close()
 
 
+#: What the page draws of the desktop's visibility options: no edge coverage, back faces drawn (the web guide).
+PAGE_VISIBILITY = VisibilityOptions(edge_coverage=False, cull_backfaces=False)
+
+
 # measured at 320 x 240 (SwiftShader against llvmpipe): ewa identical, flat 43.6 dB (opaque disks at one depth
 # rounded apart), points with EDL 87.0 dB
 @pytest.mark.parametrize("technique,least", [("ewa", 60.0), ("flat", 40.0), ("points", 60.0)])
@@ -106,7 +110,8 @@ def test_the_canvas_is_the_desktop_render_of_the_same_camera(browser, site, mode
     view = View(as_drawn(model))
     camera = Camera(eye=(2.2, -1.1, 2.6), target=(0.1, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov=35.0, width=W, height=H)
     camera = view.camera(camera)
-    options = RenderOptions(edl=EdlOptions()) if technique == "points" else None
+    # the page has no edge coverage and draws back faces (the web guide): the desktop's picture without them
+    options = RenderOptions(visibility=PAGE_VISIBILITY, edl=EdlOptions() if technique == "points" else None)
     reference = view.render(camera, technique=technique, options=options).frame.image()
     page = opened(browser, file_url(site / "index.html", "?ui=0" + camera_hash(camera, technique)))
     try:
@@ -235,8 +240,8 @@ def test_real_data_pages_match_the_desktop(browser, shared_data, tmp_path, name,
     plan = View(source, source_options=options)
     drawn = View(as_drawn(exported_splats(plan, plan.camera(None, 1024, 1024), None)))
     camera = plan.camera(None, W, H)
-    edl = RenderOptions(edl=EdlOptions()) if technique == "points" else None
-    reference = drawn.render(camera, technique=technique, options=edl).frame.image()
+    page_options = RenderOptions(visibility=PAGE_VISIBILITY, edl=EdlOptions() if technique == "points" else None)
+    reference = drawn.render(camera, technique=technique, options=page_options).frame.image()
     page = opened(browser, file_url(out / "index.html", "?ui=0"))
     try:
         canvas = page.canvas()
@@ -263,7 +268,7 @@ def test_the_page_cuts_a_hierarchy_within_the_budget_as_the_desktop_does(browser
     out = tmp_path / "site"
     export(hierarchy_file, out, browser_lod=True, point_budget=budget)
     view = View(hierarchy_file, lod=LodOptions(tolerance=1.0, point_budget=budget, shading="flat"))
-    result = view.render(view.camera(None, W, H), technique="ewa")
+    result = view.render(view.camera(None, W, H), technique="ewa", options=RenderOptions(visibility=PAGE_VISIBILITY))
     page = opened(browser, file_url(out / "index.html", "?ui=0"))
     try:
         drawn, canvas = page.evaluate("surfsplat.drawn"), page.canvas()

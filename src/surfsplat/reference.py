@@ -608,15 +608,18 @@ def fill_holes(color: np.ndarray, weight: np.ndarray, depth: np.ndarray, alpha: 
     in the image's pixels; ``gap``: widest gap filled, pixels; ``depth_px``: depth tolerance, pixels: two
     pixels' surfaces are apart where their depths differ by more than ``tau(z) = depth_px z / focal_px``.
 
-    A pixel q lies in front of p when q is covered and p is not, or ``z_q < z_p - tau(z_p)``. Along each of
+    A pixel is covered where it has weight and at least half its area (``alpha`` >= 1/2); one that edge
+    coverage leaves partly covered (a rim, or the border of a gap between splats) may itself be a hole, so
+    a gap is filled whole, not left as a lighter line. A pixel q lies in front of p when q is covered and p
+    is not covered whole (``alpha`` < 1), or ``z_q < z_p - tau(z_p)``. Along each of
     the 4 axes (:data:`FILL_AXES`, both directions) the nearest pixel in front of p within ``gap`` steps is
     looked for; the axis encloses p where both are found at distances adding up to at most ``gap + 1`` and
     lie on one surface (depths within ``tau`` of the nearer: a strip of a farther surface seen between two
     surfaces at different depths, such as the view through a bore past its rim, is no gap).
     Enclosed along exactly 3, the 4th axis must enclose p too within ``reach`` (default ``3 gap``: a
     crack of up to that length, not a slit or bay opening into the background beyond a silhouette).
-    Then p takes the inverse-distance weighted mean of color, weight, depth
-    and alpha of those neighbours of enclosing axes that lie on the front surface (depth within
+    Then p takes the inverse-distance weighted mean of color, weight and depth (and alpha 1: enclosed by
+    the surface, it is covered whole) of those neighbours of enclosing axes that lie on the front surface (depth within
     ``tau(z_f)`` of the nearest, ``z_f``). Pintus et al. 2011 (enclosure, front neighbours) with the
     bounded gap of Marroquim et al. 2007. ``iterations``: the rule applied that many times, each on the last
     one's image. ``filled``: (H, W) bool, the pixels any iteration filled.
@@ -642,9 +645,10 @@ def _enclosure(color, weight, depth, alpha, focal_px, gap, depth_px):
     """Per direction the nearest pixel in front within ``gap`` (steps, depth, channels) and the axes that
     enclose each pixel ((4, H, W) bool)."""
     h, w = weight.shape
-    covered = weight > 0
+    covered = (weight > 0) & (alpha >= 0.5)
     z = np.where(covered, depth, np.inf).astype(np.float64)
-    limit = np.where(covered, z - depth_px * np.where(covered, z, 0.0) / focal_px, np.inf)
+    whole = covered & (alpha >= 1.0)
+    limit = np.where(whole, z - depth_px * np.where(whole, z, 0.0) / focal_px, np.inf)
     g = int(gap)
     pad = ((g, g), (g, g))
     zp = np.pad(z, pad, constant_values=np.inf)
@@ -684,5 +688,5 @@ def _fill_from(color, weight, depth, alpha, focal_px, depth_px, steps, found_z, 
     out_color = np.where(filled[..., None], mean_c[..., :-2].reshape(np.shape(color)), color)
     out_weight = np.where(filled, mean_c[..., -2], weight)
     out_depth = np.where(filled, mean_z, depth)
-    out_alpha = np.where(filled, mean_c[..., -1], alpha)
+    out_alpha = np.where(filled, 1.0, alpha)   # enclosed by the surface: covered whole
     return out_color, out_weight, out_depth, out_alpha, filled

@@ -246,7 +246,8 @@ def add_render_options(p: argparse.ArgumentParser, *, window: bool = False) -> N
                    help="visibility offset along the viewing rays, in splat radii (default %(default)s)")
     p.add_argument("--cull-backfaces", action=argparse.BooleanOptionalAction, default=None,
                    help="drop splats facing away from the eye (closed models with outward normals only; "
-                        "default: on for the surface of a closed mesh, off for point clouds and open surfaces)")
+                        "default: on for the surface of a closed mesh seen from outside with ewa/perspective, off "
+                        "for other techniques, point clouds and open surfaces)")
     p.add_argument("--no-separate-sides", action="store_true",
                    help="blend splats seen from the back with the front surface within the depth epsilon "
                         "(default: a pixel blends only splats seen from the side of its nearest one, so hidden "
@@ -259,7 +260,7 @@ def add_render_options(p: argparse.ArgumentParser, *, window: bool = False) -> N
                    default=default(VisibilityOptions, "edge_coverage"),
                    help="antialias silhouettes over the background without supersampling: a rim pixel's alpha is "
                         "the area of it the splats' disks cover (ewa/perspective both sides of the rim, blend/phong "
-                        "its inner side; default %(default)s)")
+                        "its inner side; default on: --no-edge-coverage draws all-or-nothing rims)")
     p.add_argument("--fill-holes", action=argparse.BooleanOptionalAction, default=default(RenderOptions, "fill_holes"),
                    help="fill holes of up to 3 pixels between the pixels of the front surface in screen space "
                         "(depth-aware: never from a surface behind; silhouettes do not grow; default %(default)s)")

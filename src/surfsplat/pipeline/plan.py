@@ -15,7 +15,6 @@ from __future__ import annotations
 import time
 import warnings
 from dataclasses import dataclass, replace
-from functools import cache
 
 import numpy as np
 
@@ -193,19 +192,20 @@ class View:
             self._tree = self.sample(camera).tree()
         return self._tree
 
-    def culls(self, camera: Camera, options: RenderOptions | None = None) -> bool:
-        """Whether back faces are culled for ``camera``: as ``options`` say, or where automatic
-        (``cull_backfaces`` None) as :func:`~surfsplat.geometry.closed.automatic_culling` decides for
-        the sampled splats: never, since a back-facing splat may be the only one covering a pixel of
-        the front (the splats are still oriented outward where they sample closed surfaces)."""
+    def culls(self, camera: Camera, options: RenderOptions | None = None, technique: TechniqueName = "ewa") -> bool:
+        """Whether back faces are culled for ``camera`` and ``technique``: as ``options`` say, or where
+        automatic (``cull_backfaces`` None) as :func:`~surfsplat.geometry.closed.automatic_culling`
+        decides for the sampled splats: for a closed mesh's samples seen from outside, drawn by a
+        technique whose footprints reach past the disks (``ewa``, ``perspective``: their fringe and
+        edge coverage cover the silhouette pixels only back faces covered); never for a point cloud
+        (a back-facing splat may be the only one covering a pixel of its front)."""
         asked = (options or RenderOptions()).visibility.cull_backfaces
         if asked is not None:
             return bool(asked)
         drawn = self.sample(camera)
-        cull = automatic_culling(self._outward, drawn.bounds(), camera.eye)
-        if cull and not getattr(self.model, "closed", False):
-            _tell_once("a closed surface seen from outside: back faces culled (--no-cull-backfaces draws them)")
-        return cull
+        return automatic_culling(self._outward, drawn.bounds(), camera.eye,
+                                 sampled_mesh=bool(getattr(self.model, "closed", False)),
+                                 fringe=get_technique(technique).edge_fringe)
 
     def strategy(self, camera: Camera | None = None) -> str:
         """Where the views are cut (:func:`~surfsplat.pipeline.lod.lod_strategy` of the sampled model)."""
@@ -233,7 +233,8 @@ class View:
         background, options = check_background(background), options or RenderOptions()
         camera = self.camera(camera, width, height)
         drawn = self.sample(camera)
-        options = replace(options, visibility=replace(options.visibility, cull_backfaces=self.culls(camera, options)))
+        options = replace(options, visibility=replace(options.visibility,
+                                                      cull_backfaces=self.culls(camera, options, technique)))
         strategy = self.strategy(camera)
         start = time.perf_counter()
         merged_from = None
@@ -313,12 +314,6 @@ class View:
                 result = self.render(camera, **render_args)
                 done.update()
                 yield result.frame.image()
-
-
-@cache
-def _tell_once(text: str) -> None:
-    """A progress message printed once per process (not for every frame of a turntable)."""
-    progress.message(text)
 
 
 def bounds_pixels(camera: Camera, lo, hi) -> float:

@@ -297,7 +297,7 @@ class Viewer(ViewerInput):
     def culling(self) -> bool:
         """Whether back faces are culled now: as the options say, or where automatic (None) when the
         model is a closed surface and the eye is outside its bounds."""
-        return self.plan.culls(self.controller.camera, self.options)
+        return self.plan.culls(self.controller.camera, self.options, self.technique)
 
     def drawn_options(self) -> RenderOptions:
         """The render options of the current frame, automatic culling resolved (:attr:`culling`)."""

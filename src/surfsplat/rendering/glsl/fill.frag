@@ -1,6 +1,7 @@
 // After the normalization pass: screen-space hole filling (surfsplat.reference.fill_holes is the rule
 // in NumPy; the two are held against each other by tests/test_fill_holes.py). A pixel is a hole when
-// no splat covers it or the splats covering it lie behind the surface around it; it is filled when the
+// no splat covers it (or edge coverage covers it in part) or the splats covering it lie behind the surface
+// around it; it is filled when the
 // surface around it encloses it: along at least 3 of the 4 axes (horizontal, vertical, both diagonals)
 // the nearest pixels on both sides that lie in front of it (any covered pixel, for an uncovered one)
 // leave a gap of at most FILL_GAP pixels between them (their distances add up to at most
@@ -8,7 +9,7 @@
 // seen between two surfaces at different depths, e.g. through a bore past its rim, is no gap), and
 // along the 4th axis too within FILL_REACH pixels (a crack of that length at most: a slit that opens
 // into the background beyond a silhouette, a bay, is not closed). It takes
-// the depth, color, weight and coverage of the front surface among those neighbours (those within the
+// the depth, color and weight of the front surface (and full coverage) among those neighbours (those within the
 // tolerance of the nearest), each weighted by the inverse of its distance along its axis. A hole in a
 // surface is enclosed; the background beyond a silhouette (convex or concave: a corner encloses it
 // along one axis) is not, so silhouettes never grow; a larger hole is not. The screen-space rule of
@@ -17,7 +18,7 @@
 // (Grossman & Dally 1998) would fill holes of any size.
 // FILL_GAP (a define: the searches unroll; passes.fill_gap) is the widest gap filled, pixels. Only
 // depths are read while searching (u_norm_z, 4 bytes a texel; normalize.frag writes FILL_FAR beyond
-// the full image); the color and coverage of the (at most 8) neighbours found are read once at the end.
+// the full image); the color of the (at most 8) neighbours found is read once at the end.
 // A pixel enclosed along 3 of the 4 axes is enclosed horizontally or vertically: the search looks at
 // one side of those two first, and most pixels (a surface with nothing in front, the open background)
 // stop after 2 FILL_GAP texels (llvmpipe skips a branch where a block's pixels all skip it).
@@ -84,7 +85,9 @@ void main() {
     float z = texelFetch(u_norm_z, texel, 0).r;
     out_z = z;
     if (color.a < 0.0) return;   // a non-finite accumulation (counted by the renderer)
-    limit = z < FILL_FAR ? z - tolerance(z) : FILL_FAR;   // a neighbour in front: nearer than this
+    // a neighbour in front: nearer than this; any covered one for a pixel not covered whole (edge
+    // coverage's partly covered pixels at least half covered have a depth: normalize.frag)
+    limit = z < FILL_FAR && out_depth.y >= 1.0 ? z - tolerance(z) : FILL_FAR;
     const ivec2 DIRS[8] = ivec2[8](ivec2(1, 0), ivec2(-1, 0), ivec2(0, 1), ivec2(0, -1), ivec2(1, 1),
                                    ivec2(-1, -1), ivec2(1, -1), ivec2(-1, 1));
     // per axis and side: the distance of the nearest pixel in front (0: none) and its depth
@@ -116,17 +119,17 @@ void main() {
         if (axis[i / 2]) front = min(front, zs[i]);
     float keep = front + tolerance(front);
     vec4 sum_color = vec4(0.0);
-    vec3 sum_depth = vec3(0.0);   // depth, alpha, sum of the inverse distances
+    vec2 sum_depth = vec2(0.0);   // depth, sum of the inverse distances
     for (int i = 0; i < 8; ++i) {
         if (!axis[i / 2] || zs[i] > keep) continue;
         float w = 1.0 / float(steps[i]);
         ivec2 q = texel + DIRS[i] * steps[i];
         sum_color += w * texelFetch(u_norm_color, q, 0);
-        sum_depth += w * vec3(zs[i], texelFetch(u_norm_depth, q, 0).g, 1.0);
+        sum_depth += w * vec2(zs[i], 1.0);
     }
-    vec4 filled = sum_color / sum_depth.z;
-    float zf = sum_depth.x / sum_depth.z;
+    vec4 filled = sum_color / sum_depth.y;
+    float zf = sum_depth.x / sum_depth.y;
     out_color = filled;
-    out_depth = vec2(zf * filled.a, sum_depth.y / sum_depth.z);
+    out_depth = vec2(zf * filled.a, 1.0);   // enclosed by the surface: covered whole (reference.fill_holes)
     out_z = zf;
 }

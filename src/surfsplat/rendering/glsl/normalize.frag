@@ -98,7 +98,8 @@ void main() {
     if (!(alpha > 0.0)) { out_color = vec4(u_background, 0.0); return; }   // fringe only: empty
     out_color = vec4(mix(u_background, clamp(color, 0.0, 1.0), alpha), a.w);
     out_depth = vec2(aux.x, alpha);
-    // beyond the full image (a tile's margin): nothing, for the fill pass
+    // beyond the full image (a tile's margin), or less than half covered (edge coverage: a rim, or a gap
+    // between splats the fill closes whole): no surface, for the fill pass (reference.fill_holes)
     bool inside = all(greaterThanEqual(FRAG_PX, vec2(0.0))) && all(lessThan(FRAG_PX, u_viewport));
-    out_z = inside ? aux.x / a.w : FILL_FAR;
+    out_z = inside && alpha >= 0.5 ? aux.x / a.w : FILL_FAR;
 }
