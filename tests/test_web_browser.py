@@ -320,7 +320,7 @@ def test_a_mesh_page_exported_for_its_size_is_surfsplat_render_of_the_mesh(brows
     result = export(source, out, size=(width, height))
     view = View(source)
     camera = view.camera(None, width, height)
-    reference = view.render(camera, technique="ewa").frame.image()
+    reference = view.render(camera, technique="ewa", options=RenderOptions(visibility=PAGE_VISIBILITY)).frame.image()
     page = opened(browser, file_url(out / "index.html", "?ui=0"), width, height)
     try:
         canvas = page.canvas()
@@ -421,7 +421,7 @@ def test_a_chunked_model_streams_its_cells_on_demand_from_a_static_server(browse
         requested = [p for p in paths if p.startswith("/cells/")]
         assert state["requests"] == state["loads"] == len(requested) == len(set(requested)) <= cells
         assert state["drawn"] <= STREAM_BUDGET and state["bytes"] <= state["memoryBudget"]
-        result = view.render(view.camera(camera), technique="ewa")
+        result = view.render(view.camera(camera), technique="ewa", options=RenderOptions(visibility=PAGE_VISIBILITY))
         reference = result.frame.image()
         # the cut of ChunkedHierarchy.view_splats: the same at the home view, where the budget binds
         assert abs(state["drawn"] - result.splats) <= (0 if camera is home else 0.02 * result.splats)
