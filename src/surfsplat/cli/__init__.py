@@ -106,6 +106,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "with --chunked)")
     p.add_argument("--leaf-capacity", type=opt.number(int, low=1, high=2**31 - 1), default=8, metavar="N",
                    help="at most N points in a leaf node (default %(default)s)")
+    p.add_argument("--compact", action="store_true",
+                   help="store the splats quantized, 19 bytes each instead of 60 (the web viewer's format: "
+                        "16-bit positions in the bounding box, octahedral normals, log radii, 8-bit colours); "
+                        "loaded like a full file")
     opt.add_source_options(p)
     opt.add_force_option(p)
     chunked.add_build_options(p)

@@ -364,9 +364,10 @@ def cmd_build(args) -> None:
     with progress.stage(f"building the point-octree of {len(cloud):,} splats"):
         hierarchy = build_hierarchy(cloud, args.leaf_capacity, source=args.input)
     seconds = time.perf_counter() - start
-    save_hierarchy(hierarchy, out)
+    save_hierarchy(hierarchy, out, compact=args.compact)
     progress.message(f"{len(hierarchy):,} nodes in {hierarchy.levels} levels, built in {seconds:.2f} s "
-                     f"({len(cloud) / max(seconds, 1e-9):,.0f} points/s) -> {out}")
+                     f"({len(cloud) / max(seconds, 1e-9):,.0f} points/s), {out.stat().st_size / len(cloud):.0f} "
+                     f"bytes a splat{' (compact)' if args.compact else ''} -> {out}")
 
 
 def cmd_phong(args) -> None:
