@@ -89,3 +89,35 @@ def test_build_compact_on_the_command_line(tmp_path, capsys):
     assert read_npz(tmp_path / "t.npz", ("format_version",))["format_version"] == COMPACT_VERSION
     assert len(load_hierarchy(tmp_path / "t.npz").points) == 60 * 24
     assert main(["build", str(source), "-o", str(tmp_path / "t.ssh"), "--compact", "--chunked"]) != 0
+
+
+def test_normal_fields_and_clip_lines_keep_their_direction_where_an_axis_decodes_reversed(tmp_path):
+    cloud = torus(40, 16)
+    rng = np.random.default_rng(3)
+    lines = rng.normal(size=(len(cloud), 2, 3)).astype(np.float32)
+    field = rng.normal(size=(len(cloud), 2)).astype(np.float32)
+    h = build_hierarchy(cloud.replace(clip_lines=lines, normal_field=field))
+    save_hierarchy(h, tmp_path / "c.npz", compact=True)
+    c = load_hierarchy(tmp_path / "c.npz")
+
+    def unit(a: np.ndarray) -> np.ndarray:
+        return a / np.linalg.norm(a, axis=1, keepdims=True)
+
+    def gradient(abc: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """World-space gradient of a s + b t: s = (x - p) . u / |u|^2, t likewise."""
+        return (abc[:, :1] * u / np.einsum("ij,ij->i", u, u)[:, None]
+                + abc[:, 1:2] * v / np.einsum("ij,ij->i", v, v)[:, None])
+
+    reversed_u = np.einsum("ij,ij->i", c.points.u, h.points.u) < 0
+    assert reversed_u.any()   # the codes keep u up to its sign: the case under test occurs
+    for ours, theirs in ((c.points, h.points), (c, h)):
+        f_ours = ours.normal_field if ours is c.points else c.node_normal_field
+        f_theirs = theirs.normal_field if theirs is h.points else h.node_normal_field
+        u_ours, v_ours = (ours.u, ours.v) if ours is c.points else (c.node_u, c.node_v)
+        u_theirs, v_theirs = (theirs.u, theirs.v) if theirs is h.points else (h.node_u, h.node_v)
+        # the field's turn per unit s and t, in world directions (Botsch 2004, eq. 2)
+        assert np.allclose(f_ours[:, :1] * unit(u_ours), f_theirs[:, :1] * unit(u_theirs), atol=1e-3)
+        assert np.allclose(f_ours[:, 1:] * unit(v_ours), f_theirs[:, 1:] * unit(v_theirs), atol=1e-3)
+    for k in range(2):
+        assert np.allclose(gradient(c.points.clip_lines[:, k], c.points.u, c.points.v),
+                           gradient(h.points.clip_lines[:, k], h.points.u, h.points.v), rtol=1e-2, atol=1e-2)

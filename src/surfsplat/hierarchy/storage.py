@@ -201,7 +201,23 @@ def _quantized(members: dict[str, Any], prefix: str, path: Path) -> dict[str, np
     colors = arrays["colors"]
     streams, header = splat_codec.encode(arrays["positions"], normals, np.zeros((len(u), 3)) if colors is None
                                          else colors, u, v)
-    out = {f"{prefix}q_{name}": value for name, value in streams.items() if name != "color" or colors is not None}
+    # the codes keep an axis up to its sign (an ellipse is symmetric): where the decoded u or v points the
+    # other way, the splat's s or t runs the other way, so the normal field's alpha or beta (Botsch 2004,
+    # eq. 2) and the clip lines' a or b change sign with it
+    decoded = splat_codec.decode({**streams, "color": np.zeros((len(u), 3), np.uint8)}, header)
+    su = np.where(np.einsum("ij,ij->i", decoded["u"], u) < 0, -1.0, 1.0)
+    sv = np.where(np.einsum("ij,ij->i", decoded["v"], v) < 0, -1.0, 1.0)
+    out: dict[str, np.ndarray] = {}
+    if members.get(prefix + "normal_field") is not None:
+        field = np.array(members[prefix + "normal_field"], dtype=np.float32)
+        field *= np.stack([su, sv], axis=1).astype(np.float32)
+        out[prefix + "normal_field"] = field
+    if members.get(prefix + "clip_lines") is not None:
+        lines = np.array(members[prefix + "clip_lines"], dtype=np.float32)
+        lines[:, :, 0] *= su[:, None].astype(np.float32)
+        lines[:, :, 1] *= sv[:, None].astype(np.float32)
+        out[prefix + "clip_lines"] = lines
+    out.update({f"{prefix}q_{name}": value for name, value in streams.items() if name != "color" or colors is not None})
     out[f"{prefix}q_box"] = np.array([header["lo"], header["hi"]], dtype=np.float64)
     out[f"{prefix}q_log_radius"] = np.array(header["log_radius"], dtype=np.float64)
     return out
