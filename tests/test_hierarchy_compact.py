@@ -88,6 +88,8 @@ def test_build_compact_on_the_command_line(tmp_path, capsys):
     assert "(compact)" in capsys.readouterr().err
     assert read_npz(tmp_path / "t.npz", ("format_version",))["format_version"] == COMPACT_VERSION
     assert len(load_hierarchy(tmp_path / "t.npz").points) == 60 * 24
+    assert main(["info", str(tmp_path / "t.npz")]) == 0
+    assert "format 3, compact" in capsys.readouterr().out
     assert main(["build", str(source), "-o", str(tmp_path / "t.ssh"), "--compact", "--chunked"]) != 0
 
 
