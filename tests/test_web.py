@@ -299,7 +299,7 @@ def test_a_chunked_hierarchy_exports_as_a_page_and_a_file_per_cell(tmp_path):
 
 
 @pytest.mark.data
-def test_the_non_planar_flag_is_exported_one_bit_a_splat_where_the_view_plan_draws_hybrid(shared_data):
+def test_the_non_planar_flag_is_exported_one_bit_a_splat_where_the_view_plan_draws_hybrid(shared_data, tmp_path):
     import base64
 
     from surfsplat.geometry.preprocess import NONPLANAR
@@ -318,3 +318,6 @@ def test_the_non_planar_flag_is_exported_one_bit_a_splat_where_the_view_plan_dra
     assert not header["hybrid"] and "nonplanar" not in streams
     header, streams = page_payload(torus(40, 16))   # not LiDAR: no flag
     assert not header["hybrid"] and "nonplanar" not in streams
+    for flag, present in (("--hybrid", True), ("--no-hybrid", False)):
+        assert main(["export", str(source), "-o", str(tmp_path / flag), flag]) == 0
+        assert ('"nonplanar":' in (tmp_path / flag / "data.js").read_text()) == present

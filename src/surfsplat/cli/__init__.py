@@ -189,6 +189,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true",
                    help="replace an existing file or non-empty folder that surfsplat export did not write "
                         "(an earlier export is always replaced)")
+    p.add_argument("--hybrid", action=argparse.BooleanOptionalAction, default=None,
+                   help="the page draws non-planar neighbourhoods (vegetation, wires) as round points facing the "
+                        "eye, as surface splats the planar ones, as `surfsplat render --hybrid` (default: on for "
+                        "LAS/LAZ and E57 input)")
     opt.add_source_options(p)
     opt.add_lod_options(p)
     p.set_defaults(func=commands.cmd_export)
