@@ -12,9 +12,10 @@ import pytest
 
 from surfsplat import Camera, InputError, SplatCloud, scenes
 from surfsplat.geometry import preprocess
-from surfsplat.hierarchy import (CONE_SHADING_MAX_ANGLE, FORMAT_VERSION, SHADINGS, Hierarchy, LodShading,
+from surfsplat.hierarchy import (CONE_SHADING_MAX_ANGLE, SHADINGS, Hierarchy, LodShading,
                                  Selection, build_hierarchy, load_hierarchy, ranges_to_indices, save_hierarchy,
                                  select)
+from surfsplat.hierarchy.storage import COMPACT_VERSION
 from surfsplat.hierarchy.nodes import (COVARIANCE_ENTRIES, covariance_about, homogeneous_covariance,
                                        unpack_covariance)
 
@@ -396,7 +397,7 @@ def test_load_errors_name_the_file(torus_h, tmp_path):
         return path
 
     with pytest.raises(InputError, match="newer.npz.*version"):
-        load_hierarchy(rewrite("newer.npz", format_version=np.array(FORMAT_VERSION + 1)))
+        load_hierarchy(rewrite("newer.npz", format_version=np.array(COMPACT_VERSION + 1)))
     with pytest.raises(InputError, match="nou.npz.*node_u"):
         load_hierarchy(rewrite("nou.npz", node_u=None))
     with pytest.raises(InputError, match="shape.npz.*node_radius"):

@@ -296,3 +296,28 @@ def test_a_chunked_hierarchy_exports_as_a_page_and_a_file_per_cell(tmp_path):
     with pytest.raises(InputError, match="folder of cell files"):
         page_payload(tmp_path / "torus.ssh", browser_lod=True)
     assert main(["export", str(tmp_path / "torus.ssh"), "-o", str(result.path), "--browser-lod", "-q"]) == 0   # ours
+
+
+@pytest.mark.data
+def test_the_non_planar_flag_is_exported_one_bit_a_splat_where_the_view_plan_draws_hybrid(shared_data, tmp_path):
+    import base64
+
+    from surfsplat.geometry.preprocess import NONPLANAR
+    from surfsplat.pipeline import SourceOptions
+    from surfsplat.web.export import exported_splats, page_payload, web_order
+    source = shared_data / "simple.las"
+    header, streams = page_payload(source, size=(320, 240))
+    plan = View(source)
+    cloud = exported_splats(plan, plan.camera(None, 320, 240), None)
+    expected = np.asarray(cloud.attributes[NONPLANAR], bool)[web_order(cloud)[0]]
+    bits = np.frombuffer(base64.b64decode(streams["nonplanar"]), np.uint8)
+    assert header["hybrid"] and len(bits) == (len(cloud) + 7) // 8
+    assert np.array_equal(np.unpackbits(bits, bitorder="little")[:len(cloud)].astype(bool), expected)
+    assert 0 < expected.sum() < len(expected)   # vegetation and ground both
+    header, streams = page_payload(source, size=(320, 240), source_options=SourceOptions(hybrid=False))
+    assert not header["hybrid"] and "nonplanar" not in streams
+    header, streams = page_payload(torus(40, 16))   # not LiDAR: no flag
+    assert not header["hybrid"] and "nonplanar" not in streams
+    for flag, present in (("--hybrid", True), ("--no-hybrid", False)):
+        assert main(["export", str(source), "-o", str(tmp_path / flag), flag]) == 0
+        assert ('"nonplanar":' in (tmp_path / flag / "data.js").read_text()) == present

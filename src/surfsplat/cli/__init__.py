@@ -106,6 +106,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "with --chunked)")
     p.add_argument("--leaf-capacity", type=opt.number(int, low=1, high=2**31 - 1), default=8, metavar="N",
                    help="at most N points in a leaf node (default %(default)s)")
+    p.add_argument("--compact", action="store_true",
+                   help="store the splats quantized, 19 bytes each instead of 60 (the web viewer's format: "
+                        "16-bit positions in the bounding box, octahedral normals, log radii, 8-bit colours); "
+                        "loaded like a full file")
     opt.add_source_options(p)
     opt.add_force_option(p)
     chunked.add_build_options(p)
@@ -185,6 +189,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true",
                    help="replace an existing file or non-empty folder that surfsplat export did not write "
                         "(an earlier export is always replaced)")
+    p.add_argument("--hybrid", action=argparse.BooleanOptionalAction, default=None,
+                   help="the page draws non-planar neighbourhoods (vegetation, wires) as round points facing the "
+                        "eye, as surface splats the planar ones, as `surfsplat render --hybrid` (default: on for "
+                        "LAS/LAZ and E57 input)")
     opt.add_source_options(p)
     opt.add_lod_options(p)
     p.set_defaults(func=commands.cmd_export)

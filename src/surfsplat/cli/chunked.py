@@ -45,6 +45,8 @@ def cmd_build(args) -> None:
                 raise InputError(f"--{name.replace('_', '-')} needs --chunked")
         commands.cmd_build(args)
         return
+    if args.compact:
+        raise InputError("--compact writes one-file hierarchies (.npz); a chunked hierarchy's cells are full files")
     check_chunked_output(Path(args.output), Path(args.input))
     options = opt.source_options(args)
     report = build_chunked(args.input, args.output, k=options.k, outliers=options.outliers,

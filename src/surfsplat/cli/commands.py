@@ -17,6 +17,7 @@ from ..errors import InputError
 from ..io.atomic import check_writable, same_file
 from ..io.camera_file import save_camera
 from ..io.camera_formats import load_cameras
+from ..io.npz import read_npz
 from ..io.image_maps import check_map_path, normals_from_depth, save_coverage, save_depth, save_normals
 from ..io.video import check_video_path, write_video
 from ..rendering.frame import check_image_path
@@ -26,6 +27,7 @@ from ..geometry.sampling import sample_mesh
 from ..cloud import SplatCloud
 from ..hierarchy import build_hierarchy, load_hierarchy, save_hierarchy
 from ..hierarchy.nodes import is_majority_voted
+from ..hierarchy.storage import COMPACT_VERSION
 from ..colors import describe_attributes
 from ..io import load, load_mesh, save_ply
 from ..web import export
@@ -322,7 +324,10 @@ def hierarchy_info(path) -> None:
     """Print what ``surfsplat info`` says of a hierarchy file."""
     hierarchy = load_hierarchy(path)
     d = hierarchy.describe()
-    print(f"file:       {path} (surfsplat LOD hierarchy, format {d['format_version']})")
+    version = int(read_npz(path, ("format_version",))["format_version"])
+    layout = ", compact: splats quantized to 19 bytes" if version == COMPACT_VERSION else ""
+    print(f"file:       {path} (surfsplat LOD hierarchy, format {version}{layout}; "
+          f"{Path(path).stat().st_size / d['points']:.0f} bytes a point)")
     print(f"points:     {d['points']:,}")
     print(f"nodes:      {d['nodes']:,} in {d['levels']} levels ({d['leaves']:,} leaves, capacity "
           f"{d['leaf_capacity']}, mean {d['mean_leaf_points']:.2f} points a leaf)")
@@ -364,9 +369,10 @@ def cmd_build(args) -> None:
     with progress.stage(f"building the point-octree of {len(cloud):,} splats"):
         hierarchy = build_hierarchy(cloud, args.leaf_capacity, source=args.input)
     seconds = time.perf_counter() - start
-    save_hierarchy(hierarchy, out)
+    save_hierarchy(hierarchy, out, compact=args.compact)
     progress.message(f"{len(hierarchy):,} nodes in {hierarchy.levels} levels, built in {seconds:.2f} s "
-                     f"({len(cloud) / max(seconds, 1e-9):,.0f} points/s) -> {out}")
+                     f"({len(cloud) / max(seconds, 1e-9):,.0f} points/s), {out.stat().st_size / len(cloud):.0f} "
+                     f"bytes a splat{' (compact)' if args.compact else ''} -> {out}")
 
 
 def cmd_phong(args) -> None:

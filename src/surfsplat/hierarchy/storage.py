@@ -22,6 +22,20 @@ the points' zero (world coordinates are ``point_origin + point_positions``; file
 written before it existed, load with the origin at zero); ``point_up`` (3,) float64, optional: the
 model's up axis (``SplatCloud.up``; absent where it is unknown and in older files).
 
+Compact files (``save_hierarchy(..., compact=True)``, ``surfsplat build --compact``) have
+``format_version`` :data:`COMPACT_VERSION` and store the splats of the nodes and of the points
+quantized, 19 bytes a splat (:mod:`surfsplat.io.splat_codec`, the web viewer's format): for each prefix
+``node_`` and ``point_``, instead of ``positions``, ``normals``, ``u``, ``v`` and ``colors``,
+``q_position`` (K, 3) uint16, ``q_normal`` (K, 2) uint16, ``q_angle`` (K,) uint16, ``q_radii`` (K, 2)
+uint16, optional ``q_color`` (K, 3) uint8, and the codes' ranges ``q_box`` (2, 3) float64 (the positions'
+bounding box) and ``q_log_radius`` (2,) float64. ``node_covariance`` is left out (:func:`load_hierarchy`
+sums it again over the decoded points, :func:`node_covariances`) and ``order``, ``node_point_start``,
+``node_point_count``, ``node_child_start``, ``node_child_count`` are int32. Every other member is as in a
+full file. :func:`load_hierarchy`
+decodes them to the full arrays (float32): both layouts load the same way. The layout holds splats whose
+normal is their plane's (``u`` and ``v`` at right angles to it): Phong splats, whose shading normal tilts
+off the plane, are refused.
+
 Per-point attributes (LAS dimensions, extra PLY properties, ``nonplanar``), optional: for each
 attribute NAME, ``point_attribute:NAME`` (N,) in the points' order and ``node_attribute:NAME``
 (M,), both of the attribute's numeric dtype (the node values: majority vote of integer columns,
@@ -40,14 +54,30 @@ import numpy as np
 from ..cloud import SplatCloud, checked_up
 from ..errors import InputError, error_context
 from ..io.atomic import atomic_path, check_readable
+from ..io import splat_codec
 from ..io.npz import read_npz
 from .model import FORMAT_VERSION, NODE_ATTRIBUTE, POINT_ATTRIBUTE, Hierarchy
+from .nodes import COVARIANCE_ENTRIES
 
 #: Value of the ``format`` member. The layout's version, :data:`FORMAT_VERSION`, is
 #: defined with the arrays in :mod:`~surfsplat.hierarchy.model`.
 FORMAT = "surfsplat-hierarchy"
 
-__all__ = ["FORMAT", "FORMAT_VERSION", "save_hierarchy", "load_hierarchy", "hierarchy_up"]
+#: ``format_version`` of compact files (quantized splats; full files keep :data:`FORMAT_VERSION`, so
+#: readers of that version still read them).
+COMPACT_VERSION = FORMAT_VERSION + 1
+#: The splat arrays a compact file quantizes (for the nodes and the points), by their code streams.
+QUANTIZED = ("positions", "normals", "u", "v", "colors")
+#: Largest ``|n . axis| / |axis|`` of a splat the compact layout holds (a normal at right angles to u and v).
+PLANAR_TOLERANCE = 1e-3
+#: Index arrays a compact file stores as int32 (where the counts allow; int64 in memory).
+NARROWED = ("order", "node_point_start", "node_point_count", "node_child_start", "node_child_count")
+#: code stream -> (dtype, shape after the first axis, required)
+_Q_SPEC: dict[str, tuple[Any, tuple[int, ...], bool]] = {
+    "position": (np.uint16, (3,), True), "normal": (np.uint16, (2,), True), "angle": (np.uint16, (), True),
+    "radii": (np.uint16, (2,), True), "color": (np.uint8, (3,), False)}
+
+__all__ = ["COMPACT_VERSION", "FORMAT", "FORMAT_VERSION", "save_hierarchy", "load_hierarchy", "hierarchy_up"]
 
 #: name -> (dtype, shape after the first axis, first axis: "nodes", "points", "levels+1" or a number, required)
 _SPEC: dict[str, tuple[Any, tuple[int, ...], str | int, bool]] = {
@@ -63,7 +93,7 @@ _SPEC: dict[str, tuple[Any, tuple[int, ...], str | int, bool]] = {
     "node_radius": (np.float32, (), "nodes", True),
     "node_cone": (np.float32, (), "nodes", True),
     "node_extent": (np.float32, (), "nodes", True),
-    "node_covariance": (np.float64, (10,), "nodes", True),
+    "node_covariance": (np.float64, (10,), "nodes", False),   # absent from compact files (rebuilt on load)
     "node_point_start": (np.int64, (), "nodes", True),
     "node_point_count": (np.int64, (), "nodes", True),
     "node_child_start": (np.int64, (), "nodes", True),
@@ -80,8 +110,12 @@ _SPEC: dict[str, tuple[Any, tuple[int, ...], str | int, bool]] = {
 }
 
 
-def save_hierarchy(hierarchy: Hierarchy, path, *, overwrite: bool = True) -> Path:
+def save_hierarchy(hierarchy: Hierarchy, path, *, overwrite: bool = True, compact: bool = False) -> Path:
     """Write a hierarchy to one uncompressed ``.npz`` file (see the module docstring) and return its Path.
+
+    With ``compact``, the splats of the nodes and the points (positions, normals, axes, colours) are
+    stored quantized, 19 bytes a splat instead of 60 (:data:`COMPACT_VERSION`); :func:`load_hierarchy`
+    reads both layouts.
 
     The name is used as given (no extension is added; ``.npz`` is the
     convention). An existing file is replaced unless ``overwrite=False``.
@@ -91,7 +125,8 @@ def save_hierarchy(hierarchy: Hierarchy, path, *, overwrite: bool = True) -> Pat
 
     Raises:
         InputError: the file exists (with ``overwrite=False``), is a directory,
-            or cannot be written; the message names the file.
+            or cannot be written; ``compact`` with splats whose normal is not their plane's (Phong
+            splats); the message names the file.
     """
     path = Path(path)
     if not isinstance(hierarchy, Hierarchy):
@@ -106,6 +141,13 @@ def save_hierarchy(hierarchy: Hierarchy, path, *, overwrite: bool = True) -> Pat
     members["point_origin"] = np.asarray(hierarchy.points.origin, dtype=np.float64)
     if hierarchy.points.up is not None:
         members["point_up"] = np.asarray(hierarchy.points.up, dtype=np.float64)
+    if compact:
+        members["format_version"] = np.array(COMPACT_VERSION, dtype=np.int64)
+        for prefix in ("node_", "point_"):
+            members.update(_quantized(members, prefix, path))
+        del members["node_covariance"]   # rebuilt from the decoded points on load (Pajarola 2003, EQ 2, 4)
+        if len(hierarchy.points) < 2**31:
+            members.update({name: np.asarray(members[name]).astype(np.int32) for name in NARROWED})
     try:  # through a temporary file beside ``path``: a failed write leaves no partial file, an old one intact
         with atomic_path(path, overwrite=overwrite) as temp, open(temp, "wb") as handle:
             np.savez(handle, **members)
@@ -145,6 +187,101 @@ def hierarchy_up(path) -> tuple[float, float, float] | None:
     return checked_up(up) if up is not None and up.shape == (3,) and up.dtype.kind == "f" else None
 
 
+def _quantized(members: dict[str, Any], prefix: str, path: Path) -> dict[str, np.ndarray]:
+    """The code members of the splats ``prefix + QUANTIZED`` (popped from ``members``)."""
+    arrays = {name: members.pop(prefix + name, None) for name in QUANTIZED}
+    normals, u, v = (np.asarray(arrays[k], np.float64) for k in ("normals", "u", "v"))
+    for axis in (u, v):
+        length = np.linalg.norm(axis, axis=1)
+        off = np.abs(np.einsum("ij,ij->i", normals, axis)) > PLANAR_TOLERANCE * np.maximum(length, 1e-30)
+        if off.any():
+            raise InputError(f"{path}: a compact hierarchy stores splats whose normal is their plane's; "
+                             f"{int(off.sum()):,} {prefix[:-1]} splats have a shading normal off their plane "
+                             f"(Phong splats): save it without compact", row=int(np.argmax(off)))
+    colors = arrays["colors"]
+    streams, header = splat_codec.encode(arrays["positions"], normals, np.zeros((len(u), 3)) if colors is None
+                                         else colors, u, v)
+    # the codes keep an axis up to its sign (an ellipse is symmetric): where the decoded u or v points the
+    # other way, the splat's s or t runs the other way, so the normal field's alpha or beta (Botsch 2004,
+    # eq. 2) and the clip lines' a or b change sign with it
+    decoded = splat_codec.decode({**streams, "color": np.zeros((len(u), 3), np.uint8)}, header)
+    su = np.where(np.einsum("ij,ij->i", decoded["u"], u) < 0, -1.0, 1.0)
+    sv = np.where(np.einsum("ij,ij->i", decoded["v"], v) < 0, -1.0, 1.0)
+    out: dict[str, np.ndarray] = {}
+    if members.get(prefix + "normal_field") is not None:
+        field = np.array(members[prefix + "normal_field"], dtype=np.float32)
+        field *= np.stack([su, sv], axis=1).astype(np.float32)
+        out[prefix + "normal_field"] = field
+    if members.get(prefix + "clip_lines") is not None:
+        lines = np.array(members[prefix + "clip_lines"], dtype=np.float32)
+        lines[:, :, 0] *= su[:, None].astype(np.float32)
+        lines[:, :, 1] *= sv[:, None].astype(np.float32)
+        out[prefix + "clip_lines"] = lines
+    out.update({f"{prefix}q_{name}": value for name, value in streams.items() if name != "color" or colors is not None})
+    out[f"{prefix}q_box"] = np.array([header["lo"], header["hi"]], dtype=np.float64)
+    out[f"{prefix}q_log_radius"] = np.array(header["log_radius"], dtype=np.float64)
+    return out
+
+
+def _dequantized(members: dict[str, np.ndarray], source: str) -> dict[str, np.ndarray]:
+    """``members`` of a compact file with the splats of the nodes and points decoded (float32)."""
+    out = dict(members)
+    for prefix in ("node_", "point_"):
+        streams: dict[str, np.ndarray] = {}
+        rows = None
+        for name, (dtype, tail, required) in _Q_SPEC.items():
+            key = f"{prefix}q_{name}"
+            if key not in members:
+                if required:
+                    raise InputError(f"{source}: compact hierarchy without array '{key}'", element=key)
+                continue
+            value = members[key]
+            rows = len(value) if rows is None and value.ndim >= 1 else rows
+            if value.dtype != dtype or value.shape != (rows,) + tail:
+                raise InputError(f"{source}: array '{key}' has dtype {value.dtype} and shape {value.shape}, "
+                                 f"expected {np.dtype(dtype)} {(rows,) + tail}", element=key)
+            streams[name] = out.pop(key)
+        ranges = {}
+        for name, shape in (("box", (2, 3)), ("log_radius", (2,))):
+            key = f"{prefix}q_{name}"
+            span = out.pop(key) if key in out else None
+            if span is None or span.shape != shape or span.dtype.kind != "f" or not np.isfinite(span).all():
+                raise InputError(f"{source}: compact hierarchy with a missing or malformed '{key}'", element=key)
+            ranges[name] = span
+        decoded = splat_codec.decode({"color": np.zeros((rows or 0, 3), np.uint8), **streams},
+                                     {"lo": ranges["box"][0], "hi": ranges["box"][1],
+                                      "log_radius": tuple(ranges["log_radius"])})
+        for name in ("positions", "normals", "u", "v") + (("colors",) if "color" in streams else ()):
+            out[prefix + name] = decoded[name].astype(np.float32)
+    for name in NARROWED:
+        if name in out and out[name].dtype == np.int32:
+            out[name] = out[name].astype(np.int64)
+    return out
+
+
+def node_covariances(positions: np.ndarray, origin: np.ndarray, point_start: np.ndarray, child_start: np.ndarray,
+                     child_count: np.ndarray, level_offsets: np.ndarray) -> np.ndarray:
+    """(M, 10) float64 packed ``M_bar`` of each node (Pajarola 2003, EQ 2: ``sum p' p'^T``, ``p' = (p - origin,
+    1)``) over the reordered points ``positions`` (N, 3): leaves sum their point ranges (which tile the
+    points), inner nodes their children's sums (EQ 4), level by level. What the build stores, for the
+    points as loaded (a compact file's decoded ones)."""
+    m = len(child_count)
+    leaves = np.flatnonzero(child_count == 0)
+    leaves = leaves[np.argsort(point_start[leaves], kind="stable")]
+    h = np.concatenate([np.asarray(positions, np.float64) - np.asarray(origin, np.float64),
+                        np.ones((len(positions), 1))], axis=1)
+    sums = np.zeros((m, 10))
+    for k, (i, j) in enumerate(COVARIANCE_ENTRIES):
+        sums[leaves, k] = np.add.reduceat(h[:, i] * h[:, j], point_start[leaves])
+    for level in range(len(level_offsets) - 3, -1, -1):
+        lo, hi = level_offsets[level], level_offsets[level + 1]
+        inner = lo + np.flatnonzero(child_count[lo:hi] > 0)
+        if len(inner):
+            below = sums[level_offsets[level + 1]:level_offsets[level + 2]]
+            sums[inner] = np.add.reduceat(below, child_start[inner] - level_offsets[level + 1], axis=0)
+    return sums
+
+
 def _scalar(members: dict, name: str, source: str, kind) -> Any:
     if name not in members:
         raise InputError(f"{source}: not a surfsplat hierarchy file (no '{name}' entry)", element=name)
@@ -160,14 +297,19 @@ def _check_format(members: dict[str, np.ndarray], source: str) -> None:
         raise InputError(f"{source}: not a surfsplat hierarchy file (format {members['format'].item()!r})",
                          element="format")
     version = _scalar(members, "format_version", source, np.integer)
-    if version != FORMAT_VERSION:
+    if version not in (FORMAT_VERSION, COMPACT_VERSION):
         raise InputError(f"{source}: hierarchy format version {version} is not supported "
-                         f"(this surfsplat reads version {FORMAT_VERSION}); rebuild it", element="format_version")
+                         f"(this surfsplat reads versions {FORMAT_VERSION} and {COMPACT_VERSION}); rebuild it",
+                         element="format_version")
 
 
 def _from_members(members: dict[str, np.ndarray], source: str) -> Hierarchy:
     """Validate the archive members and build the Hierarchy."""
     _check_format(members, source)
+    if members["format_version"].item() == COMPACT_VERSION:
+        members = _dequantized(members, source)
+    elif "node_covariance" not in members:
+        raise InputError(f"{source}: missing array 'node_covariance'", element="node_covariance")
     leaf_capacity = _scalar(members, "leaf_capacity", source, np.integer)
     max_depth = _scalar(members, "max_depth", source, np.integer)
     sizes: dict[str, int | None] = {"nodes": None, "points": None, "levels+1": None}
@@ -195,6 +337,10 @@ def _from_members(members: dict[str, np.ndarray], source: str) -> Hierarchy:
                              row=int(np.argmin(finite)))
         arrays[name] = value
     _check_structure(arrays, source)
+    if arrays["node_covariance"] is None:   # a compact file: the sums of its points as decoded
+        arrays["node_covariance"] = node_covariances(arrays["point_positions"], arrays["origin"],
+                                                     arrays["node_point_start"], arrays["node_child_start"],
+                                                     arrays["node_child_count"], arrays["level_offsets"])
     point_attributes, node_attributes = _attributes(members, sizes, source)
     points = SplatCloud(**{name: arrays["point_" + name] for name in
                            ("positions", "normals", "colors", "u", "v", "normal_field", "clip_lines", "origin",

@@ -9,7 +9,7 @@
 """
 
 from .framing import CameraSpec, auto_camera, clipped_to, local_camera, resolve_camera
-from .lod import cut_tolerance, hybrid_default, hybrid_splats, lod_strategy
+from .lod import cut_tolerance, hybrid_applies, hybrid_default, hybrid_splats, lod_strategy
 from .models import Model, as_model, lod_splats
 from .options import LOD_AUTO, LOD_MODES, LodMode, LodOptions, SourceOptions
 from .plan import RenderResult, View, check_coverage, check_image_size, check_render_args
@@ -18,6 +18,6 @@ from .sources import (DEMO_PREFIX, as_splats, check_source, is_demo_source, is_h
 
 __all__ = ["CameraSpec", "DEMO_PREFIX", "LOD_AUTO", "LOD_MODES", "LodMode", "LodOptions", "Model", "RenderResult",
            "SourceOptions", "View", "as_model", "as_splats", "auto_camera", "check_coverage", "check_image_size",
-           "check_render_args", "check_source", "clipped_to", "cut_tolerance", "hybrid_default", "hybrid_splats",
-           "is_demo_source", "is_hierarchy_file", "is_lidar", "load_cloud", "local_camera", "lod_splats",
-           "lod_strategy", "natural_up", "read_source", "resolve_camera"]
+           "check_render_args", "check_source", "clipped_to", "cut_tolerance", "hybrid_applies", "hybrid_default",
+           "hybrid_splats", "is_demo_source", "is_hierarchy_file", "is_lidar", "load_cloud", "local_camera",
+           "lod_splats", "lod_strategy", "natural_up", "read_source", "resolve_camera"]

@@ -64,13 +64,19 @@ def cut_tolerance(lod: LodOptions, supersample: int = 1) -> float:
     return defaults.LOD_TOLERANCE if lod.tolerance is None else float(lod.tolerance)
 
 
+def hybrid_applies(drawn: Model) -> bool:
+    """Whether a view drawn hybrid (:func:`hybrid_default`) turns the non-planar splats of ``drawn`` into
+    points: a model in memory (a chunked hierarchy is read per view and drawn as splats)."""
+    return bool(drawn.in_memory)
+
+
 def hybrid_splats(drawn: Model, cloud: SplatCloud, selection: Selection | None, camera: Camera) -> SplatCloud:
     """The splats ``cloud`` cut from ``drawn`` with the non-planar ones (the ``nonplanar`` attribute of
     preprocessing) made round points facing the eye of ``camera`` (in the splats' frame) and the
     planar ones left surface splats (:func:`surfsplat.rendering.hybrid.facing_points`). A node splat of
     ``selection`` gets the majority flag of its points. Unchanged when the points carry no such
     attribute (splat files, given normals) or the model is read per view (chunked)."""
-    if not drawn.in_memory or len(cloud) == 0:
+    if not hybrid_applies(drawn) or len(cloud) == 0:
         return cloud
     flags = (drawn.points().attributes or {}).get(NONPLANAR)
     if flags is None:

@@ -12,9 +12,10 @@ from .. import defaults, progress
 from ..camera import Camera
 from ..cloud import SplatCloud
 from ..errors import InputError
+from ..geometry.preprocess import NONPLANAR
 from ..hierarchy import Hierarchy, Selection
 from ..lighting import Lights
-from ..pipeline import View
+from ..pipeline import View, hybrid_applies
 from ..pipeline.framing import auto_fit_inputs
 from ..pipeline.models import as_model
 from ..rendering.edl import neighbour_offsets
@@ -80,6 +81,19 @@ def as_drawn(cloud: SplatCloud) -> SplatCloud:
                       d["u"].astype("f4"), d["v"].astype("f4"), origin=cloud.origin, up=cloud.up)
 
 
+def hybrid_stream(plan: View, cloud: SplatCloud, order: np.ndarray) -> np.ndarray | None:
+    """The page's ``nonplanar`` stream: one bit a splat of ``cloud[order]`` (``np.packbits``, little bit
+    order), set where the desktop draws the splat as a round point facing the eye
+    (:func:`surfsplat.pipeline.hybrid_splats`); None where the view plan does not draw the model hybrid
+    (:attr:`View.hybrid <surfsplat.pipeline.View>`, :func:`~surfsplat.pipeline.hybrid_applies`) or its
+    splats carry no flag. A node splat's flag is the majority of its points' (``node_attributes``), as
+    :func:`~surfsplat.hierarchy.lod.selection_flags` gives it on the desktop."""
+    flags = (cloud.attributes or {}).get(NONPLANAR)
+    if not plan.hybrid or flags is None or not hybrid_applies(as_model(plan.model)):
+        return None
+    return np.packbits(np.asarray(flags, dtype=bool)[order], bitorder="little")
+
+
 def page_data(plan: View, cloud: SplatCloud, technique: str, background, name: str,
               ordered: bool = True) -> tuple[dict, dict]:
     """The header (everything but the streams) and the streams of a page drawing ``cloud`` (in
@@ -116,6 +130,10 @@ def page_data(plan: View, cloud: SplatCloud, technique: str, background, name: s
                        for t in WEB_TECHNIQUES},
         "edl": {"strength": EdlOptions().strength, "offsets": neighbour_offsets(EdlOptions().radius_px)},
     })
+    flags = hybrid_stream(plan, cloud, order)
+    header["hybrid"] = flags is not None
+    if flags is not None:
+        streams["nonplanar"] = flags
     colorings, attributes = attribute_streams(cloud, order, plan.sample().points(), plan.up)
     colorings["tables"] = {k: _b64(v) for k, v in colorings["tables"].items()}
     header["color"] = colorings

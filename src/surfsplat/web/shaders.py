@@ -13,6 +13,12 @@ as GL_POINTS: :data:`POINT_PROGRAMS`):
 - ``points``: ``points.vert``/``points.frag``, one opaque pass, ``normalize.frag``, then eye-dome
   lighting (``edl.frag``, the formula of :mod:`surfsplat.rendering.edl`).
 
+The ``ewa`` and ``flat`` programs are built with ``HYBRID_POINTS``: a per-splat ``in_nonplanar`` attribute
+(the page's ``nonplanar`` stream, exported where the view plan draws the model hybrid) turns a splat into
+a disk facing the eye in the vertex shader (``splat_vertex.glsl``, ``facing_axes``), what
+:func:`surfsplat.rendering.hybrid.facing_points` does to the desktop's splats on the CPU each frame.
+Unbound, the attribute reads 0: every splat a surface splat. ``points`` draws round points already.
+
 What does not port: the compute passes (``visibility.comp``, ``opaque_resolve.frag``: WebGL2 has no
 compute shaders, SSBOs or image atomics; the raster path draws the same pictures), and ``phong``,
 ``perspective`` and ``blend`` are not exported yet (their shaders would compose as well, but the web
@@ -44,11 +50,11 @@ class WebProgram:
 
 #: name -> (vertex file, fragment file, defines): every program the browser viewer draws with.
 PROGRAMS: dict[str, tuple[str, str, dict[str, object]]] = {
-    "ewa_visibility": ("ewa.vert", "ewa.frag", {"PASS": PASS_VISIBILITY}),
-    "ewa_accumulation": ("ewa.vert", "ewa.frag", {"PASS": PASS_ACCUMULATION}),
+    "ewa_visibility": ("ewa.vert", "ewa.frag", {"PASS": PASS_VISIBILITY, "HYBRID_POINTS": 1}),
+    "ewa_accumulation": ("ewa.vert", "ewa.frag", {"PASS": PASS_ACCUMULATION, "HYBRID_POINTS": 1}),
     "cracks": ("fullscreen.vert", "cracks.frag", {}),
     "normalize": ("fullscreen.vert", "normalize.frag", {}),
-    "flat": ("disk.vert", "flat.frag", {"PASS": PASS_OPAQUE}),
+    "flat": ("disk.vert", "flat.frag", {"PASS": PASS_OPAQUE, "HYBRID_POINTS": 1}),
     "points": ("points.vert", "points.frag", {"PASS": PASS_OPAQUE}),
     "edl": ("fullscreen.vert", "edl.frag", {"EDL_NEIGHBOURS": NEIGHBOURS}),
 }

@@ -14,6 +14,11 @@ SPLAT_IN vec3 in_v;           // scaled tangent axis, orthogonal to in_u
 SPLAT_IN vec3 in_clip0;       // clip lines (a, b, c) in normalized (s, t): kept where a s + b t + c >= 0;
 SPLAT_IN vec3 in_clip1;       // unbound (no clip lines) they read (0, 0, 0): nothing is clipped
 SPLAT_IN vec2 in_normal_field; // (alpha, beta) of the linear normal field (Botsch 2004, eq. 2); unbound: (0, 0)
+#ifdef HYBRID_POINTS
+// Hybrid LiDAR drawing in the browser viewer (rendering/hybrid.py): 1 where the splat is non-planar and
+// drawn as a round point facing the eye (splat_vertex.glsl, facing_axes); unbound: 0, a surface splat.
+SPLAT_IN float in_nonplanar;
+#endif
 #ifdef SEQUENTIAL_LOD
 // Sequential point trees (Dachsbacher, Vogelgsang & Stamminger 2003, sec. 3.2; hierarchy/sequential.py):
 // the hierarchy's nodes and points are one list, each entry drawn only at the eye distances of its

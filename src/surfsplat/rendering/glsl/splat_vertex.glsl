@@ -52,6 +52,23 @@ bool field_faces_eye(Splat s, vec3 field_u, vec3 field_v) {
     return dot(s.shading, e) + length(b) + max(0.0, -lambda_min) > 0.0;
 }
 
+#ifdef HYBRID_POINTS
+// rendering/hybrid.py facing_points per vertex (the browser viewer; the desktop turns its splats on the
+// CPU): the axes of a splat at camera-space p made an orthonormal pair across the direction to the eye,
+// scaled to r = max(|u|, |v|): a disk facing the eye, a round point (Schuetz 2016, sec. 3.4). The pair is
+// frames.tangent_frame64 of that direction (Duff et al. 2017, listing 3); at the eye itself, the view axis.
+void facing_axes(vec3 p, inout vec3 u, inout vec3 v) {
+    float r = max(length(u), length(v));
+    float d = length(p);
+    vec3 n = d > 0.0 ? -p / d : vec3(0.0, 0.0, 1.0);
+    float sgn = n.z >= 0.0 ? 1.0 : -1.0;
+    float a = -1.0 / (sgn + n.z);
+    float b = n.x * n.y * a;
+    u = r * vec3(1.0 + sgn * n.x * n.x * a, sgn * b, -sgn * n.x);
+    v = r * vec3(b, sgn + n.y * n.y * a, -n.y);
+}
+#endif
+
 // Fills s and the flat outputs; false when the splat lies outside [near, far]
 // or is seen exactly edge-on through the eye (it covers no area).
 bool camera_splat(out Splat s) {
@@ -62,6 +79,9 @@ bool camera_splat(out Splat s) {
     mat3 r = mat3(u_view);
     s.u = r * in_u;
     s.v = r * in_v;
+#ifdef HYBRID_POINTS
+    if (in_nonplanar > 0.5) facing_axes(s.p, s.u, s.v);
+#endif
     s.shading = normalize(r * in_normal);
     // The plane is spanned by the axes; the stored normal is the center shading normal,
     // which a Phong splat tilts away from the plane's (Botsch 2004, sec. 3).

@@ -24,7 +24,8 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
 
   // Attribute locations, bound before linking: one vertex array serves every splat program.
   var ATTRIBUTES = ['in_corner', 'in_position', 'in_normal', 'in_color', 'in_u', 'in_v',
-                    'in_clip0', 'in_clip1', 'in_normal_field'];
+                    'in_clip0', 'in_clip1', 'in_normal_field', 'in_nonplanar'];
+  var NONPLANAR = 9;             // in_nonplanar: hybrid LiDAR drawing (shaders.py, HYBRID_POINTS)
   var NO_DEPTH = 1e37;           // shaders.NO_DEPTH: the visibility target's clear value
   var SIDE_UNIT = 2;             // passes.SIDE_TEXTURE_UNIT
   var EDL_COLOR_UNIT = 4, EDL_DEPTH_UNIT = 5;
@@ -92,7 +93,13 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       u[k] = dx * ru; u[k + 1] = dy * ru; u[k + 2] = dz * ru;
       v[k] = (y * dz - z * dy) * rv; v[k + 1] = (z * dx - x * dz) * rv; v[k + 2] = (x * dy - y * dx) * rv;
     }
-    return {position: pos, normal: nrm, u: u, v: v, color: bytes(s.color)};
+    var out = {position: pos, normal: nrm, u: u, v: v, color: bytes(s.color)};
+    if (s.nonplanar) {   // page.hybrid_stream: one bit a splat, little bit order (np.packbits)
+      var bits = bytes(s.nonplanar), flags = new Uint8Array(n);
+      for (i = 0; i < n; ++i) flags[i] = (bits[i >> 3] >> (i & 7)) & 1;
+      out.nonplanar = flags;
+    }
+    return out;
   }
 
   // ---- small float64 vector helpers ---------------------------------------------------------------
@@ -287,6 +294,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     colorBuffers = [attribute(3, decoded.color, 3, gl.UNSIGNED_BYTE, true)];
     attribute(4, decoded.u, 3, gl.FLOAT, false);
     attribute(5, decoded.v, 3, gl.FLOAT, false);
+    if (decoded.nonplanar) attribute(NONPLANAR, decoded.nonplanar, 1, gl.UNSIGNED_BYTE, false);
     if (H.lod) {   // the drawn entries: an index list chosen per view (selectCut)
       elements = gl.createBuffer();
       gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, elements);
@@ -305,6 +313,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     colorBuffers.push(attribute(3, repeated(decoded.color, 3, quadCount, Uint8Array), 3, gl.UNSIGNED_BYTE, true));
     attribute(4, repeated(decoded.u, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
     attribute(5, repeated(decoded.v, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
+    if (decoded.nonplanar) attribute(NONPLANAR, repeated(decoded.nonplanar, 1, quadCount, Uint8Array), 1, gl.UNSIGNED_BYTE, false);
     gl.bindVertexArray(null);
     gl.vertexAttrib2f(0, 0, 0);   // a point has no corner
     for (i = 6; i < ATTRIBUTES.length; ++i) gl.vertexAttrib4f(i, 0, 0, 0, 0);   // no clip lines, no normal field

@@ -1,0 +1,150 @@
+"""Splats quantized to 19 bytes each, and their exact decoding, in NumPy: the web viewer's format
+(:mod:`surfsplat.web.format`) and the compact layout of hierarchy files
+(:func:`surfsplat.hierarchy.save_hierarchy` with ``compact=True``).
+
+One splat (``SplatCloud`` row: position, normal, colour, the tangent axes ``u``, ``v``) is stored as
+
+========================  =====  =====================================================================
+stream                    bytes  encoding
+========================  =====  =====================================================================
+``position``              6      3 x uint16: the centre in the model's bounding box, ``2^16 - 1`` steps
+``normal``                4      2 x uint16: octahedral map of the unit normal, 65534 steps (Meyer et al. 2010;
+                                 Cigolle et al. 2014, "A Survey of Efficient Representations for
+                                 Independent Unit Vectors", sec. 3.1)
+``angle``                 2      uint16: the angle of ``u`` in the tangent basis of the *decoded*
+                                 normal (:func:`tangent_basis`), in [0, pi): an ellipse is symmetric
+``radii``                 4      2 x uint16: ``log2 |u|`` and ``log2 |v|`` over the model's range
+``color``                 3      3 x uint8: RGB in [0, 1], rounded as the renderer rounds its output
+========================  =====  =====================================================================
+
+``v`` is rebuilt orthogonal to ``u`` in the plane of the normal, so the format holds the splats of
+``ewa``, ``flat`` and ``points`` (an ellipse in the plane normal to the shading normal); it carries no
+linear normal fields (``phong``) and no clip lines. Every function here is the twin of the web viewer's
+JavaScript decoder (``surfsplat/web/static/viewer.js``, ``decode``), which performs the same arithmetic in
+float32/64.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Bytes per splat of the web format.
+BYTES_PER_SPLAT = 19
+#: Largest value of the 16-bit codes.
+U16 = 65535.0
+#: Largest octahedral code: an even number of steps over [-1, 1] codes 0 (the axes, the diagonals) exactly.
+OCT_LEVELS = 65534.0
+
+
+def quantize_unit(values: np.ndarray, lo, hi, levels: float = U16) -> np.ndarray:
+    """``values`` in [lo, hi] (broadcast) as integers 0..levels (uint16), rounded to nearest; a zero-width
+    range codes 0."""
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    width = np.where(hi > lo, hi - lo, 1.0)
+    t = np.clip((np.asarray(values, np.float64) - lo) / width, 0.0, 1.0)
+    return np.rint(t * levels).astype(np.uint16)
+
+
+def dequantize_unit(codes: np.ndarray, lo, hi, levels: float = U16) -> np.ndarray:
+    """The values of :func:`quantize_unit`'s codes: ``lo + code / levels * (hi - lo)``, float64."""
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    return lo + codes.astype(np.float64) / levels * (hi - lo)
+
+
+def octahedral_encode(normals: np.ndarray) -> np.ndarray:
+    """(N, 3) unit vectors -> (N, 2) uint16 codes of their octahedral map (Cigolle 2014, listing 1):
+    ``p = n / |n|_1``, the lower hemisphere folded over the diagonals; error below 1e-4 rad."""
+    n = np.asarray(normals, np.float64)
+    n = n / np.maximum(np.abs(n).sum(axis=1, keepdims=True), 1e-30)
+    x, y, z = n[:, 0], n[:, 1], n[:, 2]
+    sx, sy = np.where(x >= 0, 1.0, -1.0), np.where(y >= 0, 1.0, -1.0)
+    fx = np.where(z < 0, (1.0 - np.abs(y)) * sx, x)
+    fy = np.where(z < 0, (1.0 - np.abs(x)) * sy, y)
+    return quantize_unit(np.stack([fx, fy], axis=1), -1.0, 1.0, OCT_LEVELS)
+
+
+def octahedral_decode(codes: np.ndarray) -> np.ndarray:
+    """(N, 2) codes of :func:`octahedral_encode` -> (N, 3) float64 unit vectors."""
+    f = dequantize_unit(codes, -1.0, 1.0, OCT_LEVELS)
+    x, y = f[:, 0], f[:, 1]
+    z = 1.0 - np.abs(x) - np.abs(y)
+    t = np.maximum(-z, 0.0)
+    x = x - np.where(x >= 0, t, -t)
+    y = y - np.where(y >= 0, t, -t)
+    n = np.stack([x, y, z], axis=1)
+    return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+def tangent_basis(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors (N, 3) completing each unit normal to a right-handed orthonormal basis, without
+    branches on the direction but the sign of z (Duff et al. 2017, "Building an Orthonormal Basis,
+    Revisited", listing 3)."""
+    n = np.asarray(normals, np.float64)
+    x, y, z = n[:, 0], n[:, 1], n[:, 2]
+    sign = np.where(z >= 0, 1.0, -1.0)
+    a = -1.0 / (sign + z)
+    b = x * y * a
+    b1 = np.stack([1.0 + sign * x * x * a, sign * b, -sign * x], axis=1)
+    b2 = np.stack([b, sign + y * y * a, -y], axis=1)
+    return b1, b2
+
+
+def encode_tangents(normals: np.ndarray, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """The angle codes (N,) uint16 of ``u`` in :func:`tangent_basis` of ``normals`` (the decoded ones),
+    the log-radius codes (N, 2) uint16 of ``|u|``, ``|v|``, and their range ``(lo, hi)`` (log2 model units)."""
+    b1, b2 = tangent_basis(normals)
+    u = np.asarray(u, np.float64)
+    angle = np.mod(np.arctan2(np.einsum("ij,ij->i", u, b2), np.einsum("ij,ij->i", u, b1)), np.pi)
+    radii = np.stack([np.linalg.norm(u, axis=1), np.linalg.norm(np.asarray(v, np.float64), axis=1)], axis=1)
+    logs = np.log2(np.maximum(radii, np.finfo(np.float32).tiny))
+    lo, hi = float(logs.min()), float(logs.max())
+    codes = (np.rint(angle * (65536.0 / np.pi)).astype(np.int64) % 65536).astype(np.uint16)   # pi wraps to 0
+    return codes, quantize_unit(logs, lo, hi), (lo, hi)
+
+
+def decode_tangents(normals: np.ndarray, angle: np.ndarray, radii: np.ndarray, log_range) -> tuple[np.ndarray,
+                                                                                                  np.ndarray]:
+    """``u``, ``v`` (N, 3) float64 from :func:`encode_tangents`' codes and the decoded ``normals``:
+    ``u = |u| (cos a b1 + sin a b2)``, ``v = |v| (n x u / |u|)``."""
+    b1, b2 = tangent_basis(normals)
+    a = angle.astype(np.float64) * (np.pi / 65536.0)
+    direction = np.cos(a)[:, None] * b1 + np.sin(a)[:, None] * b2
+    r = np.exp2(dequantize_unit(radii, *log_range))
+    n, d = np.asarray(normals, np.float64), direction
+    # n x d by components (np.cross moves axes: slower on millions of rows), as viewer.js writes it
+    across = np.stack([n[:, 1] * d[:, 2] - n[:, 2] * d[:, 1], n[:, 2] * d[:, 0] - n[:, 0] * d[:, 2],
+                       n[:, 0] * d[:, 1] - n[:, 1] * d[:, 0]], axis=1)
+    return direction * r[:, :1], across * r[:, 1:]
+
+
+def encode_colors(colors: np.ndarray) -> np.ndarray:
+    """(N, 3) RGB in [0, 1] -> uint8, rounded (as ``Frame.image`` rounds the output)."""
+    return np.rint(np.clip(np.asarray(colors, np.float64), 0.0, 1.0) * 255.0).astype(np.uint8)
+
+
+def encode(positions: np.ndarray, normals: np.ndarray, colors: np.ndarray, u: np.ndarray,
+           v: np.ndarray) -> tuple[dict[str, np.ndarray], dict]:
+    """Quantize splats (float arrays, model units) into the web format's streams and header.
+
+    Returns:
+        ``streams``: name -> array (``position`` (N, 3) uint16, ``normal`` (N, 2) uint16, ``angle`` (N,)
+        uint16, ``radii`` (N, 2) uint16, ``color`` (N, 3) uint8); ``header``: ``count``, ``lo``, ``hi`` (the
+        positions' box) and ``log_radius`` (the radii's log2 range).
+    """
+    p = np.asarray(positions, np.float64)
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    normal = octahedral_encode(normals)
+    angle, radii, log_range = encode_tangents(octahedral_decode(normal), u, v)
+    streams = {"position": quantize_unit(p, lo, hi), "normal": normal, "angle": angle, "radii": radii,
+               "color": encode_colors(colors)}
+    header = {"count": int(len(p)), "lo": lo.tolist(), "hi": hi.tolist(), "log_radius": list(log_range)}
+    return streams, header
+
+
+def decode(streams: dict[str, np.ndarray], header: dict) -> dict[str, np.ndarray]:
+    """The splats of :func:`encode`'s streams: ``positions``, ``normals``, ``u``, ``v`` (N, 3) float64 and
+    ``colors`` (N, 3) float64 in [0, 1]."""
+    normals = octahedral_decode(streams["normal"])
+    u, v = decode_tangents(normals, streams["angle"], streams["radii"], header["log_radius"])
+    return {"positions": dequantize_unit(streams["position"], header["lo"], header["hi"]), "normals": normals,
+            "u": u, "v": v, "colors": streams["color"].astype(np.float64) / 255.0}
