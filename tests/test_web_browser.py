@@ -493,8 +493,10 @@ def test_a_lidar_page_draws_its_non_planar_splats_as_round_points_as_the_desktop
     view = View(source)
     assert view.hybrid
     camera = view.camera(None, W, H)
-    reference = view.render(camera, technique=technique).frame.image()
-    flat_page = View(source, source_options=SourceOptions(hybrid=False)).render(camera, technique=technique)
+    page_options = RenderOptions(visibility=PAGE_VISIBILITY)
+    reference = view.render(camera, technique=technique, options=page_options).frame.image()
+    flat_page = View(source, source_options=SourceOptions(hybrid=False)).render(camera, technique=technique,
+                                                                                options=page_options)
     page = opened(browser, file_url(out / "index.html", "?ui=0"))
     try:
         canvas = page.canvas()
@@ -515,8 +517,10 @@ def test_a_browser_lod_lidar_page_draws_the_non_planar_splats_of_its_cut_as_roun
     lod = LodOptions(tolerance=1.0, point_budget=1_000_000, shading="flat")   # the page's first cut
     hybrid = View(source, lod=lod)
     camera = hybrid.camera(None, W, H)
-    reference = hybrid.render(camera, technique="ewa")
-    splats = View(source, lod=lod, source_options=SourceOptions(hybrid=False)).render(camera, technique="ewa")
+    page_options = RenderOptions(visibility=PAGE_VISIBILITY)
+    reference = hybrid.render(camera, technique="ewa", options=page_options)
+    splats = View(source, lod=lod, source_options=SourceOptions(hybrid=False)).render(camera, technique="ewa",
+                                                                                      options=page_options)
     page = opened(browser, file_url(out / "index.html", "?ui=0"))
     try:
         drawn, canvas = page.evaluate("surfsplat.drawn"), page.canvas()
