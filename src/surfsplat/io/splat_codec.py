@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..frames import tangent_frame64
+
 #: Bytes per splat of the web format.
 BYTES_PER_SPLAT = 19
 #: Largest value of the 16-bit codes.
@@ -76,17 +78,10 @@ def octahedral_decode(codes: np.ndarray) -> np.ndarray:
 
 
 def tangent_basis(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two unit vectors (N, 3) completing each unit normal to a right-handed orthonormal basis, without
-    branches on the direction but the sign of z (Duff et al. 2017, "Building an Orthonormal Basis,
-    Revisited", listing 3)."""
-    n = np.asarray(normals, np.float64)
-    x, y, z = n[:, 0], n[:, 1], n[:, 2]
-    sign = np.where(z >= 0, 1.0, -1.0)
-    a = -1.0 / (sign + z)
-    b = x * y * a
-    b1 = np.stack([1.0 + sign * x * x * a, sign * b, -sign * x], axis=1)
-    b2 = np.stack([b, sign + y * y * a, -y], axis=1)
-    return b1, b2
+    """Two unit vectors (N, 3) completing each unit normal to a right-handed orthonormal basis: the
+    frame of :func:`surfsplat.frames.tangent_frame64` (Duff et al. 2017), which the page's decoder
+    repeats in JavaScript."""
+    return tangent_frame64(normals)
 
 
 def encode_tangents(normals: np.ndarray, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple]:
