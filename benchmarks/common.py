@@ -49,6 +49,14 @@ def markdown_table(columns: list[str], rows: list[list]) -> list[str]:
     return lines + ["| " + " | ".join(fmt(v) for v in row) + " |" for row in rows]
 
 
+def save_results(name: str, text: str, data) -> None:
+    """Print ``text`` and save it as ``results/{name}.md`` beside ``data`` as ``results/{name}.json``."""
+    print(text)
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / f"{name}.md").write_text(text)
+    (RESULTS / f"{name}.json").write_text(json.dumps(data, indent=1))
+
+
 def write_table(name: str, columns: list[str], rows: list[list], machine: str) -> str:
     """Print a Markdown table and save it (and a JSON copy) under benchmarks/results/.
 

@@ -13,7 +13,6 @@ Writes benchmarks/results/hiz_culling.md and .json.
 from __future__ import annotations
 
 import argparse
-import json
 import shlex
 import sys
 import time
@@ -24,7 +23,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from common import machine_description  # noqa: E402
+from common import machine_description, save_results  # noqa: E402
 
 SCENES = {   # the peers' bench.py cameras and lights
     "bunny": dict(eye=(0.08, 0.16, 0.30), target=(-0.017, 0.11, 0.0), up=(0, 1, 0), fov=36, light=(0.5, 1.0, 0.8)),
@@ -103,10 +102,7 @@ def main() -> None:
                      f"{r['on_wall_ms'] / r['off_wall_ms']:.2f} | {r['off_cpu_ms']:,.0f} | {r['on_cpu_ms']:,.0f} | "
                      f"{r['on_cpu_ms'] / r['off_cpu_ms']:.2f} | {r['largest_color_difference']:g} |")
     text = "\n".join(lines) + "\n"
-    (HERE / "results").mkdir(exist_ok=True)
-    (HERE / "results" / "hiz_culling.md").write_text(text)
-    (HERE / "results" / "hiz_culling.json").write_text(json.dumps(rows, indent=1))
-    print(text)
+    save_results("hiz_culling", text, rows)
 
 
 if __name__ == "__main__":

@@ -177,10 +177,7 @@ def main() -> None:
         lines.append(f"| {r['scene']} | {r['renderer']} | {r['frame_ms_median']:,.0f} | {r['x_vtk_points']:.2f} | "
                      f"{', '.join(f'{t:,.0f}' for t in r['frames_ms'])} |")
     text = "\n".join(lines) + "\n"
-    (HERE / "results").mkdir(exist_ok=True)
-    (HERE / "results" / "peers_interleaved.md").write_text(text)
-    (HERE / "results" / "peers_interleaved.json").write_text(json.dumps(rows, indent=1))
-    print(text)
+    ours.save_results("peers_interleaved", text, rows)
 
 
 if __name__ == "__main__":

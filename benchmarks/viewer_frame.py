@@ -10,7 +10,6 @@ Writes benchmarks/results/viewer_frame.md and .json (the first frame of each kin
 from __future__ import annotations
 
 import argparse
-import json
 import shlex
 import sys
 import time
@@ -21,7 +20,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from common import machine_description  # noqa: E402
+from common import machine_description, save_results  # noqa: E402
 
 
 def main() -> None:
@@ -70,10 +69,7 @@ def main() -> None:
         f"| {Path(args.model).name} | {args.size[0]}x{args.size[1]} | {row['off_ms']:,.0f} | {row['on_ms']:,.0f} | "
         f"{row['on_ms'] / row['off_ms']:.2f} | {'yes' if row['same_picture'] else 'no'} | "
         f"{', '.join(map(str, row['off_frames_ms']))} | {', '.join(map(str, row['on_frames_ms']))} |"]) + "\n"
-    (HERE / "results").mkdir(exist_ok=True)
-    (HERE / "results" / "viewer_frame.md").write_text(text)
-    (HERE / "results" / "viewer_frame.json").write_text(json.dumps(row, indent=1))
-    print(text)
+    save_results("viewer_frame", text, row)
 
 
 if __name__ == "__main__":
