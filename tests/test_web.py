@@ -18,7 +18,7 @@ from surfsplat.rendering.shaders import compose, read_source
 from surfsplat.scenes import torus
 from surfsplat.web import export
 from surfsplat.web import format as wf
-from surfsplat.web.export import FILES
+from surfsplat.web.export import FILES, page_payload
 from surfsplat.web.framing import camera_from_frame, fit_frame
 from surfsplat.web.shaders import PROGRAMS, shader_bundle
 
@@ -259,6 +259,12 @@ def test_a_mesh_is_sampled_for_the_page_size_as_render_samples_for_its_size(tmp_
     view = View(mesh)
     assert small.splats == len(view.sample(view.camera(None, 100, 75)).points())
     assert 3.0 < large.splats / small.splats < 5.0   # twice the size: four times the samples
+    # back faces culled as the view plan culls them: the closed mesh's samples with ewa only
+    header, _ = page_payload(mesh, size=(100, 75))
+    camera = view.camera(None, 100, 75)
+    assert header["culls"] == {t: view.culls(camera, technique=t) for t in ("ewa", "flat", "points")}
+    assert header["culls"] == {"ewa": True, "flat": False, "points": False}
+    assert not any(page_payload(torus(40, 16), size=(100, 75))[0]["culls"].values())   # a cloud: two-sided
     with pytest.raises(InputError, match="page size"):
         surfsplat.export(mesh, tmp_path / "bad", size=(0, 10))
     with pytest.raises(InputError, match="memory budget"):

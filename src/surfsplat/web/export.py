@@ -171,7 +171,7 @@ def _payload(source, technique, background, source_options, lod, camera, point_b
                 return stream_data(plan, view_camera, technique, background, plan.name, point_budget, memory_budget)
             return (*tree_data(plan, view_camera, technique, background, plan.name, point_budget), {})
         cloud = exported_splats(plan, view_camera, point_budget)
-        return (*page_data(plan, cloud, technique, background, plan.name), {})
+        return (*page_data(plan, view_camera, cloud, technique, background, plan.name), {})
 
 
 def export(source, output, *, technique: str = "ewa", background=defaults.BACKGROUND,

@@ -94,10 +94,13 @@ def hybrid_stream(plan: View, cloud: SplatCloud, order: np.ndarray) -> np.ndarra
     return np.packbits(np.asarray(flags, dtype=bool)[order], bitorder="little")
 
 
-def page_data(plan: View, cloud: SplatCloud, technique: str, background, name: str,
+def page_data(plan: View, camera: Camera, cloud: SplatCloud, technique: str, background, name: str,
               ordered: bool = True) -> tuple[dict, dict]:
     """The header (everything but the streams) and the streams of a page drawing ``cloud`` (in
-    :func:`web_order` where ``ordered``, else as it is: the entries of a browser LOD tree)."""
+    :func:`web_order` where ``ordered``, else as it is: the entries of a browser LOD tree) from ``camera``
+    (the exported view): each technique's back-face culling is the view plan's for it
+    (:meth:`View.culls <surfsplat.pipeline.View.culls>`), which holds while the eye stays outside the
+    model's bounds (the page draws two-sided where it enters them)."""
     if len(cloud) == 0:
         raise InputError(f"{name}: no splats to export")
     if cloud.u is None or cloud.v is None or cloud.normals is None:
@@ -124,7 +127,8 @@ def page_data(plan: View, cloud: SplatCloud, technique: str, background, name: s
         "frame": {"u_depth_epsilon": options.visibility.depth_epsilon,
                   "u_separate_sides": options.visibility.separate_sides,
                   "u_clip_fringe": options.visibility.clip_fringe, "u_deferred": options.deferred,
-                  "u_cull_backfaces": False, "u_supersample": 1.0},
+                  "u_supersample": 1.0},
+        "culls": {t: plan.culls(camera, options, technique=t) for t in WEB_TECHNIQUES},
         "material": [lights.ambient, lights.diffuse, lights.specular, lights.shininess],
         "footprints": {t: {"footprint": get_technique(t).point_footprint, "min_point_px": get_technique(t).min_point_px}
                        for t in WEB_TECHNIQUES},

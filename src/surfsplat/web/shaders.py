@@ -4,11 +4,14 @@ WebGL2 runs the desktop renderer's raster passes (``docs/guides/web.md``): the s
 the same :func:`surfsplat.rendering.shaders.compose` with :data:`~surfsplat.rendering.shaders.GLSL_ES_VERSION`
 (``#version 300 es`` and the default precisions), the same pass ids and shared constants. Each program
 is a (vertex, fragment) pair and its defines, as :mod:`surfsplat.rendering.passes` builds them for a
-frame drawn without compute shaders, in one tile, without edge coverage (large splats as quads, the others
-as GL_POINTS: :data:`POINT_PROGRAMS`):
+frame drawn without compute shaders, in one tile (large splats as quads, the others as GL_POINTS:
+:data:`POINT_PROGRAMS`):
 
 - ``ewa``: ``ewa.vert``/``ewa.frag`` with ``PASS`` = visibility and accumulation, then ``cracks.frag``
-  and ``normalize.frag`` (Guennebaud 2003: visibility splatting, accumulation, normalization);
+  and ``normalize.frag`` (Guennebaud 2003: visibility splatting, accumulation, normalization), the
+  accumulation and normalization with ``EDGE_COVERAGE`` (``normalize_edges``): the desktop's default
+  edge coverage (``VisibilityOptions.edge_coverage``), the accumulation writing the splats' pixel
+  coverage into a third float target by additive blending;
 - ``flat``: ``disk.vert``/``flat.frag``, one opaque pass, then ``normalize.frag``;
 - ``points``: ``points.vert``/``points.frag``, one opaque pass, ``normalize.frag``, then eye-dome
   lighting (``edl.frag``, the formula of :mod:`surfsplat.rendering.edl`).
@@ -19,10 +22,11 @@ a disk facing the eye in the vertex shader (``splat_vertex.glsl``, ``facing_axes
 :func:`surfsplat.rendering.hybrid.facing_points` does to the desktop's splats on the CPU each frame.
 Unbound, the attribute reads 0: every splat a surface splat. ``points`` draws round points already.
 
-What does not port: the compute passes (``visibility.comp``, ``opaque_resolve.frag``: WebGL2 has no
-compute shaders, SSBOs or image atomics; the raster path draws the same pictures), and ``phong``,
-``perspective`` and ``blend`` are not exported yet (their shaders would compose as well, but the web
-format carries no normal fields or clip lines).
+What does not port: the hole-filling pass (``fill.frag``, ``RenderOptions.fill_holes``), the compute
+passes (``visibility.comp``, ``opaque_resolve.frag``: WebGL2 has no compute shaders, SSBOs or image
+atomics; the raster path draws the same pictures), and ``phong``, ``perspective`` and ``blend`` are not
+exported yet (their shaders would compose as well, but the web format carries no normal fields or clip
+lines).
 """
 
 from __future__ import annotations
@@ -30,6 +34,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..rendering.edl import NEIGHBOURS
+from ..rendering.options import TechniqueName
+from ..rendering.passes import EDGE_COVERAGE_DEFINE
 from ..rendering.shaders import GLSL_ES_VERSION, PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBILITY, PROLOGUE, compose
 from ..rendering.uniform_blocks import FRAME_BLOCKS, block_layout
 from ..rendering.shaders import read_source
@@ -51,9 +57,11 @@ class WebProgram:
 #: name -> (vertex file, fragment file, defines): every program the browser viewer draws with.
 PROGRAMS: dict[str, tuple[str, str, dict[str, object]]] = {
     "ewa_visibility": ("ewa.vert", "ewa.frag", {"PASS": PASS_VISIBILITY, "HYBRID_POINTS": 1}),
-    "ewa_accumulation": ("ewa.vert", "ewa.frag", {"PASS": PASS_ACCUMULATION, "HYBRID_POINTS": 1}),
+    "ewa_accumulation": ("ewa.vert", "ewa.frag", {"PASS": PASS_ACCUMULATION, "HYBRID_POINTS": 1,
+                                                  EDGE_COVERAGE_DEFINE: 1}),
     "cracks": ("fullscreen.vert", "cracks.frag", {}),
     "normalize": ("fullscreen.vert", "normalize.frag", {}),
+    "normalize_edges": ("fullscreen.vert", "normalize.frag", {EDGE_COVERAGE_DEFINE: 1}),
     "flat": ("disk.vert", "flat.frag", {"PASS": PASS_OPAQUE, "HYBRID_POINTS": 1}),
     "points": ("points.vert", "points.frag", {"PASS": PASS_OPAQUE}),
     "edl": ("fullscreen.vert", "edl.frag", {"EDL_NEIGHBOURS": NEIGHBOURS}),
@@ -67,7 +75,7 @@ for _name in POINT_PROGRAMS:
     PROGRAMS[f"{_name}_points"] = (_vertex, _fragment, {**_defines, "POINT_PRIMITIVE": 1})
 
 #: The techniques the browser viewer draws.
-WEB_TECHNIQUES = ("ewa", "flat", "points")
+WEB_TECHNIQUES: tuple[TechniqueName, ...] = ("ewa", "flat", "points")
 
 
 def web_program(name: str) -> WebProgram:

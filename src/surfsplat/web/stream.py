@@ -76,7 +76,7 @@ def stream_data(plan: View, camera: Camera, technique: str, background, name: st
     if memory_budget is not None and not (isinstance(memory_budget, (int, np.integer)) and memory_budget >= 1):
         raise InputError(f"memory budget must be a whole number of bytes >= 1, got {memory_budget!r}")
     top = ch.top
-    header, streams = page_data(plan, tree_entries(top), technique, background, name, ordered=False)
+    header, streams = page_data(plan, camera, tree_entries(top), technique, background, name, ordered=False)
     # the colourings of ChunkedHierarchy.colorized: ranges from the manifest (a sample of every point) where
     # it has them, else from the preview
     ranges = {a["name"]: a.get("range") for a in ch.manifest.get("attributes", [])}

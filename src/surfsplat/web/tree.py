@@ -52,7 +52,7 @@ def tree_data(plan: View, camera: Camera, technique: str, background, name: str,
     h = model.data
     if not isinstance(h, Hierarchy):
         raise InputError(f"{name}: no hierarchy to cut in the browser")
-    header, streams = page_data(plan, tree_entries(h), technique, background, name, ordered=False)
+    header, streams = page_data(plan, camera, tree_entries(h), technique, background, name, ordered=False)
     nodes = len(h)
     header["lod"] = {"nodes": nodes, "points": int(len(h.points)), "levels": int(h.levels),
                      "level_offsets": [int(x) for x in h.level_offsets], "budget": int(budget or DEFAULT_WEB_BUDGET),

@@ -28,6 +28,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   var NONPLANAR = 9;             // in_nonplanar: hybrid LiDAR drawing (shaders.py, HYBRID_POINTS)
   var NO_DEPTH = 1e37;           // shaders.NO_DEPTH: the visibility target's clear value
   var SIDE_UNIT = 2;             // passes.SIDE_TEXTURE_UNIT
+  var COVER_UNIT = 3;            // passes.COVER_TEXTURE_UNIT: the splats' pixel coverage (edge coverage)
   var EDL_COLOR_UNIT = 4, EDL_DEPTH_UNIT = 5;
 
   var state = {
@@ -663,12 +664,14 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     if (targets) targets.all.forEach(function (x) { gl.isTexture(x) ? gl.deleteTexture(x) : gl.deleteFramebuffer(x); });
     var t = {w: w, h: h, side: texture('rg', w, h), cracks: texture('rg', w, h), accum: texture('rgba', w, h),
              aux: texture('rgba', w, h), depth: texture('depth', w, h), out: texture('rgba', w, h),
-             depthSum: texture('rg', w, h)};
+             depthSum: texture('rg', w, h), cover: texture('rgba', w, h)};
     t.fboVisibility = framebuffer([t.side]);
     t.fboCracks = framebuffer([t.cracks]);
     t.fboAccum = framebuffer([t.accum, t.aux], t.depth);
+    t.fboAccumCover = framebuffer([t.accum, t.aux, t.cover], t.depth);   // ewa: with edge coverage
     t.fboOut = framebuffer([t.out, t.depthSum]);
-    t.all = [t.fboVisibility, t.fboCracks, t.fboAccum, t.fboOut, t.side, t.cracks, t.accum, t.aux, t.depth, t.out, t.depthSum];
+    t.all = [t.fboVisibility, t.fboCracks, t.fboAccum, t.fboAccumCover, t.fboOut, t.side, t.cracks, t.accum, t.aux,
+             t.depth, t.out, t.depthSum, t.cover];
     gl.bindFramebuffer(gl.FRAMEBUFFER, null);
     targets = t;
     return t;
@@ -676,7 +679,14 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   function bindTexture(unit, t) { gl.activeTexture(gl.TEXTURE0 + unit); gl.bindTexture(gl.TEXTURE_2D, t); }
 
   // ---- a frame: the passes of surfsplat.rendering.passes ------------------------------------------
-  function frameValues(cam, w, h) {
+  // Whether the eye lies outside the model's bounds: the view plan's back-face culling (H.culls, View.culls
+  // for the exported view) holds only there (geometry/closed.eye_outside); inside, the page draws two-sided.
+  function eyeOutside(eye) {
+    var lo = H.bounds[0], hi = H.bounds[1];
+    for (var i = 0; i < 3; i++) if (eye[i] < lo[i] || eye[i] > hi[i]) return true;
+    return false;
+  }
+  function frameValues(cam, w, h, technique) {
     var o = H.origin, eye = sub(cam.eye, o), target = sub(cam.target, o);
     var r = viewRows(eye, target, cam.up), nf = nearFar(cam.eye, cam.target, cam.up);
     var view = [r[0][0], r[1][0], r[2][0], 0, r[0][1], r[1][1], r[2][1], 0, r[0][2], r[1][2], r[2][2], 0,
@@ -689,7 +699,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       u_focal: 0.5 * h / Math.tan(cam.fov * Math.PI / 360),
       u_light_dirs: [light, [0, 0, 0], [0, 0, 0], [0, 0, 0]], u_material: H.material, u_num_lights: 1,
       u_lighting: true, u_depth_epsilon: fr.u_depth_epsilon, u_supersample: fr.u_supersample,
-      u_cull_backfaces: fr.u_cull_backfaces, u_separate_sides: fr.u_separate_sides,
+      u_cull_backfaces: !!(H.culls && H.culls[technique]) && eyeOutside(cam.eye), u_separate_sides: fr.u_separate_sides,
       u_clip_fringe: fr.u_clip_fringe, u_deferred: fr.u_deferred
     };
   }
@@ -742,7 +752,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     var w = canvas.width, h = canvas.height, t = ensureTargets(w, h);
     var start = performance.now();
     state.passMs = {}; state.passStart = start;
-    var frame = frameValues(state.camera, w, h);
+    var frame = frameValues(state.camera, w, h, technique);
     writeBlocks(frame);
     var own = Object.assign({u_side: SIDE_UNIT}, H.uniforms[technique] || {});
     gl.viewport(0, 0, w, h);
@@ -752,7 +762,11 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     gl.clearBufferfv(gl.COLOR, 0, [0, 0, 0, 0]);
     gl.clearBufferfv(gl.COLOR, 1, [0, 0, 0, 0]);
     gl.clearBufferfv(gl.DEPTH, 0, [1]);
-    var blended = technique === 'ewa';
+    var blended = technique === 'ewa';   // blended with edge coverage (shaders.py: ewa_accumulation, normalize_edges)
+    if (blended) {
+      gl.bindFramebuffer(gl.FRAMEBUFFER, t.fboAccumCover);
+      gl.clearBufferfv(gl.COLOR, 2, [0, 0, 0, 0]);
+    }
     if (blended) {
       // 1. visibility: per pixel the nearest offset depths by MIN blending
       gl.bindFramebuffer(gl.FRAMEBUFFER, t.fboVisibility);
@@ -770,7 +784,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       mark('cracks');
       // 3. accumulation: additive blending of the weighted colours, depths and normals
       bindTexture(SIDE_UNIT, t.cracks);
-      gl.bindFramebuffer(gl.FRAMEBUFFER, t.fboAccum);
+      gl.bindFramebuffer(gl.FRAMEBUFFER, t.fboAccumCover);
       gl.depthMask(false);
       gl.enable(gl.BLEND);
       gl.blendEquation(gl.FUNC_ADD);
@@ -792,11 +806,13 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     gl.disable(gl.DEPTH_TEST);
     bindTexture(0, t.accum);
     bindTexture(1, t.aux);
-    var normalize = {u_accum: 0, u_aux: 1, u_side: SIDE_UNIT, u_cover: 3, u_background: state.background,
+    if (blended) bindTexture(COVER_UNIT, t.cover);
+    var normalization = blended ? programs.normalize_edges : programs.normalize;
+    var normalize = {u_accum: 0, u_aux: 1, u_side: SIDE_UNIT, u_cover: COVER_UNIT, u_background: state.background,
                      u_edge_fringe: blended};
     if (state.edl) {
       gl.bindFramebuffer(gl.FRAMEBUFFER, t.fboOut);
-      fullscreen(programs.normalize, normalize);
+      fullscreen(normalization, normalize);
       gl.bindFramebuffer(gl.FRAMEBUFFER, null);
       bindTexture(EDL_COLOR_UNIT, t.out);
       bindTexture(EDL_DEPTH_UNIT, t.depthSum);
@@ -804,7 +820,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
                                 u_edl_strength: H.edl.strength, u_edl_offsets: [].concat.apply([], H.edl.offsets)});
     } else {
       gl.bindFramebuffer(gl.FRAMEBUFFER, null);
-      fullscreen(programs.normalize, normalize);
+      fullscreen(normalization, normalize);
     }
     gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, probe);   // waits for the frame (gl.finish need not)
     state.frameMs = performance.now() - start;
