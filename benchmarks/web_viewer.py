@@ -150,6 +150,8 @@ def main() -> None:
     parser.add_argument("--chunked", type=int, default=0, metavar="N",
                         help="also stream a chunked hierarchy of N raw points (0: skip)")
     parser.add_argument("--cell-points", type=int, default=500_000, help="points per cell of that hierarchy")
+    parser.add_argument("--export-only", action="store_true",
+                        help="only the export rows, saved as results/web_export.md (the browser rows are kept)")
     args = parser.parse_args()
     width, height = args.size
     work = Path(tempfile.mkdtemp(prefix="surfsplat-web-bench-"))
@@ -168,6 +170,11 @@ def main() -> None:
             start = time.perf_counter()
             export(raw, work / "raw")
             rows.append(["export 1 M raw points (read, preprocess, write)", "s", round(time.perf_counter() - start, 2)])
+        if args.export_only:
+            command = " ".join(["python benchmarks/web_viewer.py", *sys.argv[1:]])
+            write_table("web_export", ["measure", "unit", "value"], rows,
+                        f"{machine_description()}; load average {os.getloadavg()[0]:.1f} at the end; `{command}`")
+            return
 
         # -- quality on the bunny --------------------------------------------------------------------
         plan = View(BUNNY)
