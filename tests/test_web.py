@@ -88,6 +88,42 @@ def test_encode_is_19_bytes_a_splat_and_decodes():
     assert np.allclose(np.abs(np.einsum("ij,ij->i", back["normals"], cloud.normals)), 1.0, atol=1e-8)
 
 
+def test_clip_lines_keep_the_same_side_of_each_splat_in_the_frame_of_its_decoded_axes():
+    # the codes keep an axis up to its sign: a point p = s u + t v of the splat has (s', t') = (su s, sv t) in
+    # the decoded frame, and a s + b t + c must keep its sign there (Zwicker 2004, sec. 5)
+    rng = np.random.default_rng(5)
+    n = unit_vectors(4_000, seed=6)
+    b1, b2 = wf.tangent_basis(n)
+    a = rng.uniform(0, 2 * np.pi, len(n))   # half the axes point against their decoded ones
+    direction = np.cos(a)[:, None] * b1 + np.sin(a)[:, None] * b2
+    u, v = direction * 0.02, np.cross(n, direction) * 0.01
+    positions, colors = rng.uniform(-1, 1, (len(n), 3)), rng.uniform(0, 1, (len(n), 3))
+    lines = np.zeros((len(n), 2, 3))
+    lines[:, :, 2] = 1.0                                  # (0, 0, 1): the whole disk kept
+    cut = rng.random(len(n)) < 0.3
+    lines[cut] = rng.uniform(-1, 1, (int(cut.sum()), 2, 3))
+    streams, header = wf.encode(positions, n, colors, u, v)
+    su, sv = wf.axis_signs(streams, header, u, v)
+    assert 0.3 < (su < 0).mean() < 0.7 and np.array_equal(su, sv)   # v = n x u flips with u
+    rows, codes = wf.encode_clip_lines(lines, su, sv)
+    assert np.array_equal(rows, np.flatnonzero(cut)) and rows.dtype == np.uint32 and codes.dtype == np.float16
+    decoded = wf.decode_clip_lines(rows, codes, len(n))
+    assert not decoded[~cut].any()                        # zero lines: nothing cut, as the page's unbound attributes
+    back = wf.decode(streams, header)
+    st = rng.uniform(-1, 1, (len(n), 2))
+    p = st[:, :1] * u + st[:, 1:] * v
+    s2 = np.einsum("ij,ij->i", p, back["u"]) / np.einsum("ij,ij->i", back["u"], back["u"])
+    t2 = np.einsum("ij,ij->i", p, back["v"]) / np.einsum("ij,ij->i", back["v"], back["v"])
+    for k in range(2):
+        side = lines[:, k, 0] * st[:, 0] + lines[:, k, 1] * st[:, 1] + lines[:, k, 2]
+        kept = decoded[:, k, 0] * s2 + decoded[:, k, 1] * t2 + decoded[:, k, 2]
+        clear = cut & (np.abs(side) > 1e-2)
+        assert np.array_equal(side[clear] >= 0, kept[clear] >= 0)
+        assert np.abs(kept - side)[cut].max() < 5e-3      # float16 lines, 16-bit axis angles
+        unflipped = lines[:, k, 0] * s2 + lines[:, k, 1] * t2 + lines[:, k, 2]
+        assert (np.sign(unflipped[clear]) != np.sign(side[clear])).mean() > 0.1   # the flip is needed
+
+
 def test_shaders_js_is_what_the_composer_makes_of_the_current_files(tmp_path):
     export(torus(16, 8), tmp_path / "page")
     text = (tmp_path / "page" / "shaders.js").read_text()

@@ -204,9 +204,7 @@ def _quantized(members: dict[str, Any], prefix: str, path: Path) -> dict[str, np
     # the codes keep an axis up to its sign (an ellipse is symmetric): where the decoded u or v points the
     # other way, the splat's s or t runs the other way, so the normal field's alpha or beta (Botsch 2004,
     # eq. 2) and the clip lines' a or b change sign with it
-    decoded = splat_codec.decode({**streams, "color": np.zeros((len(u), 3), np.uint8)}, header)
-    su = np.where(np.einsum("ij,ij->i", decoded["u"], u) < 0, -1.0, 1.0)
-    sv = np.where(np.einsum("ij,ij->i", decoded["v"], v) < 0, -1.0, 1.0)
+    su, sv = splat_codec.axis_signs(streams, header, u, v)
     out: dict[str, np.ndarray] = {}
     if members.get(prefix + "normal_field") is not None:
         field = np.array(members[prefix + "normal_field"], dtype=np.float32)

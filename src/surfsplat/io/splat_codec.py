@@ -19,9 +19,11 @@ stream                    bytes  encoding
 
 ``v`` is rebuilt orthogonal to ``u`` in the plane of the normal, so the format holds the splats of
 ``ewa``, ``flat`` and ``points`` (an ellipse in the plane normal to the shading normal); it carries no
-linear normal fields (``phong``) and no clip lines. Every function here is the twin of the web viewer's
-JavaScript decoder (``surfsplat/web/static/viewer.js``, ``decode``), which performs the same arithmetic in
-float32/64.
+linear normal fields (``phong``). Clip lines (Zwicker 2004, sec. 5), where a model has them, travel
+beside it (:func:`encode_clip_lines`): the rows of the splats that carry one (uint32) and their two
+lines as float16, 16 bytes for each such splat, flipped with the decoded axes (:func:`axis_signs`).
+Every function here is the twin of the web viewer's JavaScript decoder (``surfsplat/web/static/viewer.js``,
+``decode``), which performs the same arithmetic in float32/64.
 """
 
 from __future__ import annotations
@@ -143,3 +145,39 @@ def decode(streams: dict[str, np.ndarray], header: dict) -> dict[str, np.ndarray
     u, v = decode_tangents(normals, streams["angle"], streams["radii"], header["log_radius"])
     return {"positions": dequantize_unit(streams["position"], header["lo"], header["hi"]), "normals": normals,
             "u": u, "v": v, "colors": streams["color"].astype(np.float64) / 255.0}
+
+
+def axis_signs(streams: dict[str, np.ndarray], header: dict, u: np.ndarray,
+               v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(N,) float64 signs, -1 where the decoded ``u`` (``v``) of :func:`encode`'s codes points against the
+    original axis: the codes keep an axis up to its sign (an ellipse is symmetric), so where it flips the
+    splat's ``s`` (``t``) runs the other way and what is written in ``(s, t)`` (clip lines, normal
+    fields) changes sign with it."""
+    normals = octahedral_decode(streams["normal"])
+    du, dv = decode_tangents(normals, streams["angle"], streams["radii"], header["log_radius"])
+    su = np.where(np.einsum("ij,ij->i", du, np.asarray(u, np.float64)) < 0, -1.0, 1.0)
+    sv = np.where(np.einsum("ij,ij->i", dv, np.asarray(v, np.float64)) < 0, -1.0, 1.0)
+    return su, sv
+
+
+def encode_clip_lines(lines: np.ndarray, su: np.ndarray, sv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The clip lines (N, 2, 3) ``(a, b, c)`` in normalized ``(s, t)`` (kept where ``a s + b t + c >= 0``,
+    Zwicker 2004, sec. 5) of the splats whose axes decoded with the signs ``su``, ``sv``
+    (:func:`axis_signs`): ``rows`` (M,) uint32, the splats that cut (a line with ``a = b = 0`` and
+    ``c >= 0`` keeps the whole disk: such splats are left out), and their lines (M, 2, 3) float16 in the
+    decoded frame (``a`` times ``su``, ``b`` times ``sv``)."""
+    lines = np.asarray(lines, np.float64)
+    keeps_all = (lines[:, :, 0] == 0) & (lines[:, :, 1] == 0) & (lines[:, :, 2] >= 0)
+    rows = np.flatnonzero(~keeps_all.all(axis=1))
+    flipped = lines[rows].copy()
+    flipped[:, :, 0] *= su[rows, None]
+    flipped[:, :, 1] *= sv[rows, None]
+    return rows.astype(np.uint32), flipped.astype(np.float16)
+
+
+def decode_clip_lines(rows: np.ndarray, codes: np.ndarray, count: int) -> np.ndarray:
+    """(count, 2, 3) float32 clip lines of :func:`encode_clip_lines`' ``rows`` and ``codes``; the other
+    splats get zero lines (nothing cut), as the viewer's attributes read them."""
+    out = np.zeros((count, 2, 3), np.float32)
+    out[np.asarray(rows, np.int64)] = np.asarray(codes, np.float16).astype(np.float32)
+    return out

@@ -44,6 +44,8 @@ GENERATOR = "surfsplat export"
 #: The page size (CSS pixels) a model is prepared for unless told: the desktop viewer's window. A mesh is
 #: sampled as ``surfsplat render --width W --height H`` samples it, a hierarchy cut at that default view.
 PAGE_SIZE = defaults.WINDOW_SIZE
+#: Bytes of a splat's clip lines on the page: its row (uint32) and two lines of three float16.
+CLIP_BYTES = 16
 #: What :func:`export` writes: the web viewer, or a COPC file (:mod:`surfsplat.io.copc`).
 FORMATS = ("web", "copc")
 
@@ -55,7 +57,7 @@ class ExportResult:
     Attributes:
         path: the folder (or the ``.html`` file).
         splats: splats exported.
-        bytes: bytes of the splat streams (``splats * 19``).
+        bytes: bytes of the splat streams (``splats * 19``, and 16 for each splat with clip lines).
         seconds: wall-clock time of the whole export.
         files: the files written.
     """
@@ -243,7 +245,8 @@ def export(source, output, *, technique: str = "ewa", background=defaults.BACKGR
         written.extend(path / name for name in files)
     count = int(header["count"]) + sum(int(c["entries"]) for c in header["lod"]["streamed"]["cells"]) if cells \
         else int(header["count"])
-    return ExportResult(path, count, count * web_format.BYTES_PER_SPLAT, time.perf_counter() - start, tuple(written))
+    size_bytes = count * web_format.BYTES_PER_SPLAT + int(header.get("clip_lines", 0)) * CLIP_BYTES
+    return ExportResult(path, count, size_bytes, time.perf_counter() - start, tuple(written))
 
 
 def _export_copc(source, output, source_options, lod, camera, point_budget, force, start, size) -> ExportResult:

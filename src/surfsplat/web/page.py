@@ -77,8 +77,22 @@ def as_drawn(cloud: SplatCloud) -> SplatCloud:
     streams, header = web_format.encode(cloud.positions[order], cloud.normals[order], colors[order],
                                         cloud.u[order], cloud.v[order])
     d = web_format.decode(streams, header)
+    clips = clip_streams(cloud, order, streams, header)
+    lines = None if clips is None else web_format.decode_clip_lines(clips["clip_rows"], clips["clip"], len(cloud))
     return SplatCloud(d["positions"].astype("f4"), d["normals"].astype("f4"), d["colors"].astype("f4"),
-                      d["u"].astype("f4"), d["v"].astype("f4"), origin=cloud.origin, up=cloud.up)
+                      d["u"].astype("f4"), d["v"].astype("f4"), clip_lines=lines, origin=cloud.origin, up=cloud.up)
+
+
+def clip_streams(cloud: SplatCloud, order: np.ndarray, streams: dict[str, np.ndarray],
+                 header: dict) -> dict[str, np.ndarray] | None:
+    """The page's ``clip_rows`` and ``clip`` streams (:func:`~surfsplat.io.splat_codec.encode_clip_lines`):
+    the clip lines of the splats of ``cloud[order]`` that cut, in the frame of their decoded axes
+    (``streams``, ``header``: the splats' codes); None where the model has no clip lines."""
+    if cloud.clip_lines is None or cloud.u is None or cloud.v is None:
+        return None
+    su, sv = web_format.axis_signs(streams, header, cloud.u[order], cloud.v[order])
+    rows, codes = web_format.encode_clip_lines(cloud.clip_lines[order], su, sv)
+    return {"clip_rows": rows.astype("<u4"), "clip": codes.astype("<f2")} if len(rows) else None
 
 
 def hybrid_stream(plan: View, cloud: SplatCloud, order: np.ndarray) -> np.ndarray | None:
@@ -134,6 +148,10 @@ def page_data(plan: View, camera: Camera, cloud: SplatCloud, technique: str, bac
                        for t in WEB_TECHNIQUES},
         "edl": {"strength": EdlOptions().strength, "offsets": neighbour_offsets(EdlOptions().radius_px)},
     })
+    clips = clip_streams(cloud, order, streams, header)
+    header["clip_lines"] = 0 if clips is None else int(len(clips["clip_rows"]))
+    if clips is not None:
+        streams.update(clips)
     flags = hybrid_stream(plan, cloud, order)
     header["hybrid"] = flags is not None
     if flags is not None:

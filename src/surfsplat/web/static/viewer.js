@@ -95,6 +95,14 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       v[k] = (y * dz - z * dy) * rv; v[k + 1] = (z * dx - x * dz) * rv; v[k + 2] = (x * dy - y * dx) * rv;
     }
     var out = {position: pos, normal: nrm, u: u, v: v, color: bytes(s.color)};
+    if (s.clip) {   // format.encode_clip_lines: the rows that cut and their two lines, float16 (zero: no cut)
+      var rb = bytes(s.clip_rows), rows = new Uint32Array(rb.buffer, rb.byteOffset, rb.length / 4), lines = u16(s.clip);
+      var c0 = new Uint16Array(3 * n), c1 = new Uint16Array(3 * n);
+      for (i = 0; i < rows.length; ++i) {
+        for (var j = 0; j < 3; ++j) { c0[3 * rows[i] + j] = lines[6 * i + j]; c1[3 * rows[i] + j] = lines[6 * i + 3 + j]; }
+      }
+      out.clip0 = c0; out.clip1 = c1;
+    }
     if (s.nonplanar) {   // page.hybrid_stream: one bit a splat, little bit order (np.packbits)
       var bits = bytes(s.nonplanar), flags = new Uint8Array(n);
       for (i = 0; i < n; ++i) flags[i] = (bits[i >> 3] >> (i & 7)) & 1;
@@ -296,6 +304,10 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     attribute(4, decoded.u, 3, gl.FLOAT, false);
     attribute(5, decoded.v, 3, gl.FLOAT, false);
     if (decoded.nonplanar) attribute(NONPLANAR, decoded.nonplanar, 1, gl.UNSIGNED_BYTE, false);
+    if (decoded.clip0) {   // in_clip0, in_clip1 (Zwicker 2004, sec. 5)
+      attribute(6, decoded.clip0, 3, gl.HALF_FLOAT, false);
+      attribute(7, decoded.clip1, 3, gl.HALF_FLOAT, false);
+    }
     if (H.lod) {   // the drawn entries: an index list chosen per view (selectCut)
       elements = gl.createBuffer();
       gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, elements);
@@ -315,9 +327,13 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     attribute(4, repeated(decoded.u, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
     attribute(5, repeated(decoded.v, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
     if (decoded.nonplanar) attribute(NONPLANAR, repeated(decoded.nonplanar, 1, quadCount, Uint8Array), 1, gl.UNSIGNED_BYTE, false);
+    if (decoded.clip0) {
+      attribute(6, repeated(decoded.clip0, 3, quadCount, Uint16Array), 3, gl.HALF_FLOAT, false);
+      attribute(7, repeated(decoded.clip1, 3, quadCount, Uint16Array), 3, gl.HALF_FLOAT, false);
+    }
     gl.bindVertexArray(null);
     gl.vertexAttrib2f(0, 0, 0);   // a point has no corner
-    for (i = 6; i < ATTRIBUTES.length; ++i) gl.vertexAttrib4f(i, 0, 0, 0, 0);   // no clip lines, no normal field
+    for (i = 6; i < ATTRIBUTES.length; ++i) gl.vertexAttrib4f(i, 0, 0, 0, 0);   // unbound: no clip lines, no normal field
   }
 
   // ---- colour by attribute (surfsplat.web.colors): the desktop viewer's C key --------------------------
