@@ -25,8 +25,8 @@ Unbound, the attribute reads 0: every splat a surface splat. ``points`` draws ro
 What does not port: the hole-filling pass (``fill.frag``, ``RenderOptions.fill_holes``), the compute
 passes (``visibility.comp``, ``opaque_resolve.frag``: WebGL2 has no compute shaders, SSBOs or image
 atomics; the raster path draws the same pictures), and ``phong``, ``perspective`` and ``blend`` are not
-exported yet (their shaders would compose as well, but the web format carries no normal fields or clip
-lines).
+exported yet (their shaders would compose as well, but the web format carries no normal fields; it
+carries clip lines, which ``ewa`` and ``flat`` read).
 """
 
 from __future__ import annotations
