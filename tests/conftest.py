@@ -107,3 +107,21 @@ def shared_data() -> Path:
     if not SHARED_DATA.is_dir():
         pytest.skip(f"shared data folder {SHARED_DATA} is absent")
     return SHARED_DATA
+
+
+@pytest.fixture(scope="session")
+def phong_sphere():
+    """Phong splats of the unit sphere (Botsch 2004, eq. 2), made directly: 600 disks of the Fibonacci
+    sphere whose planes lean 4 degrees off the sphere's normal at their centres (the shading normal), with
+    the sphere's linear normal field ``alpha = beta = r`` (the normal at ``p + s u + t v`` is
+    ``p + s u + t v`` on the unit sphere, to first order in ``r``)."""
+    import numpy as np
+
+    from surfsplat.scenes import sphere
+
+    base = sphere(600, color="bands", coverage=1.0)
+    lean = np.radians(4.0)
+    r = np.linalg.norm(base.u, axis=1, keepdims=True)
+    u = (np.cos(lean) * base.u / r + np.sin(lean) * base.normals) * r   # turned about v, out of the tangent plane
+    field = np.concatenate([r, r], axis=1)
+    return base.replace(u=u.astype(np.float32), normal_field=field.astype(np.float32))

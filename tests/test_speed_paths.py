@@ -6,6 +6,8 @@ before, so a points frame must equal the all-quads frame (renderer.py: ``point_p
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import surfsplat
 import numpy as np
 import pytest
@@ -86,17 +88,18 @@ def test_the_mixed_view_uses_both_primitives(renderers, mixed_view):
     _, default, _ = renderers
     gpu = default.upload(cloud)
     try:
-        for name in ("ewa", "flat", "blend"):
+        for name in ("ewa", "perspective", "flat", "blend"):
             quads = gpu.quad_count(point_radius(camera, gpu, get_technique(name), RenderOptions()))
             assert 0 < quads < len(cloud) // 10, name   # the large splats, and only they, are quads
         assert gpu.quad_count(0.0) == len(cloud)   # no point radius: every splat a quad
         # a technique without a point shader draws quads only
-        assert gpu.quad_count(point_radius(camera, gpu, get_technique("perspective"), RenderOptions())) == len(cloud)
+        quads_only = replace(get_technique("perspective"), point_footprint=None)
+        assert gpu.quad_count(point_radius(camera, gpu, quads_only, RenderOptions())) == len(cloud)
     finally:
         gpu.release()
 
 
-@pytest.mark.parametrize("technique", ["flat", "phong", "blend", "points"])
+@pytest.mark.parametrize("technique", ["flat", "phong", "blend", "perspective", "points"])
 def test_points_draw_exactly_the_quads_image(renderers, mixed_view, technique):
     cloud, camera = mixed_view
     images = [r.render(cloud, camera, technique, Lights()) for r in renderers]

@@ -14,13 +14,16 @@ from surfsplat.cli import main
 from surfsplat.errors import InputError
 from surfsplat.metrics import psnr
 from surfsplat.pipeline import View
-from surfsplat.rendering.shaders import compose, read_source
+from surfsplat.rendering.options import RenderOptions
+from surfsplat.rendering.passes import fill_depth, fill_reach, plan_frame
+from surfsplat.rendering.shaders import PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBILITY, compose, read_source
+from surfsplat.rendering.techniques import TECHNIQUES, get_technique
 from surfsplat.scenes import torus
 from surfsplat.web import export
 from surfsplat.web import format as wf
-from surfsplat.web.export import FILES, page_payload
+from surfsplat.web.export import FILES, as_drawn, page_payload, web_order
 from surfsplat.web.framing import camera_from_frame, fit_frame
-from surfsplat.web.shaders import PROGRAMS, shader_bundle
+from surfsplat.web.shaders import PROGRAMS, WEB_TECHNIQUES, shader_bundle
 
 
 def unit_vectors(n: int, seed: int = 0) -> np.ndarray:
@@ -124,6 +127,53 @@ def test_clip_lines_keep_the_same_side_of_each_splat_in_the_frame_of_its_decoded
         assert (np.sign(unflipped[clear]) != np.sign(side[clear])).mean() > 0.1   # the flip is needed
 
 
+def test_phong_splats_keep_their_plane_shading_normal_and_normal_field_through_the_format(phong_sphere, tmp_path):
+    cloud = phong_sphere
+    drawn = as_drawn(cloud)
+    order = web_order(cloud)[0]
+    u, v, n, field = (np.asarray(x, np.float64)[order] for x in (cloud.u, cloud.v, cloud.normals, cloud.normal_field))
+    du, dv = np.asarray(drawn.u, np.float64), np.asarray(drawn.v, np.float64)
+    # the decoded axes span the splat's own plane (4 degrees off the shading normal), up to their signs
+    plane = np.cross(u, v) / np.linalg.norm(np.cross(u, v), axis=1, keepdims=True)
+    assert np.abs(np.einsum("ij,ij->i", du, plane)).max() < 1e-3 * np.linalg.norm(du, axis=1).min()
+    su = np.sign(np.einsum("ij,ij->i", du, u))
+    sv = np.sign(np.einsum("ij,ij->i", dv, v))
+    assert np.allclose(du * su[:, None], u, atol=2e-4) and np.allclose(dv * sv[:, None], v, atol=2e-4)
+    assert (su < 0).any()   # some axes decode flipped: the field must follow them
+    # the shading normal is its own (octahedral), not the plane's
+    assert np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", drawn.normals, n), -1, 1))).max() < 0.05
+    # the field as vectors alpha u_hat, beta v_hat: unchanged by the flips, float16 precision
+    unit = lambda a: a / np.linalg.norm(a, axis=1, keepdims=True)   # noqa: E731
+    for k, (axis, decoded) in enumerate(((u, du), (v, dv))):
+        assert np.allclose(drawn.normal_field[:, k, None] * unit(decoded), field[:, k, None] * unit(axis), atol=1e-3)
+    # 8 bytes a splat more, and only for Phong splats
+    result = export(cloud, tmp_path / "phong")
+    assert result.bytes == len(cloud) * (19 + 8)
+    assert export(cloud.replace(normal_field=None), tmp_path / "plain").bytes == len(cloud) * 19
+
+
+def test_the_page_draws_every_technique_with_the_desktop_s_passes():
+    # each technique's programs are its declared files with the desktop's pass ids; the fill pass is the
+    # desktop's (passes.FillPass at one sample a pixel), with its depth tolerance in the header
+    assert set(WEB_TECHNIQUES) == set(TECHNIQUES)
+    for name in WEB_TECHNIQUES:
+        technique = get_technique(name)
+        steps = ("visibility", "accumulation") if technique.blended else ("",)
+        for step in steps:
+            program = f"{name}_{step}" if step else name
+            vertex, fragment, defines = PROGRAMS[program]
+            assert (vertex, fragment) == (technique.vertex, technique.fragment)
+            assert defines["PASS"] == {"visibility": PASS_VISIBILITY, "accumulation": PASS_ACCUMULATION,
+                                       "": PASS_OPAQUE}[step]
+            assert (f"{program}_points" in PROGRAMS) == (technique.point_footprint is not None)
+    plan = plan_frame(get_technique("flat"), RenderOptions(), [(0, 1)], [])
+    fill = plan.get("fill")
+    assert PROGRAMS["fill"][2] == {"FILL_GAP": fill.gap, "FILL_REACH": fill_reach(fill.gap)}
+    header, _ = page_payload(torus(16, 8))
+    assert header["fill"] == {"gap": fill.gap, "depth": fill_depth(fill.gap)}
+    assert header["blended"] == [t for t in WEB_TECHNIQUES if get_technique(t).blended]
+
+
 def test_shaders_js_is_what_the_composer_makes_of_the_current_files(tmp_path):
     export(torus(16, 8), tmp_path / "page")
     text = (tmp_path / "page" / "shaders.js").read_text()
@@ -187,14 +237,14 @@ def test_export_command_writes_replaces_and_refuses(tmp_path, capsys):
     assert main(["export", "demo:torus", "-o", str(mine), "-q", "--force", "--technique", "flat"]) == 0
     single = mine.read_text()
     assert "<script src=" not in single and "window.SURFSPLAT_DATA" in single and "window.SURFSPLAT_SHADERS" in single
-    assert main(["export", "demo:torus", "-o", str(tmp_path / "x"), "--technique", "phong"]) == 2
+    assert main(["export", "demo:torus", "-o", str(tmp_path / "x"), "--technique", "sketch"]) == 2
     assert main(["export", str(tmp_path / "missing.ply"), "-o", str(tmp_path / "y")]) == 2
     assert "missing.ply" in capsys.readouterr().err and not (tmp_path / "y").exists()
 
 
 def test_export_api_checks_its_arguments(tmp_path):
     with pytest.raises(InputError, match="not drawn by the web viewer"):
-        surfsplat.export("demo:torus", tmp_path / "a", technique="blend")
+        surfsplat.export("demo:torus", tmp_path / "a", technique="sketch")
     with pytest.raises(InputError, match="point budget"):
         surfsplat.export("demo:torus", tmp_path / "a", point_budget=0)
     with pytest.raises(InputError, match="folder .* does not exist"):
@@ -298,8 +348,9 @@ def test_a_mesh_is_sampled_for_the_page_size_as_render_samples_for_its_size(tmp_
     # back faces culled as the view plan culls them: the closed mesh's samples with ewa only
     header, _ = page_payload(mesh, size=(100, 75))
     camera = view.camera(None, 100, 75)
-    assert header["culls"] == {t: view.culls(camera, technique=t) for t in ("ewa", "flat", "points")}
-    assert header["culls"] == {"ewa": True, "flat": False, "points": False}
+    assert header["culls"] == {t: view.culls(camera, technique=t) for t in WEB_TECHNIQUES}
+    assert header["culls"] == {"ewa": True, "perspective": True, "phong": False, "blend": False, "flat": False,
+                               "points": False}
     assert not any(page_payload(torus(40, 16), size=(100, 75))[0]["culls"].values())   # a cloud: two-sided
     with pytest.raises(InputError, match="page size"):
         surfsplat.export(mesh, tmp_path / "bad", size=(0, 10))

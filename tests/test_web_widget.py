@@ -47,7 +47,7 @@ def test_the_widget_holds_the_page_data_and_the_viewer():
     with pytest.raises(InputError, match="height"):
         widget(torus(16, 8), height=0)
     with pytest.raises(InputError, match="not drawn by the web viewer"):
-        widget(torus(16, 8), technique="phong")
+        widget(torus(16, 8), technique="sketch")
 
 
 @pytest.mark.browser

@@ -17,11 +17,14 @@ stream                    bytes  encoding
 ``color``                 3      3 x uint8: RGB in [0, 1], rounded as the renderer rounds its output
 ========================  =====  =====================================================================
 
-``v`` is rebuilt orthogonal to ``u`` in the plane of the normal, so the format holds the splats of
-``ewa``, ``flat`` and ``points`` (an ellipse in the plane normal to the shading normal); it carries no
-linear normal fields (``phong``). Clip lines (Zwicker 2004, sec. 5), where a model has them, travel
+``v`` is rebuilt orthogonal to ``u`` in the plane of the normal (an ellipse in the plane normal to the
+shading normal). Clip lines (Zwicker 2004, sec. 5), where a model has them, travel
 beside it (:func:`encode_clip_lines`): the rows of the splats that carry one (uint32) and their two
 lines as float16, 16 bytes for each such splat, flipped with the decoded axes (:func:`axis_signs`).
+Phong splats (a linear normal field, Botsch 2004 eq. 2, whose shading normal leans off the plane of
+``u`` and ``v``) code the plane's normal in ``normal`` (:func:`plane_normals`) and add, 8 bytes a splat,
+the shading normal (``shading``, octahedral, 4 bytes) and the field ``(alpha, beta)`` as float16 flipped
+with the decoded axes (``normal_field``, 4 bytes: :func:`encode_normal_fields`).
 Every function here is the twin of the web viewer's JavaScript decoder (``surfsplat/web/static/viewer.js``,
 ``decode``), which performs the same arithmetic in float32/64.
 """
@@ -34,6 +37,8 @@ from ..frames import tangent_frame64
 
 #: Bytes per splat of the web format.
 BYTES_PER_SPLAT = 19
+#: Bytes a splat of Phong splats adds (its shading normal and linear normal field).
+FIELD_BYTES = 8
 #: Largest value of the 16-bit codes.
 U16 = 65535.0
 #: Largest octahedral code: an even number of steps over [-1, 1] codes 0 (the axes, the diagonals) exactly.
@@ -173,6 +178,23 @@ def encode_clip_lines(lines: np.ndarray, su: np.ndarray, sv: np.ndarray) -> tupl
     flipped[:, :, 0] *= su[rows, None]
     flipped[:, :, 1] *= sv[rows, None]
     return rows.astype(np.uint32), flipped.astype(np.float16)
+
+
+def plane_normals(normals: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(N, 3) float64 unit normals of the planes of ``u`` and ``v``, on the side of the shading ``normals``:
+    what the ``normal`` stream codes for Phong splats, so that the axes decode in their plane."""
+    n = np.cross(np.asarray(u, np.float64), np.asarray(v, np.float64))
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), np.finfo(np.float64).tiny)
+    return np.where(np.einsum("ij,ij->i", n, np.asarray(normals, np.float64))[:, None] < 0, -n, n)
+
+
+def encode_normal_fields(field: np.ndarray, su: np.ndarray, sv: np.ndarray) -> np.ndarray:
+    """(N, 2) float16 codes of the linear normal fields ``(alpha, beta)`` (Botsch 2004, eq. 2: the normal
+    at ``(s, t)`` is ``n + s alpha u_hat + t beta v_hat``) of splats whose axes decoded with the signs
+    ``su``, ``sv`` (:func:`axis_signs`): ``alpha`` times ``su``, ``beta`` times ``sv`` (the same vectors
+    ``alpha u_hat``, ``beta v_hat`` with the decoded axes)."""
+    f = np.asarray(field, np.float64)
+    return np.stack([f[:, 0] * su, f[:, 1] * sv], axis=1).astype(np.float16)
 
 
 def decode_clip_lines(rows: np.ndarray, codes: np.ndarray, count: int) -> np.ndarray:

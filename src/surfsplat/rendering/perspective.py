@@ -27,7 +27,9 @@ PERSPECTIVE = Technique(
     fragment="perspective.frag",
     blended=True,
     uniforms=filter_uniforms,
-    point_footprint=None,   # perspective.vert bounds the exact image conic: quads only
+    # small splats as one GL_POINTS point each, sized by perspective.vert from their exact box; which are
+    # small is estimated from the disk's box grown by the prefilter (passes.point_scale)
+    point_footprint="filtered_disk",
     compute_visibility=True,   # the shared ray-cast disk visibility (splat_fragment.glsl)
     edge_coverage=True,
     hiz_cull=True,   # hidden splats are not drawn in the accumulation pass (hiz.glsl)

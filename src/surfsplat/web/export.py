@@ -57,7 +57,8 @@ class ExportResult:
     Attributes:
         path: the folder (or the ``.html`` file).
         splats: splats exported.
-        bytes: bytes of the splat streams (``splats * 19``, and 16 for each splat with clip lines).
+        bytes: bytes of the splat streams (``splats * 19``, 8 more a splat for Phong splats' shading normals
+            and normal fields, and 16 for each splat with clip lines).
         seconds: wall-clock time of the whole export.
         files: the files written.
     """
@@ -187,7 +188,8 @@ def export(source, output, *, technique: str = "ewa", background=defaults.BACKGR
     Args:
         source: anything :func:`surfsplat.render` takes (a file, ``demo:NAME``, a SplatCloud, a Mesh,
             a hierarchy), prepared by :class:`~surfsplat.pipeline.View` as a render prepares it.
-        technique: the page's first technique: "ewa", "flat" or "points" (switchable on the page).
+        technique: the page's first technique, one of :data:`~surfsplat.web.shaders.WEB_TECHNIQUES` (every
+            technique of ``surfsplat render``; switchable on the page).
         background: the page's first background, RGB in [0, 1].
         source_options, lod: as :func:`surfsplat.render` takes them.
         camera: the view a mesh is sampled for and a hierarchy cut at (None: the automatic one of
@@ -245,7 +247,8 @@ def export(source, output, *, technique: str = "ewa", background=defaults.BACKGR
         written.extend(path / name for name in files)
     count = int(header["count"]) + sum(int(c["entries"]) for c in header["lod"]["streamed"]["cells"]) if cells \
         else int(header["count"])
-    size_bytes = count * web_format.BYTES_PER_SPLAT + int(header.get("clip_lines", 0)) * CLIP_BYTES
+    per_splat = web_format.BYTES_PER_SPLAT + (web_format.FIELD_BYTES if header.get("normal_fields") else 0)
+    size_bytes = count * per_splat + int(header.get("clip_lines", 0)) * CLIP_BYTES
     return ExportResult(path, count, size_bytes, time.perf_counter() - start, tuple(written))
 
 

@@ -21,6 +21,7 @@ from ..pipeline.models import as_model
 from ..rendering.edl import neighbour_offsets
 from ..rendering.gpu_splats import radius_classes
 from ..rendering.options import EdlOptions, RenderOptions
+from ..rendering.passes import fill_depth, fill_gap
 from ..rendering.techniques import get_technique
 from ..version import __version__
 from . import format as web_format
@@ -67,20 +68,40 @@ def web_order(cloud: SplatCloud) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return radius_classes(cloud.radii, cloud.positions)
 
 
+def encoded(cloud: SplatCloud, order: np.ndarray) -> tuple[dict[str, np.ndarray], dict]:
+    """The web format's streams and header of the splats ``cloud[order]``: :func:`~surfsplat.io.splat_codec.encode`,
+    and for Phong splats (a cloud with a linear normal field, whose shading normals may lean off the plane
+    of ``u`` and ``v``) the plane's normal coded in ``normal`` and the ``shading`` normal (octahedral) and
+    ``normal_field`` (float16, flipped with the decoded axes) streams beside it."""
+    if cloud.u is None or cloud.v is None or cloud.normals is None:
+        raise InputError("a page draws splats: this SplatCloud has no splat axes or normals")
+    colors = cloud.colors if cloud.colors is not None else np.full((len(cloud), 3), 0.8, np.float32)
+    normals, u, v = cloud.normals[order], cloud.u[order], cloud.v[order]
+    field = cloud.normal_field
+    plane = web_format.plane_normals(normals, u, v) if field is not None else normals
+    streams, header = web_format.encode(cloud.positions[order], plane, colors[order], u, v)
+    if field is not None:
+        su, sv = web_format.axis_signs(streams, header, u, v)
+        streams["shading"] = web_format.octahedral_encode(normals)
+        streams["normal_field"] = web_format.encode_normal_fields(field[order], su, sv).astype("<f2")
+    return streams, header
+
+
 def as_drawn(cloud: SplatCloud) -> SplatCloud:
     """The splats a page draws for ``cloud``: in :func:`web_order`, through the web format and back
     (float32, the same origin and up): what the desktop renderer draws to show what the page shows."""
     if cloud.u is None or cloud.v is None or cloud.normals is None:
         raise InputError("a page draws splats: this SplatCloud has no splat axes or normals")
     order = web_order(cloud)[0]
-    colors = cloud.colors if cloud.colors is not None else np.full((len(cloud), 3), 0.8, np.float32)
-    streams, header = web_format.encode(cloud.positions[order], cloud.normals[order], colors[order],
-                                        cloud.u[order], cloud.v[order])
+    streams, header = encoded(cloud, order)
     d = web_format.decode(streams, header)
     clips = clip_streams(cloud, order, streams, header)
     lines = None if clips is None else web_format.decode_clip_lines(clips["clip_rows"], clips["clip"], len(cloud))
-    return SplatCloud(d["positions"].astype("f4"), d["normals"].astype("f4"), d["colors"].astype("f4"),
-                      d["u"].astype("f4"), d["v"].astype("f4"), clip_lines=lines, origin=cloud.origin, up=cloud.up)
+    normals = d["normals"] if "shading" not in streams else web_format.octahedral_decode(streams["shading"])
+    field = streams["normal_field"].astype("f4") if "normal_field" in streams else None
+    return SplatCloud(d["positions"].astype("f4"), normals.astype("f4"), d["colors"].astype("f4"),
+                      d["u"].astype("f4"), d["v"].astype("f4"), normal_field=field, clip_lines=lines,
+                      origin=cloud.origin, up=cloud.up)
 
 
 def clip_streams(cloud: SplatCloud, order: np.ndarray, streams: dict[str, np.ndarray],
@@ -119,13 +140,12 @@ def page_data(plan: View, camera: Camera, cloud: SplatCloud, technique: str, bac
         raise InputError(f"{name}: no splats to export")
     if cloud.u is None or cloud.v is None or cloud.normals is None:
         raise InputError(f"{name}: the prepared model has no splat axes or normals to export")
-    colors = cloud.colors if cloud.colors is not None else np.full((len(cloud), 3), 0.8, np.float32)
     if ordered:
         order, class_start, class_radius = web_order(cloud)
     else:
         order, class_start, class_radius = np.arange(len(cloud)), np.zeros(1, np.int64), np.full(1, np.inf)
-    streams, header = web_format.encode(cloud.positions[order], cloud.normals[order], colors[order], cloud.u[order],
-                                        cloud.v[order])
+    streams, header = encoded(cloud, order)
+    header["normal_fields"] = "normal_field" in streams
     model = as_model(plan.model).points()
     points, direction, up, margin = auto_fit_inputs(model, plan.up)
     options, lights = RenderOptions(), Lights()
@@ -146,6 +166,10 @@ def page_data(plan: View, camera: Camera, cloud: SplatCloud, technique: str, bac
         "material": [lights.ambient, lights.diffuse, lights.specular, lights.shininess],
         "footprints": {t: {"footprint": get_technique(t).point_footprint, "min_point_px": get_technique(t).min_point_px}
                        for t in WEB_TECHNIQUES},
+        "blended": [t for t in WEB_TECHNIQUES if get_technique(t).blended],
+        "edge_fringe": [t for t in WEB_TECHNIQUES if get_technique(t).edge_fringe],
+        # the fill pass of every technique, as the desktop draws by default (passes.FillPass, one sample a pixel)
+        "fill": {"gap": fill_gap(options), "depth": fill_depth(fill_gap(options))} if fill_gap(options) else None,
         "edl": {"strength": EdlOptions().strength, "offsets": neighbour_offsets(EdlOptions().radius_px)},
     })
     clips = clip_streams(cloud, order, streams, header)

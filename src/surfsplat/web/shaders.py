@@ -7,26 +7,28 @@ is a (vertex, fragment) pair and its defines, as :mod:`surfsplat.rendering.passe
 frame drawn without compute shaders, in one tile (large splats as quads, the others as GL_POINTS:
 :data:`POINT_PROGRAMS`):
 
-- ``ewa``: ``ewa.vert``/``ewa.frag`` with ``PASS`` = visibility and accumulation, then ``cracks.frag``
-  and ``normalize.frag`` (Guennebaud 2003: visibility splatting, accumulation, normalization), the
-  accumulation and normalization with ``EDGE_COVERAGE`` (``normalize_edges``): the desktop's default
-  edge coverage (``VisibilityOptions.edge_coverage``), the accumulation writing the splats' pixel
-  coverage into a third float target by additive blending;
+- the blended techniques (:data:`BLENDED_TECHNIQUES`: ``ewa``, ``perspective``, ``phong``, ``blend``): each
+  technique's declared vertex and fragment files with ``PASS`` = visibility and accumulation, then
+  ``cracks.frag`` and ``normalize.frag`` (Guennebaud 2003: visibility splatting, accumulation,
+  normalization), the accumulation and normalization with ``EDGE_COVERAGE`` (``normalize_edges``): the
+  desktop's default edge coverage (``VisibilityOptions.edge_coverage``), the accumulation writing the
+  splats' pixel coverage into a third float target by additive blending;
 - ``flat``: ``disk.vert``/``flat.frag``, one opaque pass, then ``normalize.frag``;
 - ``points``: ``points.vert``/``points.frag``, one opaque pass, ``normalize.frag``, then eye-dome
-  lighting (``edl.frag``, the formula of :mod:`surfsplat.rendering.edl`).
+  lighting (``edl.frag``, the formula of :mod:`surfsplat.rendering.edl`);
+- ``fill``: after the normalization of every technique, the desktop's screen-space hole filling
+  (``fill.frag``, ``RenderOptions.fill_holes``, on by default) with the gap and reach of a frame drawn one
+  sample a pixel (:func:`surfsplat.rendering.passes.fill_gap`).
 
-The ``ewa`` and ``flat`` programs are built with ``HYBRID_POINTS``: a per-splat ``in_nonplanar`` attribute
+The splat programs are built with ``HYBRID_POINTS``: a per-splat ``in_nonplanar`` attribute
 (the page's ``nonplanar`` stream, exported where the view plan draws the model hybrid) turns a splat into
 a disk facing the eye in the vertex shader (``splat_vertex.glsl``, ``facing_axes``), what
 :func:`surfsplat.rendering.hybrid.facing_points` does to the desktop's splats on the CPU each frame.
 Unbound, the attribute reads 0: every splat a surface splat. ``points`` draws round points already.
 
-What does not port: the hole-filling pass (``fill.frag``, ``RenderOptions.fill_holes``), the compute
-passes (``visibility.comp``, ``opaque_resolve.frag``: WebGL2 has no compute shaders, SSBOs or image
-atomics; the raster path draws the same pictures), and ``phong``, ``perspective`` and ``blend`` are not
-exported yet (their shaders would compose as well, but the web format carries no normal fields; it
-carries clip lines, which ``ewa`` and ``flat`` read).
+What does not port: the compute passes (``visibility.comp``, ``opaque_resolve.frag``: WebGL2 has no
+compute shaders, SSBOs or image atomics; the raster path draws the same pictures) and the accumulation
+pass's block culling (``hiz.frag``, a speed-up that leaves the picture as it is: not drawn on the page).
 """
 
 from __future__ import annotations
@@ -35,10 +37,11 @@ from dataclasses import dataclass
 
 from ..rendering.edl import NEIGHBOURS
 from ..rendering.options import TechniqueName
-from ..rendering.passes import EDGE_COVERAGE_DEFINE
+from ..rendering.passes import EDGE_COVERAGE_DEFINE, FILL_GAP_PX, fill_reach
 from ..rendering.shaders import GLSL_ES_VERSION, PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBILITY, PROLOGUE, compose
 from ..rendering.uniform_blocks import FRAME_BLOCKS, block_layout
 from ..rendering.shaders import read_source
+from ..rendering.techniques import get_technique
 
 
 @dataclass(frozen=True)
@@ -54,28 +57,43 @@ class WebProgram:
     files: tuple[str, ...]
 
 
+#: The blended techniques the browser viewer draws (visibility, cracks, accumulation, normalization).
+BLENDED_TECHNIQUES: tuple[TechniqueName, ...] = ("ewa", "perspective", "phong", "blend")
+
+
+def _programs() -> dict[str, tuple[str, str, dict[str, object]]]:
+    programs: dict[str, tuple[str, str, dict[str, object]]] = {}
+    for name in BLENDED_TECHNIQUES:
+        technique = get_technique(name)
+        programs[f"{name}_visibility"] = (technique.vertex, technique.fragment,
+                                          {"PASS": PASS_VISIBILITY, "HYBRID_POINTS": 1})
+        programs[f"{name}_accumulation"] = (technique.vertex, technique.fragment,
+                                            {"PASS": PASS_ACCUMULATION, "HYBRID_POINTS": 1, EDGE_COVERAGE_DEFINE: 1})
+    programs.update({
+        "cracks": ("fullscreen.vert", "cracks.frag", {}),
+        "normalize": ("fullscreen.vert", "normalize.frag", {}),
+        "normalize_edges": ("fullscreen.vert", "normalize.frag", {EDGE_COVERAGE_DEFINE: 1}),
+        "fill": ("fullscreen.vert", "fill.frag", {"FILL_GAP": FILL_GAP_PX, "FILL_REACH": fill_reach(FILL_GAP_PX)}),
+        "flat": ("disk.vert", "flat.frag", {"PASS": PASS_OPAQUE, "HYBRID_POINTS": 1}),
+        "points": ("points.vert", "points.frag", {"PASS": PASS_OPAQUE}),
+        "edl": ("fullscreen.vert", "edl.frag", {"EDL_NEIGHBOURS": NEIGHBOURS}),
+    })
+    return programs
+
+
 #: name -> (vertex file, fragment file, defines): every program the browser viewer draws with.
-PROGRAMS: dict[str, tuple[str, str, dict[str, object]]] = {
-    "ewa_visibility": ("ewa.vert", "ewa.frag", {"PASS": PASS_VISIBILITY, "HYBRID_POINTS": 1}),
-    "ewa_accumulation": ("ewa.vert", "ewa.frag", {"PASS": PASS_ACCUMULATION, "HYBRID_POINTS": 1,
-                                                  EDGE_COVERAGE_DEFINE: 1}),
-    "cracks": ("fullscreen.vert", "cracks.frag", {}),
-    "normalize": ("fullscreen.vert", "normalize.frag", {}),
-    "normalize_edges": ("fullscreen.vert", "normalize.frag", {EDGE_COVERAGE_DEFINE: 1}),
-    "flat": ("disk.vert", "flat.frag", {"PASS": PASS_OPAQUE, "HYBRID_POINTS": 1}),
-    "points": ("points.vert", "points.frag", {"PASS": PASS_OPAQUE}),
-    "edl": ("fullscreen.vert", "edl.frag", {"EDL_NEIGHBOURS": NEIGHBOURS}),
-}
+PROGRAMS: dict[str, tuple[str, str, dict[str, object]]] = _programs()
 
 #: The splat programs also built with ``POINT_PRIMITIVE`` (``<name>_points``): small splats as GL_POINTS,
 #: one vertex each, as the desktop renderer draws its small splats (``splat_primitive.glsl``).
-POINT_PROGRAMS = ("ewa_visibility", "ewa_accumulation", "flat", "points")
+POINT_PROGRAMS = (*(f"{name}_{step}" for name in BLENDED_TECHNIQUES for step in ("visibility", "accumulation")),
+                  "flat", "points")
 for _name in POINT_PROGRAMS:
     _vertex, _fragment, _defines = PROGRAMS[_name]
     PROGRAMS[f"{_name}_points"] = (_vertex, _fragment, {**_defines, "POINT_PRIMITIVE": 1})
 
 #: The techniques the browser viewer draws.
-WEB_TECHNIQUES: tuple[TechniqueName, ...] = ("ewa", "flat", "points")
+WEB_TECHNIQUES: tuple[TechniqueName, ...] = (*BLENDED_TECHNIQUES, "flat", "points")
 
 
 def web_program(name: str) -> WebProgram:

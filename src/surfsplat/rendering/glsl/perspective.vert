@@ -6,6 +6,7 @@
 #include "splat_attributes.glsl"
 #include "splat_vertex.glsl"
 #include "disk_vertex.glsl"
+#include "splat_primitive.glsl"
 #include "hiz.glsl"
 
 uniform float u_cutoff;      // c: kernel cut at 0.5 x^T V^-1 x = c (F_g^2 = 2c)
@@ -131,5 +132,5 @@ void main() {
     if (hidden_splat(lo, hi, -s.p.z - length(vec2(s.u.z, s.v.z)))) { gl_Position = CULLED; return; }
 #endif
 #endif
-    gl_Position = px_to_clip(mix(lo, hi, in_corner * 0.5 + 0.5));
+    emit_box(lo, hi);   // a quad, or one GL_POINTS point for a small splat (POINT_PRIMITIVE)
 }

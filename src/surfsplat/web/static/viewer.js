@@ -26,10 +26,12 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   var ATTRIBUTES = ['in_corner', 'in_position', 'in_normal', 'in_color', 'in_u', 'in_v',
                     'in_clip0', 'in_clip1', 'in_normal_field', 'in_nonplanar'];
   var NONPLANAR = 9;             // in_nonplanar: hybrid LiDAR drawing (shaders.py, HYBRID_POINTS)
+  var NORMAL_FIELD = 8;          // in_normal_field: Phong splats' (alpha, beta) (Botsch 2004, eq. 2)
   var NO_DEPTH = 1e37;           // shaders.NO_DEPTH: the visibility target's clear value
   var SIDE_UNIT = 2;             // passes.SIDE_TEXTURE_UNIT
   var COVER_UNIT = 3;            // passes.COVER_TEXTURE_UNIT: the splats' pixel coverage (edge coverage)
   var EDL_COLOR_UNIT = 4, EDL_DEPTH_UNIT = 5;
+  var NORM_COLOR_UNIT = 0, NORM_DEPTH_UNIT = 1, NORM_Z_UNIT = 2;   // passes.NORM_*_UNIT: the fill pass's inputs
 
   var state = {
     technique: H.technique, background: H.background.slice(), edl: H.technique === 'points',
@@ -63,12 +65,21 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
 
   function u16(b64) { var b = bytes(b64); return new Uint16Array(b.buffer, b.byteOffset, b.length / 2); }
 
+  function octahedral(qn, i) {   // format.octahedral_decode of code i
+    var x = -1 + qn[2 * i] / 65534 * 2, y = -1 + qn[2 * i + 1] / 65534 * 2;   // format.OCT_LEVELS
+    var z = 1 - Math.abs(x) - Math.abs(y), t = Math.max(-z, 0);
+    x -= x >= 0 ? t : -t;
+    y -= y >= 0 ? t : -t;
+    var len = Math.sqrt(x * x + y * y + z * z);
+    return [x / len, y / len, z / len];
+  }
+
   function decode(hd, s) {   // a page's splats (H, DATA.streams) or a streamed cell's
     var H = hd, n = H.count;
     var qp = u16(s.position), qn = u16(s.normal), qa = u16(s.angle), qr = u16(s.radii);
     var pos = new Float32Array(3 * n), nrm = new Float32Array(3 * n), u = new Float32Array(3 * n),
         v = new Float32Array(3 * n);
-    var lo = H.lo, hi = H.hi, U16 = 65535, OCT = 65534;   // format.U16, format.OCT_LEVELS
+    var lo = H.lo, hi = H.hi, U16 = 65535;   // format.U16
     var w0 = hi[0] - lo[0], w1 = hi[1] - lo[1], w2 = hi[2] - lo[2];
     var l0 = H.log_radius[0], lw = H.log_radius[1] - H.log_radius[0];
     for (var i = 0; i < n; ++i) {
@@ -76,13 +87,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       pos[k] = lo[0] + qp[k] / U16 * w0;
       pos[k + 1] = lo[1] + qp[k + 1] / U16 * w1;
       pos[k + 2] = lo[2] + qp[k + 2] / U16 * w2;
-      // octahedral_decode
-      var x = -1 + qn[2 * i] / OCT * 2, y = -1 + qn[2 * i + 1] / OCT * 2;
-      var z = 1 - Math.abs(x) - Math.abs(y), t = Math.max(-z, 0);
-      x -= x >= 0 ? t : -t;
-      y -= y >= 0 ? t : -t;
-      var len = Math.sqrt(x * x + y * y + z * z);
-      x /= len; y /= len; z /= len;
+      var dn = octahedral(qn, i), x = dn[0], y = dn[1], z = dn[2];
       nrm[k] = x; nrm[k + 1] = y; nrm[k + 2] = z;
       // tangent_basis (Duff et al. 2017)
       var sign = z >= 0 ? 1 : -1, a = -1 / (sign + z), b = x * y * a;
@@ -94,7 +99,12 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       u[k] = dx * ru; u[k + 1] = dy * ru; u[k + 2] = dz * ru;
       v[k] = (y * dz - z * dy) * rv; v[k + 1] = (z * dx - x * dz) * rv; v[k + 2] = (x * dy - y * dx) * rv;
     }
+    if (s.shading) {   // Phong splats (page.encoded): the normal codes the plane; the shading normal apart
+      var qs = u16(s.shading);
+      for (i = 0; i < n; ++i) { var sh = octahedral(qs, i); nrm[3 * i] = sh[0]; nrm[3 * i + 1] = sh[1]; nrm[3 * i + 2] = sh[2]; }
+    }
     var out = {position: pos, normal: nrm, u: u, v: v, color: bytes(s.color)};
+    if (s.normal_field) out.normalField = u16(s.normal_field);   // (alpha, beta) as float16, flipped with the axes
     if (s.clip) {   // format.encode_clip_lines: the rows that cut and their two lines, float16 (zero: no cut)
       var rb = bytes(s.clip_rows), rows = new Uint32Array(rb.buffer, rb.byteOffset, rb.length / 4), lines = u16(s.clip);
       var c0 = new Uint16Array(3 * n), c1 = new Uint16Array(3 * n);
@@ -208,9 +218,14 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     });
   }
 
-  var programs = {};
-  function build(name) {
-    var p = SHADERS.programs[name], prog = gl.createProgram();
+  var programs = {}, linked = {};
+  function build(name) {   // programs of the same sources (phong's and blend's visibility) are linked once
+    var p = SHADERS.programs[name], key = p.vertex + '\u0000' + p.fragment;
+    if (!(key in linked)) linked[key] = link(name, p);
+    return linked[key];
+  }
+  function link(name, p) {
+    var prog = gl.createProgram();
     gl.attachShader(prog, compile(gl.VERTEX_SHADER, p.vertex, name));
     gl.attachShader(prog, compile(gl.FRAGMENT_SHADER, p.fragment, name));
     for (var i = 0; i < ATTRIBUTES.length; ++i) gl.bindAttribLocation(prog, i, ATTRIBUTES[i]);
@@ -304,6 +319,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     attribute(4, decoded.u, 3, gl.FLOAT, false);
     attribute(5, decoded.v, 3, gl.FLOAT, false);
     if (decoded.nonplanar) attribute(NONPLANAR, decoded.nonplanar, 1, gl.UNSIGNED_BYTE, false);
+    if (decoded.normalField) attribute(NORMAL_FIELD, decoded.normalField, 2, gl.HALF_FLOAT, false);
     if (decoded.clip0) {   // in_clip0, in_clip1 (Zwicker 2004, sec. 5)
       attribute(6, decoded.clip0, 3, gl.HALF_FLOAT, false);
       attribute(7, decoded.clip1, 3, gl.HALF_FLOAT, false);
@@ -327,6 +343,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     attribute(4, repeated(decoded.u, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
     attribute(5, repeated(decoded.v, 3, quadCount, Float32Array), 3, gl.FLOAT, false);
     if (decoded.nonplanar) attribute(NONPLANAR, repeated(decoded.nonplanar, 1, quadCount, Uint8Array), 1, gl.UNSIGNED_BYTE, false);
+    if (decoded.normalField) attribute(NORMAL_FIELD, repeated(decoded.normalField, 2, quadCount, Uint16Array), 2, gl.HALF_FLOAT, false);
     if (decoded.clip0) {
       attribute(6, repeated(decoded.clip0, 3, quadCount, Uint16Array), 3, gl.HALF_FLOAT, false);
       attribute(7, repeated(decoded.clip1, 3, quadCount, Uint16Array), 3, gl.HALF_FLOAT, false);
@@ -658,7 +675,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   function texture(format, w, h) {
     var t = gl.createTexture();
     gl.bindTexture(gl.TEXTURE_2D, t);
-    var internal = {rg: gl.RG32F, rgba: gl.RGBA32F, depth: gl.DEPTH_COMPONENT24}[format];   // the desktop's depth
+    var internal = {r: gl.R32F, rg: gl.RG32F, rgba: gl.RGBA32F, depth: gl.DEPTH_COMPONENT24}[format];   // the desktop's depth
     gl.texStorage2D(gl.TEXTURE_2D, 1, internal, w, h);
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
@@ -680,14 +697,16 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     if (targets) targets.all.forEach(function (x) { gl.isTexture(x) ? gl.deleteTexture(x) : gl.deleteFramebuffer(x); });
     var t = {w: w, h: h, side: texture('rg', w, h), cracks: texture('rg', w, h), accum: texture('rgba', w, h),
              aux: texture('rgba', w, h), depth: texture('depth', w, h), out: texture('rgba', w, h),
-             depthSum: texture('rg', w, h), cover: texture('rgba', w, h)};
+             depthSum: texture('rg', w, h), cover: texture('rgba', w, h),
+             normColor: texture('rgba', w, h), normDepth: texture('rg', w, h), normZ: texture('r', w, h)};
     t.fboVisibility = framebuffer([t.side]);
     t.fboCracks = framebuffer([t.cracks]);
     t.fboAccum = framebuffer([t.accum, t.aux], t.depth);
     t.fboAccumCover = framebuffer([t.accum, t.aux, t.cover], t.depth);   // ewa: with edge coverage
     t.fboOut = framebuffer([t.out, t.depthSum]);
-    t.all = [t.fboVisibility, t.fboCracks, t.fboAccum, t.fboAccumCover, t.fboOut, t.side, t.cracks, t.accum, t.aux,
-             t.depth, t.out, t.depthSum, t.cover];
+    t.fboNorm = framebuffer([t.normColor, t.normDepth, t.normZ]);   // normalize.frag's, for the fill pass
+    t.all = [t.fboVisibility, t.fboCracks, t.fboAccum, t.fboAccumCover, t.fboOut, t.fboNorm, t.side, t.cracks, t.accum,
+             t.aux, t.depth, t.out, t.depthSum, t.cover, t.normColor, t.normDepth, t.normZ];
     gl.bindFramebuffer(gl.FRAMEBUFFER, null);
     targets = t;
     return t;
@@ -778,7 +797,8 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     gl.clearBufferfv(gl.COLOR, 0, [0, 0, 0, 0]);
     gl.clearBufferfv(gl.COLOR, 1, [0, 0, 0, 0]);
     gl.clearBufferfv(gl.DEPTH, 0, [1]);
-    var blended = technique === 'ewa';   // blended with edge coverage (shaders.py: ewa_accumulation, normalize_edges)
+    // blended with edge coverage (shaders.py: <technique>_accumulation, normalize_edges)
+    var blended = H.blended.indexOf(technique) >= 0;
     if (blended) {
       gl.bindFramebuffer(gl.FRAMEBUFFER, t.fboAccumCover);
       gl.clearBufferfv(gl.COLOR, 2, [0, 0, 0, 0]);
@@ -790,7 +810,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       gl.disable(gl.DEPTH_TEST);
       gl.enable(gl.BLEND);
       gl.blendEquation(gl.MIN);
-      drawSplats('ewa_visibility', own, frame, technique);
+      drawSplats(technique + '_visibility', own, frame, technique);
       mark('visibility');
       // 2. cracks: the record with one-pixel cracks marked
       gl.disable(gl.BLEND);
@@ -805,7 +825,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       gl.enable(gl.BLEND);
       gl.blendEquation(gl.FUNC_ADD);
       gl.blendFunc(gl.ONE, gl.ONE);
-      drawSplats('ewa_accumulation', own, frame, technique);
+      drawSplats(technique + '_accumulation', own, frame, technique);
       mark('accumulation');
     } else {
       // the one opaque pass: a plain z-buffer
@@ -825,18 +845,29 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     if (blended) bindTexture(COVER_UNIT, t.cover);
     var normalization = blended ? programs.normalize_edges : programs.normalize;
     var normalize = {u_accum: 0, u_aux: 1, u_side: SIDE_UNIT, u_cover: COVER_UNIT, u_background: state.background,
-                     u_edge_fringe: blended};
-    if (state.edl) {
-      gl.bindFramebuffer(gl.FRAMEBUFFER, t.fboOut);
+                     u_edge_fringe: blended && H.edge_fringe.indexOf(technique) >= 0};
+    // the last pass writes the canvas, or the targets eye-dome lighting reads
+    var last = function () { gl.bindFramebuffer(gl.FRAMEBUFFER, state.edl ? t.fboOut : null); };
+    if (H.fill) {   // normalization into the norm targets, then the fill pass (passes.FillPass, fill.frag)
+      gl.bindFramebuffer(gl.FRAMEBUFFER, t.fboNorm);
       fullscreen(normalization, normalize);
+      mark('normalization');
+      last();
+      bindTexture(NORM_COLOR_UNIT, t.normColor);
+      bindTexture(NORM_DEPTH_UNIT, t.normDepth);
+      bindTexture(NORM_Z_UNIT, t.normZ);
+      fullscreen(programs.fill, {u_norm_color: NORM_COLOR_UNIT, u_norm_depth: NORM_DEPTH_UNIT, u_norm_z: NORM_Z_UNIT,
+                                 u_fill_depth: H.fill.depth});
+    } else {
+      last();
+      fullscreen(normalization, normalize);
+    }
+    if (state.edl) {
       gl.bindFramebuffer(gl.FRAMEBUFFER, null);
       bindTexture(EDL_COLOR_UNIT, t.out);
       bindTexture(EDL_DEPTH_UNIT, t.depthSum);
       fullscreen(programs.edl, {u_color: EDL_COLOR_UNIT, u_depth: EDL_DEPTH_UNIT, u_background: state.background,
                                 u_edl_strength: H.edl.strength, u_edl_offsets: [].concat.apply([], H.edl.offsets)});
-    } else {
-      gl.bindFramebuffer(gl.FRAMEBUFFER, null);
-      fullscreen(normalization, normalize);
     }
     gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, probe);   // waits for the frame (gl.finish need not)
     state.frameMs = performance.now() - start;
@@ -960,7 +991,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
 
   function setTechnique(name) {
     if (!(name in H.uniforms)) return;
-    if (name === 'ewa' && !floatBlend) { fail('ewa needs EXT_float_blend, which this browser lacks'); return; }
+    if (H.blended.indexOf(name) >= 0 && !floatBlend) { fail(name + ' needs EXT_float_blend, which this browser lacks'); return; }
     state.technique = name;
     syncControls();
     changed();
@@ -1084,7 +1115,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     if (params.technique && params.technique in H.uniforms) state.technique = params.technique;
     if (params.background) { var b = parseVec(params.background); if (b) state.background = b; }
     state.edl = params.edl !== undefined ? params.edl === '1' : state.technique === 'points';
-    if (state.technique === 'ewa' && !floatBlend) state.technique = 'flat';
+    if (H.blended.indexOf(state.technique) >= 0 && !floatBlend) state.technique = 'flat';
     root.style.background = hex(state.background);
     for (var p in SHADERS.programs) programs[p] = build(p);
     state.programs = Object.keys(programs);   // every shipped program compiled and linked
