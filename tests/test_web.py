@@ -152,6 +152,29 @@ def test_phong_splats_keep_their_plane_shading_normal_and_normal_field_through_t
     assert export(cloud.replace(normal_field=None), tmp_path / "plain").bytes == len(cloud) * 19
 
 
+def test_a_browser_lod_tree_marks_the_nodes_over_clip_lines_which_a_cut_always_refines():
+    import base64
+
+    from surfsplat.hierarchy import build_hierarchy
+    from surfsplat.hierarchy.lod import select, sharp_nodes
+    from surfsplat.scenes import sphere_cube
+    from surfsplat.web.tree import tree_entries, tree_streams
+    h = build_hierarchy(sphere_cube(6000))
+    clipped = np.any(h.points.clip_lines[:, :, :2] != 0, axis=(1, 2))
+    sharp = sharp_nodes(h)
+    expected = [clipped[s:s + c].any() for s, c in zip(h.node_point_start, h.node_point_count)]
+    assert np.array_equal(sharp, expected) and 0 < sharp.sum() < len(h)
+    bits = np.frombuffer(base64.b64decode(tree_streams(h)["sharp"]), np.uint8)
+    assert np.array_equal(np.unpackbits(bits, bitorder="little")[:len(h)].astype(bool), sharp)
+    # the desktop's cut at a coarse tolerance draws no node over clip lines (the page's rule is the same)
+    camera = View(h).camera(None, 160, 120)
+    assert not sharp[select(h, camera, 40.0, lod_shading="flat").node_indices()].any()
+    # the page's entries: the nodes' lines keep their whole disks, the points keep their own
+    entries = tree_entries(h)
+    assert np.array_equal(entries.clip_lines[len(h):], h.points.clip_lines)
+    assert np.all(entries.clip_lines[:len(h)] == np.array([0.0, 0.0, 1.0], np.float32))
+
+
 def test_the_page_draws_every_technique_with_the_desktop_s_passes():
     # each technique's programs are its declared files with the desktop's pass ids; the fill pass is the
     # desktop's (passes.FillPass at one sample a pixel), with its depth tolerance in the header

@@ -63,13 +63,7 @@ class _LodArrays:
         self.sin_cone = np.sin(cone).astype(np.float32)
         self.cos_cone = np.cos(cone).astype(np.float32)
         self.leaf = h.node_child_count == 0
-        # Nodes over clipped splats are always refined: a representative splat has no clip
-        # lines and would blur the sharp edge they cut (Zwicker 2004, sec. 5).
-        self.sharp = np.zeros(len(self.leaf), dtype=bool)
-        if h.points.clip_lines is not None:
-            clipped = np.any(h.points.clip_lines[:, :, :2] != 0.0, axis=(1, 2))
-            total = np.concatenate([[0], np.cumsum(clipped)])
-            self.sharp = total[h.node_point_start + h.node_point_count] > total[h.node_point_start]
+        self.sharp = sharp_nodes(h)
         off = h.level_offsets
         counts = h.node_child_count.astype(np.int64)
         self.child_count = counts
@@ -401,6 +395,16 @@ def uniform_cut(hierarchy: Hierarchy, budget: int) -> np.ndarray:
     level = int(fits.max()) if len(fits) else 0
     sl = hierarchy.level(level)
     return np.concatenate([np.flatnonzero(leaf & (depth < level)), np.arange(sl.start, sl.stop)])
+
+
+def sharp_nodes(h: Hierarchy) -> np.ndarray:
+    """(M,) bool: the nodes over splats with clip lines, which a cut always refines: a representative
+    splat has no clip lines and would blur the sharp edge they cut (Zwicker 2004, sec. 5)."""
+    if h.points.clip_lines is None:
+        return np.zeros(len(h), dtype=bool)
+    clipped = np.any(h.points.clip_lines[:, :, :2] != 0.0, axis=(1, 2))
+    total = np.concatenate([[0], np.cumsum(clipped)])
+    return total[h.node_point_start + h.node_point_count] > total[h.node_point_start]
 
 
 def _test(lod: _LodArrays, rows, view: _View, lod_tolerance: float, frustum: bool, cull_backfaces: bool):

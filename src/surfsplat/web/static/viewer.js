@@ -447,7 +447,8 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   function f32(b64) { var b = bytes(b64); return new Float32Array(b.buffer, b.byteOffset, b.length / 4); }
   function readTree(s) {
     return {childStart: i32(s.child_start), childCount: i32(s.child_count), pointStart: i32(s.point_start),
-            pointCount: i32(s.point_count), center: f32(s.center), radius: f32(s.radius), extent: f32(s.extent)};
+            pointCount: i32(s.point_count), center: f32(s.center), radius: f32(s.radius), extent: f32(s.extent),
+            sharp: s.sharp ? bytes(s.sharp) : null};   // tree.tree_streams: nodes over clip lines, one bit each
   }
   // The entries to draw for a camera: the tolerance cut (a node refined while f 2 a / (|c - eye| - R) exceeds
   // the tolerance; nodes outside the frustum dropped with their subtrees), and where it holds more than the
@@ -485,8 +486,9 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     var total = base;
     while (stack.length) {
       var item = stack.pop(); t = item[0]; n = item[1];
-      var own = size(t, n);
-      if (!(own > tol)) continue;
+      var own = size(t, n), S = t.T.sharp;
+      // refined while larger than the tolerance, and always over clip lines (hierarchy.lod.sharp_nodes)
+      if (!(own > tol) && !(S && (S[n >> 3] >> (n & 7)) & 1)) continue;
       var p = Math.min(own, item[2]), cost;
       if (t.T.childCount[n] === 0) {
         cost = t.T.pointCount[n] - 1;
@@ -541,9 +543,10 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       }
       for (k = 0; k < t.T.childCount[n]; ++k) if (visible(t, t.T.childStart[n] + k)) todo.push([t, t.T.childStart[n] + k]);
     }
-    var drawn = 0;
+    var drawn = 0, nodesDrawn = 0;
     trees.forEach(function (x) {
       var list = Uint32Array.from(x.out);
+      for (var q = 0; q < list.length; ++q) if (list[q] < x.M) nodesDrawn += 1;
       gl.bindVertexArray(x.vao);
       gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, list, gl.DYNAMIC_DRAW);
       gl.bindVertexArray(null);
@@ -553,6 +556,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       x.out = null;
     });
     state.drawn = drawn;
+    state.drawnNodes = nodesDrawn;   // node splats among them (the rest: points)
     if (cells) {   // the cells worth loading: those the budget would refine, largest on screen first
       wanted = wanted.filter(function (x) { return x[0] > stop; });
       wanted.sort(function (a, b) { return b[0] - a[0] || a[1] - b[1]; });
