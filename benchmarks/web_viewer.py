@@ -5,7 +5,7 @@ frame times in headless Chromium.
   (the same torus's centres in a PLY without normals: read, preprocessed, written), wall-clock seconds;
 * size: bytes per splat of the web format, and of the whole folder;
 * quality, on the Stanford bunny (``shared/data/bunny.ply``, sampled for the default view at 1024 px as
-  ``surfsplat render`` samples it), at 1024 x 768, for ``ewa``, ``flat`` and ``points`` with EDL:
+  ``surfsplat render`` samples it), at 1024 x 768, for every technique of the page (``points`` with EDL):
   the quantization cost (PSNR of the desktop render of the decoded splats against the desktop render of
   the original ones; for ewa and flat also the drop of the PSNR against the mesh's ground truth); the
   canvas of the exported page in headless Chromium (SwiftShader) against the desktop render of the same
@@ -26,6 +26,7 @@ The bunny is exported for the page size (``export(..., size=(W, H))``), so it is
 render --width W --height H`` samples it.
 
     python benchmarks/web_viewer.py [--size 1024 768] [--skip-raw] [--chunked 10000000 --cell-points 500000]
+    python benchmarks/web_viewer.py --quality-only     # the bunny rows alone, saved as results/web_quality.md
 """
 
 from __future__ import annotations
@@ -58,11 +59,12 @@ from surfsplat.scenes import torus  # noqa: E402
 from surfsplat.web import export  # noqa: E402
 from surfsplat.web.browser import Browser, file_url  # noqa: E402
 from surfsplat.web.export import as_drawn, exported_splats  # noqa: E402
+from surfsplat.web.shaders import WEB_TECHNIQUES  # noqa: E402
 
 BUNNY = Path(__file__).resolve().parents[2] / "shared" / "data" / "bunny.ply"
 if not BUNNY.exists():
     BUNNY = Path("/work/shared/data/bunny.ply")
-TECHNIQUES = ("ewa", "flat", "points")
+TECHNIQUES = WEB_TECHNIQUES
 #: The point budget of the browser-LOD page.
 LOD_BUDGET = 300_000
 
@@ -152,29 +154,34 @@ def main() -> None:
     parser.add_argument("--cell-points", type=int, default=500_000, help="points per cell of that hierarchy")
     parser.add_argument("--export-only", action="store_true",
                         help="only the export rows, saved as results/web_export.md (the browser rows are kept)")
+    parser.add_argument("--quality-only", action="store_true",
+                        help="only the bunny's quality rows, saved as results/web_quality.md")
     args = parser.parse_args()
     width, height = args.size
     work = Path(tempfile.mkdtemp(prefix="surfsplat-web-bench-"))
     rows = []
     try:
-        # -- export time and size ------------------------------------------------------------------
-        big = torus(1250, 800)
-        start = time.perf_counter()
-        result = export(big, work / "torus")
-        rows.append(["export 1 M splats (torus scene)", "s", round(time.perf_counter() - start, 2)])
-        rows.append(["web format", "bytes / splat", result.bytes / result.splats])
-        rows.append(["exported folder, 1 M splats", "bytes / splat", round(folder_bytes(work / "torus") / len(big), 1)])
-        if not args.skip_raw:
-            raw = work / "raw.ply"
-            save_ply(SplatCloud(big.positions, colors=big.colors, origin=big.origin, up=big.up), raw)
+        if not args.quality_only:
+            # -- export time and size ------------------------------------------------------------------
+            big = torus(1250, 800)
             start = time.perf_counter()
-            export(raw, work / "raw")
-            rows.append(["export 1 M raw points (read, preprocess, write)", "s", round(time.perf_counter() - start, 2)])
-        if args.export_only:
-            command = " ".join(["python benchmarks/web_viewer.py", *sys.argv[1:]])
-            write_table("web_export", ["measure", "unit", "value"], rows,
-                        f"{machine_description()}; load average {os.getloadavg()[0]:.1f} at the end; `{command}`")
-            return
+            result = export(big, work / "torus")
+            rows.append(["export 1 M splats (torus scene)", "s", round(time.perf_counter() - start, 2)])
+            rows.append(["web format", "bytes / splat", result.bytes / result.splats])
+            rows.append(["exported folder, 1 M splats", "bytes / splat",
+                         round(folder_bytes(work / "torus") / len(big), 1)])
+            if not args.skip_raw:
+                raw = work / "raw.ply"
+                save_ply(SplatCloud(big.positions, colors=big.colors, origin=big.origin, up=big.up), raw)
+                start = time.perf_counter()
+                export(raw, work / "raw")
+                rows.append(["export 1 M raw points (read, preprocess, write)", "s",
+                             round(time.perf_counter() - start, 2)])
+            if args.export_only:
+                command = " ".join(["python benchmarks/web_viewer.py", *sys.argv[1:]])
+                write_table("web_export", ["measure", "unit", "value"], rows,
+                            f"{machine_description()}; load average {os.getloadavg()[0]:.1f} at the end; `{command}`")
+                return
 
         # -- quality on the bunny --------------------------------------------------------------------
         plan = View(BUNNY)
@@ -219,44 +226,48 @@ def main() -> None:
                     Image.fromarray((canvas * 255).astype(np.uint8)).save(args.images / f"canvas_{technique}.png")
                     Image.fromarray(desk.image()).save(args.images / f"desktop_{technique}.png")
 
-            # -- frame times, 1 M splats -----------------------------------------------------------------
-            for technique in TECHNIQUES:
-                page = opened(browser, file_url(work / "torus" / "index.html", f"?technique={technique}"), width,
-                              height)
+            if not args.quality_only:
+                # -- frame times, 1 M splats -----------------------------------------------------------------
+                for technique in TECHNIQUES:
+                    page = opened(browser, file_url(work / "torus" / "index.html", f"?technique={technique}"), width,
+                                  height)
+                    first, ready = json.loads(page.evaluate(
+                        "JSON.stringify([surfsplat.firstFrameMs, surfsplat.readyMs])"))
+                    again = [page.evaluate("surfsplat.redraw()") for _ in range(3)]
+                    page.close()
+                    name = technique + (" + EDL" if technique == "points" else "")
+                    rows.append([f"first frame, 1 M splats, {name}", "ms after navigation", round(float(first))])
+                    rows.append([f"first full-quality frame, 1 M splats, {name}", "ms after navigation",
+                                 round(float(ready))])
+                    rows.append([f"full-quality frame, 1 M splats, {name}", "ms (median of 3)",
+                                 round(statistics.median(again))])
+                # -- level of detail in the browser: the 1 M-splat torus's hierarchy, cut per view -----------------
+                start = time.perf_counter()
+                export(big, work / "lod", browser_lod=True, point_budget=LOD_BUDGET)
+                rows.append(["export with browser LOD (hierarchy built), 1 M splats", "s",
+                             round(time.perf_counter() - start, 2)])
+                page = opened(browser, file_url(work / "lod" / "index.html", "?technique=ewa"), width, height)
                 first, ready = json.loads(page.evaluate("JSON.stringify([surfsplat.firstFrameMs, surfsplat.readyMs])"))
+                drawn = page.evaluate("surfsplat.drawn")
                 again = [page.evaluate("surfsplat.redraw()") for _ in range(3)]
                 page.close()
-                name = technique + (" + EDL" if technique == "points" else "")
-                rows.append([f"first frame, 1 M splats, {name}", "ms after navigation", round(float(first))])
-                rows.append([f"first full-quality frame, 1 M splats, {name}", "ms after navigation",
+                rows.append([f"browser LOD, budget {LOD_BUDGET:,}: splats drawn at the default view", "splats", drawn])
+                rows.append(["browser LOD: first frame, ewa", "ms after navigation", round(float(first))])
+                rows.append(["browser LOD: first full-quality frame, ewa", "ms after navigation",
                              round(float(ready))])
-                rows.append([f"full-quality frame, 1 M splats, {name}", "ms (median of 3)",
+                rows.append(["browser LOD: full-quality frame, ewa", "ms (median of 3)",
                              round(statistics.median(again))])
-            # -- level of detail in the browser: the 1 M-splat torus's hierarchy, cut per view -----------------
-            start = time.perf_counter()
-            export(big, work / "lod", browser_lod=True, point_budget=LOD_BUDGET)
-            rows.append(["export with browser LOD (hierarchy built), 1 M splats", "s",
-                         round(time.perf_counter() - start, 2)])
-            page = opened(browser, file_url(work / "lod" / "index.html", "?technique=ewa"), width, height)
-            first, ready = json.loads(page.evaluate("JSON.stringify([surfsplat.firstFrameMs, surfsplat.readyMs])"))
-            drawn = page.evaluate("surfsplat.drawn")
-            again = [page.evaluate("surfsplat.redraw()") for _ in range(3)]
-            page.close()
-            rows.append([f"browser LOD, budget {LOD_BUDGET:,}: splats drawn at the default view", "splats", drawn])
-            rows.append(["browser LOD: first frame, ewa", "ms after navigation", round(float(first))])
-            rows.append(["browser LOD: first full-quality frame, ewa", "ms after navigation", round(float(ready))])
-            rows.append(["browser LOD: full-quality frame, ewa", "ms (median of 3)", round(statistics.median(again))])
-            if args.chunked:
-                rows.extend(chunked_rows(browser, work, args.chunked, args.cell_points, width, height))
+                if args.chunked:
+                    rows.extend(chunked_rows(browser, work, args.chunked, args.cell_points, width, height))
             version = browser.version
     finally:
         shutil.rmtree(work, ignore_errors=True)
     machine = machine_description(default_renderer().ctx.info["GL_RENDERER"])
     command = " ".join(["python benchmarks/web_viewer.py", *sys.argv[1:]])
-    write_table("web_viewer", ["measure", "unit", "value"], rows,
+    write_table("web_quality" if args.quality_only else "web_viewer", ["measure", "unit", "value"], rows,
                 f"{machine}; headless {version} (WebGL2 on SwiftShader); load average {os.getloadavg()[0]:.1f} "
                 f"at the end; {width}x{height}; `{command}`")
-    print(json.dumps({"results": str(RESULTS / "web_viewer.md")}))
+    print(json.dumps({"results": str(RESULTS / ("web_quality.md" if args.quality_only else "web_viewer.md"))}))
 
 
 if __name__ == "__main__":

@@ -23,7 +23,7 @@ from surfsplat.web import export
 from surfsplat.web import format as wf
 from surfsplat.web.export import FILES, as_drawn, page_payload, web_order
 from surfsplat.web.framing import camera_from_frame, fit_frame
-from surfsplat.web.shaders import PROGRAMS, WEB_TECHNIQUES, shader_bundle
+from surfsplat.web.shaders import MAX_PAGE_SUPERSAMPLE, PROGRAMS, WEB_TECHNIQUES, fill_program, shader_bundle
 
 
 def unit_vectors(n: int, seed: int = 0) -> np.ndarray:
@@ -189,11 +189,11 @@ def test_the_page_draws_every_technique_with_the_desktop_s_passes():
             assert defines["PASS"] == {"visibility": PASS_VISIBILITY, "accumulation": PASS_ACCUMULATION,
                                        "": PASS_OPAQUE}[step]
             assert (f"{program}_points" in PROGRAMS) == (technique.point_footprint is not None)
-    plan = plan_frame(get_technique("flat"), RenderOptions(), [(0, 1)], [])
-    fill = plan.get("fill")
-    assert PROGRAMS["fill"][2] == {"FILL_GAP": fill.gap, "FILL_REACH": fill_reach(fill.gap)}
     header, _ = page_payload(torus(16, 8))
-    assert header["fill"] == {"gap": fill.gap, "depth": fill_depth(fill.gap)}
+    for k in range(1, MAX_PAGE_SUPERSAMPLE + 1):   # one fill program per supersampling, as the desktop's
+        fill = plan_frame(get_technique("flat"), RenderOptions(), [(0, 1)], [], supersample=k).get("fill")
+        assert PROGRAMS[fill_program(k)][2] == {"FILL_GAP": fill.gap, "FILL_REACH": fill_reach(fill.gap)}
+        assert header["fill"][str(k)] == {"gap": fill.gap, "depth": fill_depth(fill.gap), "program": fill_program(k)}
     assert header["blended"] == [t for t in WEB_TECHNIQUES if get_technique(t).blended]
 
 
@@ -270,6 +270,9 @@ def test_export_api_checks_its_arguments(tmp_path):
         surfsplat.export("demo:torus", tmp_path / "a", technique="sketch")
     with pytest.raises(InputError, match="point budget"):
         surfsplat.export("demo:torus", tmp_path / "a", point_budget=0)
+    with pytest.raises(InputError, match="supersampling"):
+        surfsplat.export("demo:torus", tmp_path / "a", supersample=5)
+    assert page_payload(torus(16, 8), supersample=3)[0]["supersample"] == 3
     with pytest.raises(InputError, match="folder .* does not exist"):
         surfsplat.export("demo:torus", tmp_path / "no" / "a")
     result = surfsplat.export(torus(16, 8), tmp_path / "b.html")

@@ -16,7 +16,7 @@ from .. import defaults, progress
 from ..version import __version__
 from ..errors import SurfsplatError
 from ..scenes import SCENES
-from ..web.shaders import WEB_TECHNIQUES
+from ..web.shaders import MAX_PAGE_SUPERSAMPLE, WEB_TECHNIQUES
 from . import chunked, commands
 from . import options as opt
 from .parser import Parser
@@ -186,6 +186,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"the page size the model is prepared for: a mesh sampled as `surfsplat render --width W "
                         f"--height H` samples it, a hierarchy cut at that default view (default "
                         f"{defaults.WINDOW_SIZE[0]} {defaults.WINDOW_SIZE[1]})")
+    p.add_argument("--supersample", type=opt.number(int, low=1, high=MAX_PAGE_SUPERSAMPLE), default=1, metavar="K",
+                   help=f"the page's first supersampling: K x K sub-pixels a pixel, as `surfsplat render "
+                        f"--supersample K` (1 to {MAX_PAGE_SUPERSAMPLE}; ?supersample=K on the page; default 1)")
     p.add_argument("--force", action="store_true",
                    help="replace an existing file or non-empty folder that surfsplat export did not write "
                         "(an earlier export is always replaced)")

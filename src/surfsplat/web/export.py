@@ -30,7 +30,7 @@ from ..rendering.frame import check_background
 from ..version import __version__
 from . import format as web_format
 from .page import DEFAULT_POINT_BUDGET, as_drawn, exported_splats, page_data, web_order
-from .shaders import WEB_TECHNIQUES, shader_bundle
+from .shaders import MAX_PAGE_SUPERSAMPLE, WEB_TECHNIQUES, shader_bundle
 from .stream import CELLS_FOLDER, stream_data
 from .tree import tree_data
 
@@ -147,13 +147,13 @@ def check_page_args(technique: str, background, point_budget: int | None) -> tup
 def page_payload(source, *, technique: str = "ewa", background=defaults.BACKGROUND,
                  source_options: SourceOptions | None = None, lod: LodOptions | None = None,
                  camera: CameraSpec | None = None, point_budget: int | None = None,
-                 browser_lod: bool = False, size=PAGE_SIZE) -> tuple[dict, dict]:
+                 browser_lod: bool = False, size=PAGE_SIZE, supersample: int = 1) -> tuple[dict, dict]:
     """The header and the base64 streams of a page showing ``source`` (:func:`export`'s arguments): the
     model prepared by the view plan for the page's ``size``, cut within the budget (or with ``browser_lod``
     its whole hierarchy, :mod:`surfsplat.web.tree`), quantized (what ``data.js`` holds). A chunked
     hierarchy with ``browser_lod`` streams its cells from files: only :func:`export` writes it."""
     header, streams, files = _payload(source, technique, background, source_options, lod, camera, point_budget,
-                                      browser_lod, size, None)
+                                      browser_lod, size, None, supersample)
     if files:
         raise InputError(f"{header['name']}: a chunked hierarchy streamed to the page needs a folder of cell files: "
                          "export it (surfsplat export --browser-lod), or without browser LOD")
@@ -161,9 +161,12 @@ def page_payload(source, *, technique: str = "ewa", background=defaults.BACKGROU
 
 
 def _payload(source, technique, background, source_options, lod, camera, point_budget, browser_lod, size,
-             memory_budget) -> tuple[dict, dict, dict[str, str]]:
+             memory_budget, supersample=1) -> tuple[dict, dict, dict[str, str]]:
     """:func:`page_payload`'s header and streams, and the cell files of a streamed chunked hierarchy."""
     background = check_page_args(technique, background, point_budget)
+    if not (isinstance(supersample, (int, np.integer)) and 1 <= supersample <= MAX_PAGE_SUPERSAMPLE):
+        raise InputError(f"the page's supersampling must be a whole number of sub-pixels from 1 to "
+                         f"{MAX_PAGE_SUPERSAMPLE}, got {supersample!r}")
     width, height = check_page_size(size)
     check_source(source)
     plan = View(source, source_options=source_options, lod=lod)
@@ -171,16 +174,23 @@ def _payload(source, technique, background, source_options, lod, camera, point_b
     with progress.stage("exporting for the web"):
         if browser_lod:
             if not plan.tree(view_camera).in_memory:
-                return stream_data(plan, view_camera, technique, background, plan.name, point_budget, memory_budget)
-            return (*tree_data(plan, view_camera, technique, background, plan.name, point_budget), {})
-        cloud = exported_splats(plan, view_camera, point_budget)
-        return (*page_data(plan, view_camera, cloud, technique, background, plan.name), {})
+                header, streams, files = stream_data(plan, view_camera, technique, background, plan.name,
+                                                     point_budget, memory_budget)
+            else:
+                header, streams = tree_data(plan, view_camera, technique, background, plan.name, point_budget)
+                files = {}
+        else:
+            cloud = exported_splats(plan, view_camera, point_budget)
+            header, streams = page_data(plan, view_camera, cloud, technique, background, plan.name)
+            files = {}
+    header["supersample"] = int(supersample)
+    return header, streams, files
 
 
 def export(source, output, *, technique: str = "ewa", background=defaults.BACKGROUND,
            source_options: SourceOptions | None = None, lod: LodOptions | None = None,
            camera: CameraSpec | None = None, point_budget: int | None = None, browser_lod: bool = False,
-           force: bool = False, format: str | None = None, size=PAGE_SIZE,
+           force: bool = False, format: str | None = None, size=PAGE_SIZE, supersample: int = 1,
            memory_budget: int | None = None) -> ExportResult:
     """Write a static web viewer of ``source`` to ``output``: a folder (``index.html``, ``viewer.js``,
     ``shaders.js``, ``data.js``), or one self-contained file where ``output`` ends in ``.html``.
@@ -208,6 +218,8 @@ def export(source, output, *, technique: str = "ewa", background=defaults.BACKGR
         size: ``(width, height)``, the page size in CSS pixels the model is prepared for (default
             :data:`PAGE_SIZE`): a mesh is sampled for the default view at that size, as ``surfsplat render``
             at that size samples it (the density the page can show), a hierarchy cut there.
+        supersample: K, the page's first supersampling (1 to 4; ``?supersample=K`` changes it): every pass
+            drawn on K x K sub-pixels a pixel and reduced, as ``surfsplat render --supersample K`` draws.
 
     Returns:
         :class:`ExportResult` (for COPC, ``bytes`` is the size of the file).
@@ -224,7 +236,7 @@ def export(source, output, *, technique: str = "ewa", background=defaults.BACKGR
         return _export_copc(source, output, source_options, lod, camera, point_budget, force, start, size)
     path, single = check_export_output(output, force)
     header, streams, cells = _payload(source, technique, background, source_options, lod, camera, point_budget,
-                                      browser_lod, size, memory_budget)
+                                      browser_lod, size, memory_budget, supersample)
     files = page_files(header, streams)
     if cells and single:
         raise InputError(f"{path}: a chunked hierarchy streamed to the page is a folder of cell files; "

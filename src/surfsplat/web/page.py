@@ -27,7 +27,7 @@ from ..version import __version__
 from . import format as web_format
 from .colors import attribute_streams, cut_attributes
 from .framing import fit_frame
-from .shaders import WEB_TECHNIQUES
+from .shaders import MAX_PAGE_SUPERSAMPLE, WEB_TECHNIQUES, fill_program
 
 #: A hierarchy is cut to at most this many splats at the default camera unless a budget is given.
 DEFAULT_POINT_BUDGET = 5_000_000
@@ -168,8 +168,11 @@ def page_data(plan: View, camera: Camera, cloud: SplatCloud, technique: str, bac
                        for t in WEB_TECHNIQUES},
         "blended": [t for t in WEB_TECHNIQUES if get_technique(t).blended],
         "edge_fringe": [t for t in WEB_TECHNIQUES if get_technique(t).edge_fringe],
-        # the fill pass of every technique, as the desktop draws by default (passes.FillPass, one sample a pixel)
-        "fill": {"gap": fill_gap(options), "depth": fill_depth(fill_gap(options))} if fill_gap(options) else None,
+        # the fill pass of every technique, as the desktop draws by default (passes.FillPass), per supersampling
+        "fill": {str(k): {"gap": fill_gap(options, k), "depth": fill_depth(fill_gap(options, k)),
+                          "program": fill_program(k)} for k in range(1, MAX_PAGE_SUPERSAMPLE + 1)}
+        if options.fill_holes else None,
+        "supersample": 1, "max_supersample": MAX_PAGE_SUPERSAMPLE,
         "edl": {"strength": EdlOptions().strength, "offsets": neighbour_offsets(EdlOptions().radius_px)},
     })
     clips = clip_streams(cloud, order, streams, header)

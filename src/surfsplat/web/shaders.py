@@ -18,7 +18,9 @@ frame drawn without compute shaders, in one tile (large splats as quads, the oth
   lighting (``edl.frag``, the formula of :mod:`surfsplat.rendering.edl`);
 - ``fill``: after the normalization of every technique, the desktop's screen-space hole filling
   (``fill.frag``, ``RenderOptions.fill_holes``, on by default) with the gap and reach of a frame drawn one
-  sample a pixel (:func:`surfsplat.rendering.passes.fill_gap`).
+  sample a pixel (:func:`surfsplat.rendering.passes.fill_gap`); ``fill_K`` those of K x K sub-pixels;
+- ``downsample``: a supersampled page's sub-pixels reduced to the canvas (``downsample.frag``, the twin of
+  :func:`surfsplat.rendering.tiles.box_reduce`), before eye-dome lighting.
 
 The splat programs are built with ``HYBRID_POINTS``: a per-splat ``in_nonplanar`` attribute
 (the page's ``nonplanar`` stream, exported where the view plan draws the model hybrid) turns a splat into
@@ -37,7 +39,8 @@ from dataclasses import dataclass
 
 from ..rendering.edl import NEIGHBOURS
 from ..rendering.options import TechniqueName
-from ..rendering.passes import EDGE_COVERAGE_DEFINE, FILL_GAP_PX, fill_reach
+from ..rendering.options import RenderOptions
+from ..rendering.passes import EDGE_COVERAGE_DEFINE, fill_gap, fill_reach
 from ..rendering.shaders import GLSL_ES_VERSION, PASS_ACCUMULATION, PASS_OPAQUE, PASS_VISIBILITY, PROLOGUE, compose
 from ..rendering.uniform_blocks import FRAME_BLOCKS, block_layout
 from ..rendering.shaders import read_source
@@ -57,6 +60,9 @@ class WebProgram:
     files: tuple[str, ...]
 
 
+#: The most sub-pixels per output pixel along each axis the page draws (``supersample``; float targets of
+#: 1024 x 768 pixels at 4 x 4 sub-pixels take about 1.2 GB).
+MAX_PAGE_SUPERSAMPLE = 4
 #: The blended techniques the browser viewer draws (visibility, cracks, accumulation, normalization).
 BLENDED_TECHNIQUES: tuple[TechniqueName, ...] = ("ewa", "perspective", "phong", "blend")
 
@@ -73,12 +79,20 @@ def _programs() -> dict[str, tuple[str, str, dict[str, object]]]:
         "cracks": ("fullscreen.vert", "cracks.frag", {}),
         "normalize": ("fullscreen.vert", "normalize.frag", {}),
         "normalize_edges": ("fullscreen.vert", "normalize.frag", {EDGE_COVERAGE_DEFINE: 1}),
-        "fill": ("fullscreen.vert", "fill.frag", {"FILL_GAP": FILL_GAP_PX, "FILL_REACH": fill_reach(FILL_GAP_PX)}),
+        "downsample": ("fullscreen.vert", "downsample.frag", {}),
         "flat": ("disk.vert", "flat.frag", {"PASS": PASS_OPAQUE, "HYBRID_POINTS": 1}),
         "points": ("points.vert", "points.frag", {"PASS": PASS_OPAQUE}),
         "edl": ("fullscreen.vert", "edl.frag", {"EDL_NEIGHBOURS": NEIGHBOURS}),
     })
+    for k in range(1, MAX_PAGE_SUPERSAMPLE + 1):   # the fill pass of each supersampling (its gap: a define)
+        gap = fill_gap(RenderOptions(), k)
+        programs[fill_program(k)] = ("fullscreen.vert", "fill.frag", {"FILL_GAP": gap, "FILL_REACH": fill_reach(gap)})
     return programs
+
+
+def fill_program(supersample: int) -> str:
+    """The name of the fill pass's program of a page drawn with ``supersample`` sub-pixels a pixel per axis."""
+    return "fill" if supersample == 1 else f"fill_{supersample}"
 
 
 #: name -> (vertex file, fragment file, defines): every program the browser viewer draws with.

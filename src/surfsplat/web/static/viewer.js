@@ -37,7 +37,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     technique: H.technique, background: H.background.slice(), edl: H.technique === 'points',
     camera: null, frameMs: 0, frames: 0, splats: H.count, errors: [], ready: false, firstFrameMs: null,
     colorBy: 'own colours',
-    ui: true, width: 0, height: 0
+    ui: true, width: 0, height: 0, supersample: 1
   };
   // one full-quality frame drawn now; its time in milliseconds (the benchmark's)
   state.redraw = function () { render(); return state.frameMs; };
@@ -737,7 +737,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       u_view: view, u_tile: [0, 0, w, h], u_viewport: [w, h], u_near_far: nf,
       u_focal: 0.5 * h / Math.tan(cam.fov * Math.PI / 360),
       u_light_dirs: [light, [0, 0, 0], [0, 0, 0], [0, 0, 0]], u_material: H.material, u_num_lights: 1,
-      u_lighting: true, u_depth_epsilon: fr.u_depth_epsilon, u_supersample: fr.u_supersample,
+      u_lighting: true, u_depth_epsilon: fr.u_depth_epsilon, u_supersample: state.supersample,
       u_cull_backfaces: !!(H.culls && H.culls[technique]) && eyeOutside(cam.eye), u_separate_sides: fr.u_separate_sides,
       u_clip_fringe: fr.u_clip_fringe, u_deferred: fr.u_deferred
     };
@@ -786,9 +786,23 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     state.passMs[name] = now - state.passStart;
     state.passStart = now;
   }
+  // A supersampled page (?supersample=K, export's supersample) draws every pass on K x K sub-pixels a pixel, as
+  // `surfsplat render --supersample K` does, then reduces them (downsample.frag) into the canvas.
+  var reduced = null;
+  function ensureReduced(w, h) {
+    if (reduced && reduced.w === w && reduced.h === h) return reduced;
+    if (reduced) reduced.all.forEach(function (x) { gl.isTexture(x) ? gl.deleteTexture(x) : gl.deleteFramebuffer(x); });
+    var r = {w: w, h: h, out: texture('rgba', w, h), depthSum: texture('rg', w, h)};
+    r.fbo = framebuffer([r.out, r.depthSum]);
+    r.all = [r.fbo, r.out, r.depthSum];
+    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+    reduced = r;
+    return r;
+  }
   function render(technique) {
     technique = technique || state.technique;
-    var w = canvas.width, h = canvas.height, t = ensureTargets(w, h);
+    var K = state.supersample, sub = K > 1;
+    var w = canvas.width * K, h = canvas.height * K, t = ensureTargets(w, h);
     var start = performance.now();
     state.passMs = {}; state.passStart = start;
     var frame = frameValues(state.camera, w, h, technique);
@@ -851,7 +865,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     var normalize = {u_accum: 0, u_aux: 1, u_side: SIDE_UNIT, u_cover: COVER_UNIT, u_background: state.background,
                      u_edge_fringe: blended && H.edge_fringe.indexOf(technique) >= 0};
     // the last pass writes the canvas, or the targets eye-dome lighting reads
-    var last = function () { gl.bindFramebuffer(gl.FRAMEBUFFER, state.edl ? t.fboOut : null); };
+    var last = function () { gl.bindFramebuffer(gl.FRAMEBUFFER, state.edl || sub ? t.fboOut : null); };
     if (H.fill) {   // normalization into the norm targets, then the fill pass (passes.FillPass, fill.frag)
       gl.bindFramebuffer(gl.FRAMEBUFFER, t.fboNorm);
       fullscreen(normalization, normalize);
@@ -860,16 +874,26 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       bindTexture(NORM_COLOR_UNIT, t.normColor);
       bindTexture(NORM_DEPTH_UNIT, t.normDepth);
       bindTexture(NORM_Z_UNIT, t.normZ);
-      fullscreen(programs.fill, {u_norm_color: NORM_COLOR_UNIT, u_norm_depth: NORM_DEPTH_UNIT, u_norm_z: NORM_Z_UNIT,
-                                 u_fill_depth: H.fill.depth});
+      var fill = H.fill[String(K)];
+      fullscreen(programs[fill.program], {u_norm_color: NORM_COLOR_UNIT, u_norm_depth: NORM_DEPTH_UNIT,
+                                          u_norm_z: NORM_Z_UNIT, u_fill_depth: fill.depth});
     } else {
       last();
       fullscreen(normalization, normalize);
     }
-    if (state.edl) {
-      gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+    var image = t;   // what eye-dome lighting reads: the normalized (filled) image, reduced where supersampled
+    if (sub) {
+      gl.viewport(0, 0, canvas.width, canvas.height);
+      if (state.edl) { image = ensureReduced(canvas.width, canvas.height); gl.bindFramebuffer(gl.FRAMEBUFFER, image.fbo); }
+      else gl.bindFramebuffer(gl.FRAMEBUFFER, null);
       bindTexture(EDL_COLOR_UNIT, t.out);
       bindTexture(EDL_DEPTH_UNIT, t.depthSum);
+      fullscreen(programs.downsample, {u_sub_color: EDL_COLOR_UNIT, u_sub_depth: EDL_DEPTH_UNIT, u_factor: K});
+    }
+    if (state.edl) {
+      gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+      bindTexture(EDL_COLOR_UNIT, image.out);
+      bindTexture(EDL_DEPTH_UNIT, image.depthSum);
       fullscreen(programs.edl, {u_color: EDL_COLOR_UNIT, u_depth: EDL_DEPTH_UNIT, u_background: state.background,
                                 u_edl_strength: H.edl.strength, u_edl_offsets: [].concat.apply([], H.edl.offsets)});
     }
@@ -900,7 +924,8 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     urlTimer = setTimeout(function () {
       var c = state.camera;
       var hash = '#eye=' + fmt(c.eye) + '&target=' + fmt(c.target) + '&up=' + fmt(c.up) + '&fov=' + c.fov +
-                 '&technique=' + state.technique + (state.colorBy !== OWN_COLORS ? '&color=' + encodeURIComponent(state.colorBy) : '') + (state.edl !== (state.technique === 'points') ? '&edl=' + (state.edl ? 1 : 0) : '');
+                 '&technique=' + state.technique + (state.colorBy !== OWN_COLORS ? '&color=' + encodeURIComponent(state.colorBy) : '') + (state.edl !== (state.technique === 'points') ? '&edl=' + (state.edl ? 1 : 0) : '') +
+                 (state.supersample !== (H.supersample || 1) ? '&supersample=' + state.supersample : '');
       if (options.url) {
         try { history.replaceState(null, '', location.pathname + location.search + hash); } catch (e) { /* file:// in some browsers */ }
       }
@@ -1117,6 +1142,8 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     state.timings = {};
     if (params.ui === '0') { state.ui = false; root.classList.add('noui'); }
     if (params.technique && params.technique in H.uniforms) state.technique = params.technique;
+    var K = Math.floor(Number(params.supersample || H.supersample || 1));
+    state.supersample = K >= 1 && K <= H.max_supersample ? K : 1;
     if (params.background) { var b = parseVec(params.background); if (b) state.background = b; }
     state.edl = params.edl !== undefined ? params.edl === '1' : state.technique === 'points';
     if (H.blended.indexOf(state.technique) >= 0 && !floatBlend) state.technique = 'flat';
