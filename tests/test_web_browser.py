@@ -604,8 +604,8 @@ def test_a_cad_part_page_cuts_its_splats_at_the_sharp_edges_as_the_desktop(brows
     assert psnr(canvas / 255.0, reference / 255.0) >= least
 
 
-# measured at 320 x 240: phong 47.1 dB, blend 47.1 dB against the desktop drawing the same splats (a few pixels of the
-# silhouette's rim apart), 39.3 and 38.9 dB against it drawing them without their normal fields (shaded per splat)
+# measured at 320 x 240: phong 98.7 dB, blend 94.8 dB against the desktop drawing the same splats, 40.1 and 39.6 dB
+# against it drawing them without their normal fields (shaded per splat)
 @pytest.mark.parametrize("technique", ["phong", "blend"])
 def test_phong_splats_are_shaded_by_their_normal_fields_on_the_page_as_on_the_desktop(browser, phong_sphere, tmp_path,
                                                                                     technique):
@@ -613,7 +613,7 @@ def test_phong_splats_are_shaded_by_their_normal_fields_on_the_page_as_on_the_de
     export(phong_sphere, out, technique=technique, size=(W, H))
     drawn = as_drawn(phong_sphere)
     view = View(drawn)
-    camera = view.camera(None, W, H)
+    camera = View(phong_sphere).camera(None, W, H)   # the page's default view
     reference = view.render(camera, technique=technique).frame.image()
     faceted = View(drawn.replace(normal_field=None)).render(camera, technique=technique).frame.image()
     page = opened(browser, file_url(out / "index.html", "?ui=0"))
@@ -622,7 +622,7 @@ def test_phong_splats_are_shaded_by_their_normal_fields_on_the_page_as_on_the_de
     finally:
         page.close()
     near, far = psnr(canvas / 255.0, reference / 255.0), psnr(canvas / 255.0, faceted / 255.0)
-    assert near >= 44.0 and far < near - 5.0
+    assert near >= 80.0 and far < near - 20.0
 
 
 # measured at 320 x 240: flat 54.8 dB, ewa 64.2 dB against the desktop's cut at 1 px (24.7 and 30.1 dB when the page
