@@ -19,7 +19,7 @@ from surfsplat.web import export
 from surfsplat.pipeline import SourceOptions
 from surfsplat.web.browser import Browser, BrowserError, file_url, find_chromium
 from surfsplat.web.export import as_drawn, exported_splats
-from surfsplat.web.shaders import PROGRAMS
+from surfsplat.web.shaders import PROGRAMS, WEB_TECHNIQUES
 
 pytestmark = [pytest.mark.browser, pytest.mark.gl,
               pytest.mark.skipif(find_chromium() is None,
@@ -227,8 +227,9 @@ def test_keys_orbit_and_switch_the_technique(browser, site):
         page.key("ArrowLeft", key_code=37)
         page.wait_for(f"JSON.stringify(surfsplat.camera) !== {json.dumps(start)}", timeout=10)
         page.key("t", code="KeyT", key_code=84)
-        assert page.wait_for("surfsplat.technique === 'flat' && document.getElementById('technique').value === 'flat'",
-                             timeout=10)
+        following = WEB_TECHNIQUES[WEB_TECHNIQUES.index("ewa") + 1]   # the menu's order
+        assert page.wait_for(f"surfsplat.technique === '{following}' && "
+                             f"document.getElementById('technique').value === '{following}'", timeout=10)
         assert page.collect() == []
     finally:
         page.close()
