@@ -53,7 +53,7 @@ from surfsplat.api import render_mesh  # noqa: E402
 from surfsplat.cloud import SplatCloud  # noqa: E402
 from surfsplat.io import save_ply  # noqa: E402
 from surfsplat.pipeline import View  # noqa: E402
-from surfsplat.rendering.options import EdlOptions, RenderOptions  # noqa: E402
+from surfsplat.rendering.options import EdlOptions, RenderOptions, VisibilityOptions  # noqa: E402
 from surfsplat.rendering.renderer import default_renderer  # noqa: E402
 from surfsplat.scenes import torus  # noqa: E402
 from surfsplat.web import export  # noqa: E402
@@ -88,8 +88,12 @@ def opened(browser, url, width, height, timeout=300.0):
     return page
 
 
-def options_for(technique: str) -> RenderOptions | None:
-    return RenderOptions(edl=EdlOptions()) if technique == "points" else None
+def options_for(technique: str, culls: bool | None = None) -> RenderOptions:
+    """The desktop's defaults as the page draws ``technique``: EDL with points, back faces culled where the
+    view plan culls them for the exported view (``View.culls``: a closed mesh's samples with ewa, perspective;
+    None: as the view plan decides)."""
+    return RenderOptions(edl=EdlOptions() if technique == "points" else None,
+                         visibility=VisibilityOptions(cull_backfaces=culls))
 
 
 def chunked_rows(browser, work: Path, count: int, cell_points: int, width: int, height: int) -> list:
@@ -200,8 +204,9 @@ def main() -> None:
         rows.append(["bunny: data.js", "MB", round((work / "bunny" / "data.js").stat().st_size / 1e6, 1)])
         with Browser() as browser:
             for technique in TECHNIQUES:
-                desk = original.render(camera, technique=technique, options=options_for(technique)).frame
-                desk_q = quantized.render(camera, technique=technique, options=options_for(technique)).frame
+                culled = options_for(technique, plan.culls(camera, technique=technique))
+                desk = original.render(camera, technique=technique, options=culled).frame
+                desk_q = quantized.render(camera, technique=technique, options=culled).frame
                 url = file_url(work / "bunny" / "index.html", "?ui=0" + camera_hash(camera, technique))
                 page = opened(browser, url, width, height)
                 canvas = page.canvas() / 255.0
