@@ -250,6 +250,10 @@ def test_export_command_writes_replaces_and_refuses(tmp_path, capsys):
     assert '<script src="data.js"></script>' in page and "http" not in page.split("<body>")[1]
     assert main(["export", "demo:torus", "-o", str(out), "-q", "--technique", "points"]) == 0   # ours: replaced
     assert '"technique":"points"' in (out / "data.js").read_text()
+    assert main(["export", "demo:torus", "-o", str(out), "-q", "--technique", "perspective", "--supersample", "2"]) == 0
+    data = (out / "data.js").read_text()
+    assert '"technique":"perspective"' in data and '"supersample":2' in data
+    assert main(["export", "demo:torus", "-o", str(out), "-q", "--supersample", "5"]) == 2
     (out / "notes.txt").write_text("mine")
     assert main(["export", "demo:torus", "-o", str(out), "-q"]) == 2
     assert "--force" in capsys.readouterr().err and (out / "notes.txt").exists()
