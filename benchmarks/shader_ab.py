@@ -34,11 +34,13 @@ from surfsplat.pipeline import local_camera  # noqa: E402
 from surfsplat.rendering.renderer import Renderer  # noqa: E402
 
 
-def compare(scene: str, path: Path, technique: str, against: Path, rounds: int, size: int) -> dict:
-    """One scene's row: medians of both kinds of frame, alternated."""
+def compare(scene: str, path: Path, technique: str, kinds: dict, rounds: int, size: int) -> dict:
+    """One scene's row: medians of both kinds of frame (``kinds``: the two renderers), alternated."""
     cloud, camera, lights, options = scene_setup(scene, path, size)
-    kinds = {"against": Renderer(search_path=[str(against)]), "this tree": Renderer()}
-    uploads = {name: r.upload(cloud) for name, r in kinds.items()}
+    uploads = {}
+    for name, r in kinds.items():
+        with r.ctx:   # moderngl works on the current context: make each renderer's current for its calls
+            uploads[name] = r.upload(cloud)
     local = local_camera(cloud, camera)
     images, wall, cpu = {}, {k: [] for k in kinds}, {k: [] for k in kinds}
     for name, r in kinds.items():
@@ -52,8 +54,8 @@ def compare(scene: str, path: Path, technique: str, against: Path, rounds: int, 
                 wall[name].append(time.perf_counter() - t)
                 cpu[name].append(time.process_time() - c)
     for name, r in kinds.items():
-        uploads[name].release()
-        r.release()
+        with r.ctx:
+            uploads[name].release()
     med = {k: (1e3 * float(np.median(wall[k])), 1e3 * float(np.median(cpu[k]))) for k in kinds}
     diff = np.abs(images["against"] - images["this tree"])
     return {"scene": scene, "technique": technique, "splats": len(cloud),
@@ -73,10 +75,12 @@ def main() -> None:
     parser.add_argument("--size", type=int, default=1024)
     args = parser.parse_args()
     rows = []
+    # one pair of renderers for every scene
+    kinds = {"against": Renderer(search_path=[str(args.against)]), "this tree": Renderer()}
     for scene in args.scenes:
         for technique in args.techniques:
-            rows.append(compare(scene, Path(args.work) / f"{scene}_1000000.ply", technique, args.against,
-                                args.rounds, args.size))
+            rows.append(compare(scene, Path(args.work) / f"{scene}_1000000.ply", technique, kinds, args.rounds,
+                                args.size))
             print(rows[-1], flush=True)
     lines = [f"Machine: {machine_description()}, GL: llvmpipe; {time.strftime('%Y-%m-%d')}; command: "
              f"`python benchmarks/shader_ab.py {shlex.join(sys.argv[1:])}`", "",

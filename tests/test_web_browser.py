@@ -222,12 +222,13 @@ def test_one_self_contained_file_with_ui_0_shows_no_overlay(browser, model, tmp_
         page.close()
 
 
-# (file, source options, technique, least PSNR): a mesh, a CAD part (sampled small), aerial LiDAR; measured
-# at 320 x 240 against the desktop's defaults: 97.0 dB (edge coverage, back faces culled), 53.2 dB (the
-# desktop's hole filling, which the page has not) and 87.6 dB (the same splats in the same order: the same
-# pictures but for rounding)
+# (file, source options, technique, least PSNR): a mesh, a scan's mesh (sampled small), aerial LiDAR; measured
+# at 320 x 240 against the desktop's defaults: 97.0 dB (edge coverage, back faces culled), 47.8 dB (the
+# desktop's hole filling, which the page has not: its 4 filled pixels are the whole difference, the page
+# against the desktop without the fill is 78.6 dB) and 87.6 dB (the same splats in the same order: the
+# same pictures but for rounding)
 DATA = [("bunny.ply", SourceOptions(samples=30_000), "ewa", 80.0),
-        ("frag_115.ply", SourceOptions(samples=30_000), "flat", 50.0),
+        ("frag_115.ply", SourceOptions(samples=30_000), "flat", 46.0),
         ("simple.las", None, "points", 75.0)]
 
 

@@ -108,6 +108,12 @@ bool fringe_hidden(vec3 ray, float z, bool cut) {
 const float COVER_SHARPNESS = 32.0;
 const float DISTANCE_SHARPNESS = 8.0;
 const float COVER_REACH = 2.0;
+// The rim's squeeze at silhouettes (disk_coverage): width kept along the foreshortened direction of
+// an edge-on disk, and the power of |w| that fades it out for disks facing the eye. Measured
+// (the sphere of 2.75 px splats of tests/test_edges.py, K = 1): squeezes 1, 0.75, 0.5, 0.3, 0.1, 0.03
+// leave a summed coverage error of 47, 34, 24, 19, 16, 14 px (net +47, +34, +22, +15, +8, +5).
+const float RIM_SQUEEZE = 0.05;
+const float RIM_SQUEEZE_FALLOFF = 4.0;
 
 // Area of the unit pixel box on the inner side of a straight edge at signed distance d (pixels,
 // > 0: the pixel's center inside) with unit normal n: the distribution of n . x over the box is
@@ -123,30 +129,56 @@ float halfplane_coverage(float d, vec2 n) {
 }
 
 // The fraction of the fragment's pixel that the splat's (clipped) disk covers: the signed distance
-// of the pixel's center to the disk's rim and to each clip line, in pixels, to first order, and the
-// half-plane coverage of the nearest of these edges. Per fragment only what depends on the pixel: the
-// disk's affine map to the image, its rim squeeze and the clip lines' image lines are the splat's
-// (cover_setup in splat_vertex.glsl, once per splat instead of once per fragment).
-flat in vec3 v_cover_center;   // (the center's pixel, 1: a disk in front of the eye, else 0)
-flat in vec4 v_cover_axes;     // d (squeezed s, t) / d x (xy) and / d y (zw)
-flat in vec3 v_cover_line0;    // clip lines in the image: (unit normal n, offset): distance n . px + offset
-flat in vec3 v_cover_line1;
-
+// of the pixel's center to the disk's rim and to each clip line, in pixels, to first order (the
+// value over the length of its gradient), and the half-plane coverage of the nearest of these
+// edges. The disk is mapped to the image by its affine approximation at its center (the Jacobian
+// of EWA, Zwicker 2004 sec. 3; Guennebaud 2003 sec. 6): at the pixel's own ray the projective map
+// of a plane seen almost edge-on runs off to its horizon and the first-order distance fails.
 vec2 disk_coverage() {
-    if (v_cover_center.z == 0.0) return vec2(0.0, -COVER_REACH);
-    vec2 d_px = FRAG_PX - v_cover_center.xy;
-    vec2 mx = v_cover_axes.xy, my = v_cover_axes.zw;
-    vec2 sq = mx * d_px.x + my * d_px.y;
+    vec3 ray = v_center / -v_center.z;   // through the center's pixel
+    float denom = dot(v_plane, ray);     // 1 / z of the plane along it
+    if (!(denom > 0.0) || !(v_center.z < 0.0)) return vec2(0.0, -COVER_REACH);
+    vec3 q = ray / denom;
+    // d q / d px for the ray's derivatives (1 / f, 0, 0) and (0, 1 / f, 0)
+    vec3 qx = (vec3(1.0 / u_focal, 0.0, 0.0) - q * (v_plane.x / u_focal)) / denom;
+    vec3 qy = (vec3(0.0, 1.0 / u_focal, 0.0) - q * (v_plane.y / u_focal)) / denom;
+    vec2 sx = vec2(dot(qx, v_udual), dot(qx, v_vdual));   // d (s, t) / d x
+    vec2 sy = vec2(dot(qy, v_udual), dot(qy, v_vdual));   // d (s, t) / d y
+    vec2 d_px = FRAG_PX - project_px(v_center);
+    vec2 st = sx * d_px.x + sy * d_px.y;
+    // A tangent disk of radius r at a silhouette whose surface curves with radius R reaches past it
+    // by up to r^2 / 2R (the disk tilted by r / R from edge-on; measured on spheres): the rim is
+    // taken that of the disk squeezed along its foreshortened direction w (the view direction's
+    // projection on its plane) to RIM_SQUEEZE of its width, which leaves r^2 / 2R times its square;
+    // disks facing the eye (|w| -> 0: not at a silhouette, e.g. an open border) keep their shape,
+    // and so do clipped ones (a clip line is where the surface ends or bends sharply: the disk's
+    // plane holds up to it, and the line is the rim).
+    vec3 toward = -normalize(v_center);
+    vec3 nrm = normalize(v_plane);
+    vec3 w = toward - dot(toward, nrm) * nrm;   // |w| = cosine of the angle off edge-on
+    vec2 wst = vec2(dot(w, v_udual), dot(w, v_vdual));
+    float wl = length(wst);
+    mat2 m = mat2(1.0);
+    if (wl > 1e-6 && dot(v_clip0.xy, v_clip0.xy) == 0.0 && dot(v_clip1.xy, v_clip1.xy) == 0.0) {
+        wst /= wl;
+        m += (1.0 / RIM_SQUEEZE - 1.0) * pow(dot(w, w), 0.5 * RIM_SQUEEZE_FALLOFF) * outerProduct(wst, wst);
+    }
+    vec2 sq = m * st, mx = m * sx, my = m * sy;
     float r = length(sq);
     vec2 radial = r > 1e-6 ? sq / r : vec2(1.0, 0.0);
     vec2 grad = vec2(dot(radial, mx), dot(radial, my));   // of |(s, t)|, outward
     float g = length(grad);
     float d = g > 0.0 ? (1.0 - r) / g : (r <= 1.0 ? 1e6 : -1e6);
     vec2 n = g > 0.0 ? grad / g : vec2(1.0, 0.0);
-    float d0 = dot(v_cover_line0.xy, d_px) + v_cover_line0.z;   // kept where a s + b t + c >= 0
-    if (d0 < d) { d = d0; n = -v_cover_line0.xy; }
-    float d1 = dot(v_cover_line1.xy, d_px) + v_cover_line1.z;
-    if (d1 < d) { d = d1; n = -v_cover_line1.xy; }
+    for (int i = 0; i < 2; ++i) {
+        vec3 line = i == 0 ? v_clip0 : v_clip1;   // kept where a s + b t + c >= 0
+        vec2 lg = vec2(dot(line.xy, sx), dot(line.xy, sy));
+        float l = length(lg);
+        if (l > 0.0) {
+            float dl = (dot(line.xy, st) + line.z) / l;
+            if (dl < d) { d = dl; n = -lg / l; }
+        }
+    }
     return vec2(halfplane_coverage(d, n), clamp(d, -COVER_REACH, COVER_REACH));
 }
 #endif

@@ -21,13 +21,6 @@ SPLAT_OUT vec3 v_field_v;  // at (s, t) is v_normal + s v_field_u + t v_field_v 
 SPLAT_OUT vec3 v_clip0;    // clip lines, passed through (Botsch 2004, sec. 4; Zwicker 2004, sec. 5)
 SPLAT_OUT vec3 v_clip1;
 SPLAT_OUT float v_back;    // 1: the eye sees the back of the splat (its normal faces away), else 0
-#if PASS == PASS_ACCUMULATION && defined(EDGE_COVERAGE) && !defined(COMPUTE_SPLATS)
-#define COVER_SETUP
-flat out vec3 v_cover_center;   // the per-splat part of edge coverage (disk_coverage, splat_fragment.glsl)
-flat out vec4 v_cover_axes;
-flat out vec3 v_cover_line0;
-flat out vec3 v_cover_line1;
-#endif
 
 // frame_options.glsl: u_cull_backfaces (closed, outward-oriented models only), u_deferred
 #include "frame_options.glsl"
@@ -76,65 +69,6 @@ void facing_axes(vec3 p, inout vec3 u, inout vec3 v) {
 }
 #endif
 
-#ifdef COVER_SETUP
-// The rim's squeeze at silhouettes (edge coverage): width kept along the foreshortened direction of
-// an edge-on disk, and the power of |w| that fades it out for disks facing the eye. Measured
-// (the sphere of 2.75 px splats of tests/test_edges.py, K = 1): squeezes 1, 0.75, 0.5, 0.3, 0.1, 0.03
-// leave a summed coverage error of 47, 34, 24, 19, 16, 14 px (net +47, +34, +22, +15, +8, +5).
-const float RIM_SQUEEZE = 0.05;
-const float RIM_SQUEEZE_FALLOFF = 4.0;
-
-// A clip line a s + b t + c >= 0 as a line of the image: its unit normal and offset in pixels
-// (the distance of a pixel d from the center's pixel: n . d + offset); a line of no extent (unused
-// slot) never the nearest edge.
-vec3 image_line(vec3 line, vec2 sx, vec2 sy) {
-    vec2 lg = vec2(dot(line.xy, sx), dot(line.xy, sy));
-    float l = length(lg);
-    return l > 0.0 ? vec3(lg / l, line.z / l) : vec3(0.0, 0.0, 1e30);
-}
-
-// The per-splat part of the edge coverage (disk_coverage in splat_fragment.glsl), of the disk's
-// affine map to the image at its center (the Jacobian of EWA, Zwicker 2004 sec. 3; Guennebaud 2003
-// sec. 6): at the pixel's own ray the projective map of a plane seen almost edge-on runs off to its
-// horizon and the first-order distance fails.
-void cover_setup() {
-    v_cover_center = vec3(0.0);
-    v_cover_axes = vec4(0.0);
-    v_cover_line0 = vec3(0.0, 0.0, 1e30);
-    v_cover_line1 = vec3(0.0, 0.0, 1e30);
-    vec3 ray = v_center / -v_center.z;   // through the center's pixel
-    float denom = dot(v_plane, ray);     // 1 / z of the plane along it
-    if (!(denom > 0.0) || !(v_center.z < 0.0)) return;
-    vec3 q = ray / denom;
-    // d q / d px for the ray's derivatives (1 / f, 0, 0) and (0, 1 / f, 0)
-    vec3 qx = (vec3(1.0 / u_focal, 0.0, 0.0) - q * (v_plane.x / u_focal)) / denom;
-    vec3 qy = (vec3(0.0, 1.0 / u_focal, 0.0) - q * (v_plane.y / u_focal)) / denom;
-    vec2 sx = vec2(dot(qx, v_udual), dot(qx, v_vdual));   // d (s, t) / d x
-    vec2 sy = vec2(dot(qy, v_udual), dot(qy, v_vdual));   // d (s, t) / d y
-    // A tangent disk of radius r at a silhouette whose surface curves with radius R reaches past it
-    // by up to r^2 / 2R (the disk tilted by r / R from edge-on; measured on spheres): the rim is
-    // taken that of the disk squeezed along its foreshortened direction w (the view direction's
-    // projection on its plane) to RIM_SQUEEZE of its width, which leaves r^2 / 2R times its square;
-    // disks facing the eye (|w| -> 0: not at a silhouette, e.g. an open border) keep their shape,
-    // and so do clipped ones (a clip line is where the surface ends or bends sharply: the disk's
-    // plane holds up to it, and the line is the rim).
-    vec3 toward = -normalize(v_center);
-    vec3 nrm = normalize(v_plane);
-    vec3 w = toward - dot(toward, nrm) * nrm;   // |w| = cosine of the angle off edge-on
-    vec2 wst = vec2(dot(w, v_udual), dot(w, v_vdual));
-    float wl = length(wst);
-    mat2 m = mat2(1.0);
-    if (wl > 1e-6 && dot(v_clip0.xy, v_clip0.xy) == 0.0 && dot(v_clip1.xy, v_clip1.xy) == 0.0) {
-        wst /= wl;
-        m += (1.0 / RIM_SQUEEZE - 1.0) * pow(dot(w, w), 0.5 * RIM_SQUEEZE_FALLOFF) * outerProduct(wst, wst);
-    }
-    v_cover_center = vec3(project_px(v_center), 1.0);
-    v_cover_axes = vec4(m * sx, m * sy);
-    v_cover_line0 = image_line(v_clip0, sx, sy);
-    v_cover_line1 = image_line(v_clip1, sx, sy);
-}
-#endif
-
 // Fills s and the flat outputs; false when the splat lies outside [near, far]
 // or is seen exactly edge-on through the eye (it covers no area).
 bool camera_splat(out Splat s) {
@@ -176,8 +110,5 @@ bool camera_splat(out Splat s) {
     v_field_v = field_v;
     v_clip0 = in_clip0;
     v_clip1 = in_clip1;
-#ifdef COVER_SETUP
-    cover_setup();
-#endif
     return true;
 }
