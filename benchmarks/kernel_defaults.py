@@ -61,10 +61,11 @@ def mixed(cloud, base: float, factor: float, clipped_factor: float):
 
 
 def meshes(names: list[str]) -> list[tuple[str, object]]:
-    """(name, Mesh) of the models there are: the data's bunny and CAD part, the detailed surface, the
-    peers' torus."""
-    items = [(name, load_mesh(DATA / file)) for name, file in (("bunny", "bunny.ply"), ("CAD part", "featuretype.ply"))
-             if (DATA / file).exists()]
+    """(name, Mesh) of the models there are (those of ``names`` where it names some): the data's bunny, CAD
+    part and scan mesh, the detailed surface, the peers' torus."""
+    items = [(name, load_mesh(DATA / file)) for name, file in (("bunny", "bunny.ply"), ("CAD part", "featuretype.ply"),
+                                                              ("scan mesh", "frag_115.ply"))
+             if (DATA / file).exists() and (not names or name in names)]
     items.append(("detailed surface", detailed_surface()))
     if (PEERS_WORK / "torus_mesh.ply").exists():
         items.append(("torus", load_mesh(PEERS_WORK / "torus_mesh.ply")))
@@ -79,6 +80,8 @@ def main() -> None:
     parser.add_argument("--mixed", type=float, nargs=2, action="append", default=[], metavar=("FACTOR", "CLIPPED"),
                         help="also the splats at FACTOR h_k, those with clip lines at CLIPPED h_k")
     parser.add_argument("--models", nargs="*", default=[])
+    parser.add_argument("--keep-other-models", action="store_true",
+                        help="keep the saved rows of the models not run")
     parser.add_argument("--repeat", type=int, default=1)
     parser.add_argument("--images", type=Path, default=Path("/tmp/kernel_defaults"))
     args = parser.parse_args()
@@ -103,6 +106,10 @@ def main() -> None:
                 rows.append([name, size, label, f"{len(cloud):,}", m["ms"], m["overlap"], m["psnr"],
                              m["contour"], m["smooth"], m["holes"], m["bare holes"], m["fill"]])
                 print(rows[-1], flush=True)
+    saved = RESULTS / "kernel_defaults.json"
+    if args.keep_other_models and saved.exists():
+        ran = {row[0] for row in rows}
+        rows = [row for row in json.loads(saved.read_text())["rows"] if row[0] not in ran] + rows
     machine = machine_description(default_renderer().ctx.info["GL_RENDERER"])
     date = time.strftime("%Y-%m-%d")
     command = "python benchmarks/kernel_defaults.py " + shlex.join(sys.argv[1:])
