@@ -57,6 +57,10 @@ def pass_name(key: tuple) -> str:
         return "normalization"
     if fragment == "cracks.frag":
         return "cracks"
+    if fragment == "hiz.frag":
+        return "hiz"
+    if fragment == "fill.frag":
+        return "fill"
     return PASS_NAMES.get(dict(defines).get("PASS"), fragment)
 
 
@@ -126,7 +130,8 @@ def measure(scene: str, path: Path, techniques: list[str], repeat: int, size: in
         rows.append([scene, technique, len(cloud), f"{size}x{size}", round(1000 * float(np.median(wall))),
                      round(1000 * frame_cpu)]
                     + [round(1000 * spent.get(name, 0.0)) for name in
-                       ("compute", "visibility", "cracks", "accumulation", "opaque", "resolve", "normalization")]
+                       ("compute", "visibility", "cracks", "hiz", "accumulation", "opaque", "resolve", "normalization",
+                        "fill")]
                     + [round(1000 * max(frame_cpu - passes, 0.0))])
         print(rows[-1], flush=True)
     gpu.release()
@@ -193,8 +198,8 @@ def main() -> None:
         return
     columns = ["scene", "technique", "splats", "resolution", "frame wall ms", "frame CPU ms", "compute passes CPU ms",
                "visibility raster CPU ms",
-               "cracks CPU ms", "accumulation CPU ms", "opaque pass CPU ms", "opaque resolve CPU ms",
-               "normalization CPU ms", "rest CPU ms (clears, read-back, Python)"]
+               "cracks CPU ms", "hiz CPU ms", "accumulation CPU ms", "opaque pass CPU ms", "opaque resolve CPU ms",
+               "normalization CPU ms", "fill CPU ms", "rest CPU ms (clears, read-back, Python)"]
     name = "render_passes_raster" if args.raster_only else "render_passes"
     write_table(name, columns, rows, machine_description("Mesa llvmpipe") +
                 "; CPU time of each draw call between glFinish calls, process-wide (llvmpipe's threads)")

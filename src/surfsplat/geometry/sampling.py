@@ -39,7 +39,7 @@ from ..io.surface import AUTO, resolve_sharp_angle, shading_normals, weld, with_
 from .neighbors import kth_distance, spatial_order
 from .preprocess import preprocess
 from .sharp import check_sharp_angle, mesh_clip_lines, mesh_features
-from .splats import CIRCLE_COVERAGE, circular_splats
+from .splats import CREASED_SAMPLE_COVERAGE, SAMPLE_COVERAGE, circular_splats
 
 #: Default mean spacing of surface samples on screen, pixels. Measured (512 x 512, ewa, PSNR inside
 #: the silhouette against render_mesh, ``benchmarks/results/mesh_sampling.md``): from 1 to 0.75 px
@@ -174,8 +174,9 @@ def sample_mesh(mesh: Mesh, n: int, *, seed: int = 0, sharp_angle: float | None 
     return _splats_with_clip_lines(mesh, cloud, face, sharp_angle, k, shape, coverage, "sample_mesh")
 
 
-def _circles(cloud: SplatCloud, k: int, name: str, order: np.ndarray | None = None) -> SplatCloud:
-    """Circular splats of radius ``CIRCLE_COVERAGE * h_k`` in the planes normal to the samples' normals
+def _circles(cloud: SplatCloud, k: int, name: str, order: np.ndarray | None = None,
+             coverage: float = SAMPLE_COVERAGE) -> SplatCloud:
+    """Circular splats of radius ``coverage * h_k`` in the planes normal to the samples' normals
     (Guennebaud 2003 eq. 7, :func:`surfsplat.geometry.splats.circular_splats`), ``k`` clamped to n - 1.
 
     Samples of a surface need none of the rules for raw scans that :func:`preprocess` applies
@@ -187,7 +188,7 @@ def _circles(cloud: SplatCloud, k: int, name: str, order: np.ndarray | None = No
         raise InputError(f"{name}: needs at least 2 samples to size the splats, got {n}")
     # only h_k, the k-th distance, sizes a circle (the row maximum of knn's distances)
     h_k = kth_distance(cloud.positions, min(int(k), n - 1), order=order)
-    u, v = circular_splats(cloud.normals, h_k[:, None], coverage=CIRCLE_COVERAGE)
+    u, v = circular_splats(cloud.normals, h_k[:, None], coverage=coverage)
     return cloud.replace(u=u, v=v).validated(name)
 
 
@@ -202,7 +203,8 @@ def _splats_with_clip_lines(mesh: Mesh, cloud: SplatCloud, face: np.ndarray, sha
     # one spatial order of the samples for the neighbour search and the search for nearby edges
     order = spatial_order(cloud.positions) if shape is None and n >= 2 else None
     if shape is None:
-        splats = _circles(cloud, k, name, order)
+        # a mesh with sharp edges keeps the larger circles at its occlusion edges (splats.py)
+        splats = _circles(cloud, k, name, order, SAMPLE_COVERAGE if sharp_angle is None else CREASED_SAMPLE_COVERAGE)
     else:
         # samples of a surface: no duplicates to merge or outliers to drop (one splat per sample)
         splats = preprocess(cloud, k=k, shape=shape, coverage=coverage, source=name, outliers="keep",
@@ -313,10 +315,11 @@ def surface_splats(mesh: Mesh, n: int | None = None, *, sharp_angle: float | str
     normal of its face's corners (the file's normals, or crease-aware normals
     at ``sharp_angle``: smooth within curved parts, split at sharp edges, as
     ``render_mesh`` shades the mesh), the interpolated vertex color, a circular
-    splat in the plane normal to it of radius 1.25 times the distance to the
-    ``k``-th nearest sample (Guennebaud 2003 eq. 7,
-    :func:`surfsplat.geometry.splats.circular_splats`; the factor leaves no
-    holes between uniformly random samples), and clip lines where it
+    splat in the plane normal to it of radius 1.1 times the distance to the
+    ``k``-th nearest sample, 1.25 times on a mesh with sharp edges (Guennebaud
+    2003 eq. 7, :func:`surfsplat.geometry.splats.circular_splats`,
+    :data:`~surfsplat.geometry.splats.SAMPLE_COVERAGE`: with the renderer's
+    hole filling, no holes on screen), and clip lines where it
     reaches over an edge sharper than ``sharp_angle``: the line where the
     splat's plane meets the plane of the face across the edge (Zwicker et al.
     2004, sec. 5; :func:`surfsplat.geometry.sharp.mesh_clip_lines`); likewise

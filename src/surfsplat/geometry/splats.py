@@ -61,6 +61,20 @@ MAX_ANISOTROPY = 4.0
 #: uniformly random samples at 1 M points needed 1.19).
 CIRCLE_COVERAGE = 1.25
 
+#: Default factor on the circle radii of a smooth mesh's samples (``View.sample``: ``surface_splats``
+#: of a mesh without sharp edges). Below the 1.19 that leaves no hole between 1 M uniformly random
+#: samples without help: the few pixel-sized gaps that 1.1 leaves are closed by the renderer's
+#: screen-space hole filling (``RenderOptions.fill_holes``, on by default), and a surface point lies
+#: under ~19 splats instead of ~25 (``benchmarks/results/kernel_defaults.md``, ``ewa`` against the
+#: mesh at 128, 512 and 1024 px: no hole pixel, PSNR +0.1 to +0.5 dB on the bunny, +0.3 to +1.2 dB
+#: on the detailed surface).
+SAMPLE_COVERAGE = 1.1
+
+#: Default factor on the circle radii of the samples of a mesh with sharp edges (clip lines): its
+#: occlusion edges (a pocket's rim over its floor) lose 0.1 to 0.5 dB at 1.1 (the CAD part at 128, 512
+#: and 1024 px, ``benchmarks/results/kernel_defaults.md``), so it keeps ``CIRCLE_COVERAGE``.
+CREASED_SAMPLE_COVERAGE = CIRCLE_COVERAGE
+
 #: Default factor on ellipse semi-axes (no holes on uniformly random samples
 #: at 1 M points needed 1.43).
 ELLIPSE_COVERAGE = 1.5
