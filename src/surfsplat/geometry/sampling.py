@@ -33,6 +33,7 @@ from .. import progress
 from ..camera import Camera
 from ..cloud import SplatCloud
 from ..errors import InputError
+from ..frames import tangent_frame
 from ..io.atomic import memory_limit
 from ..io.mesh import Mesh
 from ..io.surface import AUTO, resolve_sharp_angle, shading_normals, weld, with_shading_normals
@@ -53,8 +54,16 @@ DEFAULT_IMAGE_SIZE = 512
 #: clip lines take ~2-2.5 s per million samples on 2 cores, drawing 2 M splats 512 x 512 ~2-6 s on
 #: llvmpipe). Reached at 1024 px for featuretype (0.93 px) and the bunny (0.88 px).
 MAX_SAMPLES = 2_000_000
-#: Neighbours that size the splats of sampled surfaces.
+#: Neighbours that size the splats of sampled surfaces when :func:`surface_splats` is asked to size
+#: them by their neighbours (``k``); by default they are sized by the sampling (:data:`SPACING_COVERAGE`).
 SURFACE_K = 8
+#: Radius of the splats of a stratified sampling of a surface, in mean spacings ``sqrt(A / n)``
+#: (:func:`spacing_radius`): the largest gap measured between such samples (the distance from a point
+#: of the surface to its nearest sample) is 1.7, 1.9 and 2.25 spacings on bunny.ply, frag_115.ply and
+#: featuretype.ply (slivers), so 2.3 leaves no hole. Independent random samples would need ~2.9 for
+#: the same area left uncovered, ``exp(-pi c^2)`` (a Poisson process); sized by their k-th neighbours
+#: (the former default, 1.25 h_8) their radii average 1.96 spacings.
+SPACING_COVERAGE = 2.3
 
 
 #: Memory sampling holds per sample (float64 intermediates, the float32 cloud; with margin).
@@ -69,22 +78,73 @@ def _check_count(n, name: str) -> int:
     return int(n)
 
 
-def _samples(mesh: Mesh, n: int, seed: int, smooth_normals: bool, crease_angle: float | None,
-             name: str) -> tuple[SplatCloud, np.ndarray]:
-    """``n`` samples uniform by area on ``mesh`` (validated) and the face of each: see :func:`sample_mesh`."""
-    areas = mesh.face_areas()
-    total = float(areas.sum())
-    if not np.isfinite(total) or total <= 0:
-        raise InputError(f"{name}: mesh has zero total area ({len(mesh.faces)} degenerate faces)")
-
-    rng = np.random.default_rng(seed)
+def _uniform_barycentrics(areas: np.ndarray, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` independent uniform samples: faces by area, barycentrics by the square-root warp (Osada 2002)."""
     cdf = np.cumsum(areas)
     # side="right" never selects a zero-area face (its cdf step is empty)
     face = np.searchsorted(cdf, rng.random(n) * cdf[-1], side="right")
     face = np.minimum(face, int(np.flatnonzero(areas > 0)[-1]))  # r * total may round up to total
     r1 = np.sqrt(rng.random(n))
     r2 = rng.random(n)
-    bary = np.column_stack([1.0 - r1, r1 * (1.0 - r2), r1 * r2])  # (n, 3)
+    return face, np.column_stack([1.0 - r1, r1 * (1.0 - r2), r1 * r2])
+
+
+#: The plastic number: ``1 / PLASTIC`` and ``1 / PLASTIC**2`` step the R2 sequence (Roberts 2018), the
+#: two-dimensional Kronecker sequence of lowest dispersion known.
+PLASTIC = 1.32471795724474602596
+
+
+def stratified_barycentrics(areas: np.ndarray, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` stratified samples of a surface of faces of ``areas``: ``(face, barycentrics)``.
+
+    Uniform by area like independent samples (every sample is, on its own, uniform on the
+    surface), but spread evenly instead of clumped:
+
+    * faces: the ``n`` numbers ``(i + r_i) / n`` (one per stratum of the area's cumulative sum,
+      ``r_i`` uniform in [0, 1)) pick the faces, so a face of area ``a`` gets ``n a / A`` samples
+      rounded up or down (never off by one or more), sorted by face;
+    * within a face, its ``m`` samples are the R2 sequence ``(o + j / g, o' + j / g^2) mod 1``,
+      ``j = 0 .. m - 1`` (Roberts 2018; ``g`` the plastic number), rotated by a random offset
+      ``(o, o')`` per face (Cranley-Patterson rotation: each point uniform on the unit square),
+      mapped to the triangle by the square-root warp (Osada et al. 2002), which keeps area.
+
+    Measured (``benchmarks/results/preprocess_real.md``): the largest distance from a point of the
+    surface to its nearest sample is 1.7 (bunny.ply), 1.9 (frag_115.ply) and 2.25
+    (featuretype.ply, slivers) times the mean spacing ``sqrt(A / n)``, against 2.2 for
+    independent samples, and the area farther than 1.4 spacings 10x smaller.
+
+    Args:
+        areas: (F,) float64 face areas; their sum > 0.
+        n: number of samples.
+        rng: the random generator.
+
+    Returns:
+        ``face`` (n,) int64 face indices, ascending; ``bary`` (n, 3) float64 barycentrics.
+    """
+    cdf = np.cumsum(areas)
+    face = np.searchsorted(cdf, (np.arange(n) + rng.random(n)) * (cdf[-1] / n), side="right")
+    face = np.minimum(face, int(np.flatnonzero(areas > 0)[-1]))
+    j = np.arange(n) - np.searchsorted(face, face, side="left")   # index of the sample within its face
+    offset = rng.random((len(areas), 2))
+    r1 = np.sqrt(np.remainder(offset[face, 0] + j * (1.0 / PLASTIC), 1.0))
+    r2 = np.remainder(offset[face, 1] + j * (1.0 / PLASTIC ** 2), 1.0)
+    return face, np.column_stack([1.0 - r1, r1 * (1.0 - r2), r1 * r2])
+
+
+def _samples(mesh: Mesh, n: int, seed: int, smooth_normals: bool, crease_angle: float | None,
+             name: str, stratified: bool = False) -> tuple[SplatCloud, np.ndarray, np.ndarray]:
+    """``n`` samples uniform by area on ``mesh`` (validated), the face and barycentrics of each: see
+    :func:`sample_mesh`; ``stratified``: :func:`stratified_barycentrics` instead of independent samples."""
+    areas = mesh.face_areas()
+    total = float(areas.sum())
+    if not np.isfinite(total) or total <= 0:
+        raise InputError(f"{name}: mesh has zero total area ({len(mesh.faces)} degenerate faces)")
+
+    rng = np.random.default_rng(seed)
+    if stratified:
+        face, bary = stratified_barycentrics(areas, n, rng)
+    else:
+        face, bary = _uniform_barycentrics(areas, n, rng)
 
     corners = mesh.faces[face]  # (n, 3) vertex indices
     vertices = mesh.vertices.astype(np.float64)
@@ -107,7 +167,7 @@ def _samples(mesh: Mesh, n: int, seed: int, smooth_normals: bool, crease_angle: 
 
     cloud = SplatCloud(positions=positions.astype(np.float32), normals=normals.astype(np.float32),
                        colors=None if colors is None else colors.astype(np.float32), origin=mesh.origin)
-    return cloud, face
+    return cloud, face, bary
 
 
 def sample_mesh(mesh: Mesh, n: int, *, seed: int = 0, sharp_angle: float | None = None, k: int = 8,
@@ -168,7 +228,7 @@ def sample_mesh(mesh: Mesh, n: int, *, seed: int = 0, sharp_angle: float | None 
     if sharp_angle is not None:
         sharp_angle = check_sharp_angle(sharp_angle, "sample_mesh: sharp_angle")
     mesh = mesh.validated("sample_mesh: mesh")
-    cloud, face = _samples(mesh, n, seed, smooth_normals, sharp_angle, "sample_mesh")
+    cloud, face, _ = _samples(mesh, n, seed, smooth_normals, sharp_angle, "sample_mesh")
     if sharp_angle is None:
         return cloud
     return _splats_with_clip_lines(mesh, cloud, face, sharp_angle, k, shape, coverage, "sample_mesh")
@@ -191,17 +251,43 @@ def _circles(cloud: SplatCloud, k: int, name: str, order: np.ndarray | None = No
     return cloud.replace(u=u, v=v).validated(name)
 
 
-def _splats_with_clip_lines(mesh: Mesh, cloud: SplatCloud, face: np.ndarray, sharp_angle: float | None, k: int,
+def spacing_radius(area: float, n: int, coverage: float = SPACING_COVERAGE) -> float:
+    """The splat radius of ``n`` samples spread evenly over a surface of ``area`` (squared model units).
+
+    ``coverage * sqrt(area / n)`` model units: ``sqrt(area / n)`` is the mean spacing (one sample
+    per square of that side). For independent uniform samples (a Poisson process of density
+    ``n / area``) the fraction of the surface farther than this radius from every sample is
+    ``exp(-pi coverage^2)``; stratified samples (:func:`stratified_barycentrics`) have no such
+    point for ``coverage`` >= 2.3 (:data:`SPACING_COVERAGE`, measured).
+    """
+    return float(coverage) * math.sqrt(float(area) / int(n))
+
+
+def _spaced_circles(cloud: SplatCloud, radius: float, name: str) -> SplatCloud:
+    """Circles of one ``radius`` (model units) in the planes normal to the samples' (unit) normals."""
+    if not (math.isfinite(radius) and radius > 0):
+        raise InputError(f"{name}: the splat radius {radius!r} from the sample spacing is not a positive number")
+    t1, t2 = tangent_frame(cloud.normals)
+    r = np.float32(radius)
+    return cloud.replace(u=t1 * r, v=t2 * r)
+
+
+def _splats_with_clip_lines(mesh: Mesh, cloud: SplatCloud, face: np.ndarray, sharp_angle: float | None, k: int | None,
                             shape: str | None, coverage: float | None, name: str,
-                            boundaries: bool = False) -> SplatCloud:
+                            boundaries: bool = False, radius: float | None = None) -> SplatCloud:
     """Splats (normals kept, sized by the k-neighbourhoods: :func:`preprocess` with ``shape`` and
     ``coverage``, or plain circles, :func:`_circles`, when ``shape`` is None) with clip lines at the
     edges sharper than ``sharp_angle`` and, with ``boundaries``, at the open boundary edges (None
-    without a sharp angle when there is no boundary either)."""
+    without a sharp angle when there is no boundary either). ``radius``: circles of that radius
+    instead (:func:`spacing_radius`, model units; samples in face order, no neighbour search)."""
     n = len(cloud)
     # one spatial order of the samples for the neighbour search and the search for nearby edges
-    order = spatial_order(cloud.positions) if shape is None and n >= 2 else None
-    if shape is None:
+    order = spatial_order(cloud.positions) if shape is None and radius is None and n >= 2 else None
+    if radius is not None:
+        with progress.stage("splat sizes from the sample spacing", n):
+            splats = _spaced_circles(cloud, radius, name)
+    elif shape is None:
+        assert k is not None
         splats = _circles(cloud, k, name, order)
     else:
         # samples of a surface: no duplicates to merge or outliers to drop (one splat per sample)
@@ -303,7 +389,7 @@ def samples_for_pixels(mesh: Mesh, pixels: float = DEFAULT_SPACING_PX, *, camera
 
 def surface_splats(mesh: Mesh, n: int | None = None, *, sharp_angle: float | str | None = AUTO, seed: int = 0,
                    pixels: float = DEFAULT_SPACING_PX, camera: Camera | None = None,
-                   image_size: int = DEFAULT_IMAGE_SIZE, k: int = SURFACE_K,
+                   image_size: int = DEFAULT_IMAGE_SIZE, k: int | None = None,
                    max_samples: int = MAX_SAMPLES, boundaries: bool = True) -> SplatCloud:
     """Render-ready splats of a triangle mesh's surface (what a mesh file renders as).
 
@@ -313,10 +399,10 @@ def surface_splats(mesh: Mesh, n: int | None = None, *, sharp_angle: float | str
     normal of its face's corners (the file's normals, or crease-aware normals
     at ``sharp_angle``: smooth within curved parts, split at sharp edges, as
     ``render_mesh`` shades the mesh), the interpolated vertex color, a circular
-    splat in the plane normal to it of radius 1.25 times the distance to the
-    ``k``-th nearest sample (Guennebaud 2003 eq. 7,
-    :func:`surfsplat.geometry.splats.circular_splats`; the factor leaves no
-    holes between uniformly random samples), and clip lines where it
+    splat in the plane normal to it of radius :data:`SPACING_COVERAGE` = 2.3
+    mean spacings ``sqrt(area / n)`` (:func:`spacing_radius`: the sampling
+    knows its density, so no neighbour search; it leaves no hole between the
+    stratified samples), and clip lines where it
     reaches over an edge sharper than ``sharp_angle``: the line where the
     splat's plane meets the plane of the face across the edge (Zwicker et al.
     2004, sec. 5; :func:`surfsplat.geometry.sharp.mesh_clip_lines`); likewise
@@ -338,7 +424,10 @@ def surface_splats(mesh: Mesh, n: int | None = None, *, sharp_angle: float | str
         camera: the view the spacing is measured in; None (default): the
             bounding-box diagonal spans ``image_size`` pixels (see
             :func:`samples_for_pixels`).
-        k: neighbours that size the splats.
+        k: None (default): splats sized by the sampling, as above; an integer:
+            independent uniform samples (:func:`sample_mesh`) each sized by its
+            ``k``-th nearest sample, radius 1.25 ``h_k`` (Guennebaud 2003 eq. 7;
+            the former default with ``k`` = :data:`SURFACE_K`, 8).
         max_samples: the cap on the count when ``n`` is None.
         boundaries: clip splats at open boundary edges (default True).
 
@@ -358,7 +447,10 @@ def surface_splats(mesh: Mesh, n: int | None = None, *, sharp_angle: float | str
         n = samples_for_pixels(welded, pixels, camera=camera, image_size=image_size, max_samples=max_samples)
     n = _check_count(n, "surface_splats")
     shaded = with_shading_normals(welded, angle)  # crease normals computed once, for samples and splats
+    if k is not None and (isinstance(k, bool) or not isinstance(k, numbers.Integral) or k < 1):
+        raise InputError(f"surface_splats: k must be None or a positive integer, got {k!r}")
     with progress.stage("sampling the surface", n):
-        cloud, face = _samples(shaded, n, seed, True, angle, "surface_splats")
+        cloud, face, _ = _samples(shaded, n, seed, True, angle, "surface_splats", stratified=k is None)
+    radius = None if k is not None else spacing_radius(float(shaded.face_areas().sum()), n)
     return _splats_with_clip_lines(shaded, cloud, face, angle, k, None, None, "surface_splats",
-                                   boundaries=boundaries)
+                                   boundaries=boundaries, radius=radius)
