@@ -102,7 +102,8 @@ def stratified_barycentrics(areas: np.ndarray, n: int, rng: np.random.Generator)
 
     * faces: the ``n`` numbers ``(i + r_i) / n`` (one per stratum of the area's cumulative sum,
       ``r_i`` uniform in [0, 1)) pick the faces, so a face of area ``a`` gets ``n a / A`` samples
-      rounded up or down (never off by one or more), sorted by face;
+      give or take less than 2 (whole strata and at most two partial ones; independent samples
+      miss by about ``sqrt(n a / A)``), sorted by face;
     * within a face, its ``m`` samples are the R2 sequence ``(o + j / g, o' + j / g^2) mod 1``,
       ``j = 0 .. m - 1`` (Roberts 2018; ``g`` the plastic number), rotated by a random offset
       ``(o, o')`` per face (Cranley-Patterson rotation: each point uniform on the unit square),
