@@ -108,3 +108,33 @@ def test_surface_splats_radius_from_the_spacing():
     assert r.std() > 0.1 * r.mean()
     with pytest.raises(InputError, match="k must be"):
         surface_splats(mesh, 100, k=0)
+
+
+@pytest.mark.parametrize("shape", ["box", "cylinder"])
+def test_clip_lines_skip_splats_far_from_their_faces_sides_exactly(shape):
+    """Splats in planar patches farther from their face's sides than their radius are not searched for
+    edges (mesh_clip_lines with ``bary``); the clip lines are the same as with the full search."""
+    import trimesh
+
+    from surfsplat.geometry import sampling
+    from surfsplat.geometry.sharp import mesh_features
+    from surfsplat.geometry.sharp.mesh import _far_from_edges, mesh_clip_lines
+
+    made = trimesh.creation.box((2.0, 1.0, 0.5)) if shape == "box" else trimesh.creation.cylinder(0.5, 1.0,
+                                                                                                 sections=24)
+    mesh = Mesh(made.vertices, made.faces)
+    n = 20_000
+    cloud, face, bary = sampling._samples(mesh, n, 1, False, None, "test", stratified=True)
+    radius = spacing_radius(float(mesh.face_areas().sum()), n)
+    splats = sampling._spaced_circles(cloud, radius, "test")
+    feat = mesh_features(mesh, 30.0, boundaries=True)
+    far = _far_from_edges(feat, face, bary, np.full(n, radius))
+    assert 0.02 < far.mean() < 0.95
+    if shape == "cylinder":   # the curved side is always searched
+        side = np.abs(cloud.normals[:, 2]) < 0.5
+        assert not far[side].any() and far[~side].any()
+    full = mesh_clip_lines(mesh, face, splats.positions, splats.u, splats.v, 30.0, features=feat)
+    fast = mesh_clip_lines(mesh, face, splats.positions, splats.u, splats.v, 30.0, features=feat, bary=bary)
+    np.testing.assert_array_equal(fast, full)
+    assert (full[far] == np.array([0, 0, 1], np.float32)).all()    # no line where none was searched
+    assert (full[~far] != np.array([0, 0, 1], np.float32)).any()

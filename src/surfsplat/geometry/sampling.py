@@ -275,7 +275,8 @@ def _spaced_circles(cloud: SplatCloud, radius: float, name: str) -> SplatCloud:
 
 def _splats_with_clip_lines(mesh: Mesh, cloud: SplatCloud, face: np.ndarray, sharp_angle: float | None, k: int | None,
                             shape: str | None, coverage: float | None, name: str,
-                            boundaries: bool = False, radius: float | None = None) -> SplatCloud:
+                            boundaries: bool = False, radius: float | None = None,
+                            bary: np.ndarray | None = None) -> SplatCloud:
     """Splats (normals kept, sized by the k-neighbourhoods: :func:`preprocess` with ``shape`` and
     ``coverage``, or plain circles, :func:`_circles`, when ``shape`` is None) with clip lines at the
     edges sharper than ``sharp_angle`` and, with ``boundaries``, at the open boundary edges (None
@@ -303,7 +304,7 @@ def _splats_with_clip_lines(mesh: Mesh, cloud: SplatCloud, face: np.ndarray, sha
         return splats
     with progress.stage("clip lines at sharp edges", n):
         lines = mesh_clip_lines(mesh, face, splats.positions, splats.u, splats.v, sharp_angle, features=features,
-                                order=order)
+                                order=order, bary=bary)
     return splats.replace(clip_lines=lines)
 
 
@@ -451,7 +452,7 @@ def surface_splats(mesh: Mesh, n: int | None = None, *, sharp_angle: float | str
     if k is not None and (isinstance(k, bool) or not isinstance(k, numbers.Integral) or k < 1):
         raise InputError(f"surface_splats: k must be None or a positive integer, got {k!r}")
     with progress.stage("sampling the surface", n):
-        cloud, face, _ = _samples(shaded, n, seed, True, angle, "surface_splats", stratified=k is None)
+        cloud, face, bary = _samples(shaded, n, seed, True, angle, "surface_splats", stratified=k is None)
     radius = None if k is not None else spacing_radius(float(shaded.face_areas().sum()), n)
     return _splats_with_clip_lines(shaded, cloud, face, angle, k, None, None, "surface_splats",
-                                   boundaries=boundaries, radius=radius)
+                                   boundaries=boundaries, radius=radius, bary=bary)
