@@ -10,8 +10,8 @@ import pytest
 from scipy.spatial import cKDTree
 
 from surfsplat import InputError
-from surfsplat.geometry.sampling import (SPACING_COVERAGE, sample_mesh, spacing_radius, stratified_barycentrics,
-                                         surface_splats)
+from surfsplat.geometry.sampling import (SLIVER_COVERAGE, SPACING_COVERAGE, face_coverage, sample_mesh,
+                                         spacing_radius, stratified_barycentrics, surface_splats)
 from surfsplat.io import Mesh
 
 
@@ -23,6 +23,16 @@ def fan_square(slivers: int = 40) -> Mesh:
     vertices = np.column_stack([np.vstack([[0.0, 0.0], rim]), np.zeros(len(rim) + 1)])
     faces = np.column_stack([np.zeros(len(rim) - 1, int), np.arange(1, len(rim)), np.arange(2, len(rim) + 1)])
     return Mesh(vertices, faces)
+
+
+def grid_square(cells: int = 8) -> Mesh:
+    """The unit square as ``cells`` x ``cells`` squares, each cut into two right isosceles triangles."""
+    g = np.linspace(0.0, 1.0, cells + 1)
+    vertices = np.column_stack([np.repeat(g, cells + 1), np.tile(g, cells + 1), np.zeros((cells + 1) ** 2)])
+    i, j = np.meshgrid(np.arange(cells), np.arange(cells), indexing="ij")
+    a = (i * (cells + 1) + j).ravel()
+    b, c, d = a + cells + 1, a + cells + 2, a + 1
+    return Mesh(vertices, np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])]))
 
 
 def points_of(mesh: Mesh, face: np.ndarray, bary: np.ndarray) -> np.ndarray:
@@ -79,23 +89,31 @@ def test_poisson_coverage_formula():
         assert (d > r).mean() == pytest.approx(expected, rel=0.1)
 
 
+def test_slivers_get_the_larger_coverage():
+    np.testing.assert_array_equal(face_coverage(fan_square()), SLIVER_COVERAGE)      # sides over heights ~40-80
+    np.testing.assert_array_equal(face_coverage(grid_square()), SPACING_COVERAGE)    # right isosceles: 2
+
+
 @pytest.mark.parametrize("n", [3_000, 40_000])
-def test_spacing_radius_covers_stratified_samples_of_slivers(n):
-    """No point of the square (a fan of slivers) is farther than spacing_radius from a sample."""
-    mesh = fan_square()
+@pytest.mark.parametrize("kind", ["slivers", "grid"])
+def test_spacing_radius_covers_stratified_samples(n, kind):
+    """No point of the square is farther than the radius from a sample: a fan of slivers at
+    SLIVER_COVERAGE spacings, well-shaped triangles at SPACING_COVERAGE."""
+    mesh = fan_square() if kind == "slivers" else grid_square()
+    coverage = SLIVER_COVERAGE if kind == "slivers" else SPACING_COVERAGE
     g = (np.arange(500) + 0.5) / 500
     q = np.column_stack([np.repeat(g, 500), np.tile(g, 500), np.zeros(500 * 500)])
     for seed in range(3):
         face, bary = stratified_barycentrics(mesh.face_areas(), n, np.random.default_rng(seed))
         gap = cKDTree(points_of(mesh, face, bary)).query(q)[0].max()
-        assert gap <= spacing_radius(1.0, n)
+        assert gap <= spacing_radius(1.0, n, coverage)
         assert gap > spacing_radius(1.0, n, 1.0)   # the spacing itself would not do
 
 
 def test_surface_splats_radius_from_the_spacing():
     mesh = fan_square()
     splats = surface_splats(mesh, 5_000, seed=2, sharp_angle=None)
-    radius = SPACING_COVERAGE * math.sqrt(1.0 / 5_000)
+    radius = SLIVER_COVERAGE * math.sqrt(1.0 / 5_000)
     np.testing.assert_allclose(np.linalg.norm(splats.u, axis=1), radius, rtol=1e-6)
     np.testing.assert_allclose(np.linalg.norm(splats.v, axis=1), radius, rtol=1e-6)
     np.testing.assert_allclose(np.abs(np.einsum("ij,ij->i", splats.u, splats.v)), 0.0, atol=1e-9)
@@ -108,6 +126,8 @@ def test_surface_splats_radius_from_the_spacing():
     assert r.std() > 0.1 * r.mean()
     with pytest.raises(InputError, match="k must be"):
         surface_splats(mesh, 100, k=0)
+    grid = surface_splats(grid_square(), 5_000, seed=2, sharp_angle=None)
+    np.testing.assert_allclose(np.linalg.norm(grid.u, axis=1), SPACING_COVERAGE * math.sqrt(1.0 / 5_000), rtol=1e-6)
 
 
 @pytest.mark.parametrize("shape", ["box", "cylinder"])
@@ -125,10 +145,10 @@ def test_clip_lines_skip_splats_far_from_their_faces_sides_exactly(shape):
     mesh = Mesh(made.vertices, made.faces)
     n = 20_000
     cloud, face, bary = sampling._samples(mesh, n, 1, False, None, "test", stratified=True)
-    radius = spacing_radius(float(mesh.face_areas().sum()), n)
+    radius = spacing_radius(float(mesh.face_areas().sum()), n, 1.0) * face_coverage(mesh)[face]
     splats = sampling._spaced_circles(cloud, radius, "test")
     feat = mesh_features(mesh, 30.0, boundaries=True)
-    far = _far_from_edges(feat, face, bary, np.full(n, radius))
+    far = _far_from_edges(feat, face, bary, radius)
     assert 0.02 < far.mean() < 0.95
     if shape == "cylinder":   # the curved side is always searched
         side = np.abs(cloud.normals[:, 2]) < 0.5

@@ -58,12 +58,20 @@ MAX_SAMPLES = 2_000_000
 #: them by their neighbours (``k``); by default they are sized by the sampling (:data:`SPACING_COVERAGE`).
 SURFACE_K = 8
 #: Radius of the splats of a stratified sampling of a surface, in mean spacings ``sqrt(A / n)``
-#: (:func:`spacing_radius`): the largest gap measured between such samples (the distance from a point
-#: of the surface to its nearest sample) is 1.7, 1.9 and 2.25 spacings on bunny.ply, frag_115.ply and
-#: featuretype.ply (slivers), so 2.3 leaves no hole. Independent random samples would need ~2.9 for
-#: the same area left uncovered, ``exp(-pi c^2)`` (a Poisson process); sized by their k-th neighbours
-#: (the former default, 1.25 h_8) their radii average 1.96 spacings.
-SPACING_COVERAGE = 2.3
+#: (:func:`spacing_radius`), on faces whose longest side squared is less than :data:`SLIVER_ASPECT`
+#: times twice their area. The largest gap measured between such samples (the distance from a point
+#: of the surface to its nearest sample) is 1.7 and 1.9 spacings on bunny.ply and frag_115.ply (at
+#: its open rim; 1e-6 of frag_115's surface is farther than 2.0 spacings, all of it there) and none
+#: farther than 2.0 on featuretype.ply's well-shaped faces. Independent random samples would need
+#: ~2.9 for the same area left uncovered, ``exp(-pi c^2)`` (a Poisson process); sized by their k-th
+#: neighbours (1.25 h_8) their radii average 1.96 spacings.
+SPACING_COVERAGE = 2.0
+#: The radius on slivers (long thin faces of CAD tessellations), mean spacings: the square-root warp
+#: spreads a sliver's samples less evenly; the largest gap measured on featuretype.ply is 2.25.
+SLIVER_COVERAGE = 2.3
+#: Longest side squared over twice the area (the side over the height on it) above which a face is a
+#: sliver (an equilateral triangle: 1.15).
+SLIVER_ASPECT = 8.0
 
 
 #: Memory sampling holds per sample (float64 intermediates, the float32 cloud; with margin).
@@ -258,30 +266,43 @@ def spacing_radius(area: float, n: int, coverage: float = SPACING_COVERAGE) -> f
     ``coverage * sqrt(area / n)`` model units: ``sqrt(area / n)`` is the mean spacing (one sample
     per square of that side). For independent uniform samples (a Poisson process of density
     ``n / area``) the fraction of the surface farther than this radius from every sample is
-    ``exp(-pi coverage^2)``; stratified samples (:func:`stratified_barycentrics`) have no such
-    point for ``coverage`` >= 2.3 (:data:`SPACING_COVERAGE`, measured).
+    ``exp(-pi coverage^2)``; stratified samples (:func:`stratified_barycentrics`) have (next to)
+    none for ``coverage`` >= 2.0 on well-shaped faces, 2.3 on slivers (:data:`SPACING_COVERAGE`,
+    :data:`SLIVER_COVERAGE`, measured).
     """
     return float(coverage) * math.sqrt(float(area) / int(n))
 
 
-def _spaced_circles(cloud: SplatCloud, radius: float, name: str) -> SplatCloud:
-    """Circles of one ``radius`` (model units) in the planes normal to the samples' (unit) normals."""
-    if not (math.isfinite(radius) and radius > 0):
-        raise InputError(f"{name}: the splat radius {radius!r} from the sample spacing is not a positive number")
+def face_coverage(mesh: Mesh) -> np.ndarray:
+    """(F,) float64 splat radius of each face's samples in mean spacings: :data:`SPACING_COVERAGE`, or
+    :data:`SLIVER_COVERAGE` where the face's longest side squared exceeds :data:`SLIVER_ASPECT` times
+    twice its area (zero-area faces, never sampled, count as slivers)."""
+    corners = mesh.vertices.astype(np.float64)[mesh.faces]
+    longest = (np.diff(corners[:, [0, 1, 2, 0]], axis=1) ** 2).sum(axis=2).max(axis=1)
+    sliver = ~(longest < SLIVER_ASPECT * 2.0 * mesh.face_areas())
+    return np.where(sliver, SLIVER_COVERAGE, SPACING_COVERAGE)
+
+
+def _spaced_circles(cloud: SplatCloud, radius, name: str) -> SplatCloud:
+    """Circles of ``radius`` (model units: a number, or (N,) per sample) in the planes normal to the
+    samples' (unit) normals."""
+    r = np.asarray(radius, dtype=np.float32)
+    if not (np.isfinite(r).all() and (r > 0).all()):
+        raise InputError(f"{name}: a splat radius from the sample spacing is not a positive number")
     t1, t2 = tangent_frame(cloud.normals)
-    r = np.float32(radius)
+    r = r[:, None] if r.ndim else r
     return cloud.replace(u=t1 * r, v=t2 * r)
 
 
 def _splats_with_clip_lines(mesh: Mesh, cloud: SplatCloud, face: np.ndarray, sharp_angle: float | None, k: int | None,
                             shape: str | None, coverage: float | None, name: str,
-                            boundaries: bool = False, radius: float | None = None,
+                            boundaries: bool = False, radius: np.ndarray | None = None,
                             bary: np.ndarray | None = None) -> SplatCloud:
     """Splats (normals kept, sized by the k-neighbourhoods: :func:`preprocess` with ``shape`` and
     ``coverage``, or plain circles, :func:`_circles`, when ``shape`` is None) with clip lines at the
     edges sharper than ``sharp_angle`` and, with ``boundaries``, at the open boundary edges (None
-    without a sharp angle when there is no boundary either). ``radius``: circles of that radius
-    instead (:func:`spacing_radius`, model units; samples in face order, no neighbour search)."""
+    without a sharp angle when there is no boundary either). ``radius``: (N,) circles of these radii
+    instead (from :func:`spacing_radius`, model units; samples in face order, no neighbour search)."""
     n = len(cloud)
     # one spatial order of the samples for the neighbour search and the search for nearby edges
     order = spatial_order(cloud.positions) if shape is None and radius is None and n >= 2 else None
@@ -401,10 +422,10 @@ def surface_splats(mesh: Mesh, n: int | None = None, *, sharp_angle: float | str
     normal of its face's corners (the file's normals, or crease-aware normals
     at ``sharp_angle``: smooth within curved parts, split at sharp edges, as
     ``render_mesh`` shades the mesh), the interpolated vertex color, a circular
-    splat in the plane normal to it of radius :data:`SPACING_COVERAGE` = 2.3
-    mean spacings ``sqrt(area / n)`` (:func:`spacing_radius`: the sampling
-    knows its density, so no neighbour search; it leaves no hole between the
-    stratified samples), and clip lines where it
+    splat in the plane normal to it of radius :data:`SPACING_COVERAGE` = 2.0
+    mean spacings ``sqrt(area / n)``, 2.3 on slivers (:func:`spacing_radius`,
+    :func:`face_coverage`: the sampling knows its density, so no neighbour
+    search; it leaves no hole between the stratified samples), and clip lines where it
     reaches over an edge sharper than ``sharp_angle``: the line where the
     splat's plane meets the plane of the face across the edge (Zwicker et al.
     2004, sec. 5; :func:`surfsplat.geometry.sharp.mesh_clip_lines`); likewise
@@ -453,6 +474,8 @@ def surface_splats(mesh: Mesh, n: int | None = None, *, sharp_angle: float | str
         raise InputError(f"surface_splats: k must be None or a positive integer, got {k!r}")
     with progress.stage("sampling the surface", n):
         cloud, face, bary = _samples(shaded, n, seed, True, angle, "surface_splats", stratified=k is None)
-    radius = None if k is not None else spacing_radius(float(shaded.face_areas().sum()), n)
+    radius = None
+    if k is None:
+        radius = spacing_radius(float(shaded.face_areas().sum()), n, 1.0) * face_coverage(shaded)[face]
     return _splats_with_clip_lines(shaded, cloud, face, angle, k, None, None, "surface_splats",
                                    boundaries=boundaries, radius=radius, bary=bary)
