@@ -5,11 +5,13 @@ A mesh is a surface, not a point set: its vertices alone (today's default
 rendering of a mesh file) leave the large triangles of CAD tessellations empty
 and turn a triangle soup into crossed needles. :func:`surface_splats` welds
 the mesh (:func:`surfsplat.io.surface.weld`), samples its surface uniformly
-by area, gives every sample the mesh's shading normal (the file's normals, or
-crease-aware ones, :func:`surfsplat.io.surface.shading_normals`, interpolated
-within the face, as the ground-truth rasterizer interpolates them per pixel),
-its interpolated vertex color, a circular splat sized by its k nearest
-samples, and clip lines at the mesh's sharp edges (Zwicker et al. 2004,
+by area and evenly (:func:`stratified_barycentrics`), gives every sample the
+mesh's shading normal (the file's normals, or crease-aware ones,
+:func:`surfsplat.io.surface.shading_normals`, interpolated within the face, as
+the ground-truth rasterizer interpolates them per pixel), its interpolated
+vertex color, a circular splat sized by the sampling's own spacing
+(:func:`spacing_radius`, :func:`face_coverage`: no neighbour search), and clip
+lines at the mesh's sharp edges (Zwicker et al. 2004,
 sec. 5; :func:`surfsplat.geometry.sharp.mesh_clip_lines`) and at its open
 boundaries (the rim of a scan).
 
