@@ -5,11 +5,13 @@ A mesh is a surface, not a point set: its vertices alone (today's default
 rendering of a mesh file) leave the large triangles of CAD tessellations empty
 and turn a triangle soup into crossed needles. :func:`surface_splats` welds
 the mesh (:func:`surfsplat.io.surface.weld`), samples its surface uniformly
-by area, gives every sample the mesh's shading normal (the file's normals, or
-crease-aware ones, :func:`surfsplat.io.surface.shading_normals`, interpolated
-within the face, as the ground-truth rasterizer interpolates them per pixel),
-its interpolated vertex color, a circular splat sized by its k nearest
-samples, and clip lines at the mesh's sharp edges (Zwicker et al. 2004,
+by area and evenly (:func:`stratified_barycentrics`), gives every sample the
+mesh's shading normal (the file's normals, or crease-aware ones,
+:func:`surfsplat.io.surface.shading_normals`, interpolated within the face, as
+the ground-truth rasterizer interpolates them per pixel), its interpolated
+vertex color, a circular splat sized by the sampling's own spacing
+(:func:`spacing_radius`, :func:`face_coverage`: no neighbour search), and clip
+lines at the mesh's sharp edges (Zwicker et al. 2004,
 sec. 5; :func:`surfsplat.geometry.sharp.mesh_clip_lines`) and at its open
 boundaries (the rim of a scan).
 
@@ -33,13 +35,14 @@ from .. import progress
 from ..camera import Camera
 from ..cloud import SplatCloud
 from ..errors import InputError
+from ..frames import tangent_frame
 from ..io.atomic import memory_limit
 from ..io.mesh import Mesh
 from ..io.surface import AUTO, resolve_sharp_angle, shading_normals, weld, with_shading_normals
 from .neighbors import kth_distance, spatial_order
 from .preprocess import preprocess
 from .sharp import check_sharp_angle, mesh_clip_lines, mesh_features
-from .splats import CREASED_SAMPLE_COVERAGE, SAMPLE_COVERAGE, circular_splats
+from .splats import CIRCLE_COVERAGE, CREASED_SAMPLE_COVERAGE, SAMPLE_COVERAGE, circular_splats
 
 #: Default mean spacing of surface samples on screen, pixels. Measured (512 x 512, ewa, PSNR inside
 #: the silhouette against render_mesh, ``benchmarks/results/mesh_sampling.md``): from 1 to 0.75 px
@@ -53,8 +56,24 @@ DEFAULT_IMAGE_SIZE = 512
 #: clip lines take ~2-2.5 s per million samples on 2 cores, drawing 2 M splats 512 x 512 ~2-6 s on
 #: llvmpipe). Reached at 1024 px for featuretype (0.93 px) and the bunny (0.88 px).
 MAX_SAMPLES = 2_000_000
-#: Neighbours that size the splats of sampled surfaces.
+#: Neighbours that size the splats of sampled surfaces when :func:`surface_splats` is asked to size
+#: them by their neighbours (``k``); by default they are sized by the sampling (:data:`SPACING_COVERAGE`).
 SURFACE_K = 8
+#: Radius of the splats of a stratified sampling of a surface, in mean spacings ``sqrt(A / n)``
+#: (:func:`spacing_radius`), on faces whose longest side squared is less than :data:`SLIVER_ASPECT`
+#: times twice their area. The largest gap measured between such samples (the distance from a point
+#: of the surface to its nearest sample) is 1.7 and 1.9 spacings on bunny.ply and frag_115.ply (at
+#: its open rim; 1e-6 of frag_115's surface is farther than 2.0 spacings, all of it there) and none
+#: farther than 2.0 on featuretype.ply's well-shaped faces. Independent random samples would need
+#: ~2.9 for the same area left uncovered, ``exp(-pi c^2)`` (a Poisson process); sized by their k-th
+#: neighbours (1.25 h_8) their radii average 1.96 spacings.
+SPACING_COVERAGE = 2.0
+#: The radius on slivers (long thin faces of CAD tessellations), mean spacings: the square-root warp
+#: spreads a sliver's samples less evenly; the largest gap measured on featuretype.ply is 2.25.
+SLIVER_COVERAGE = 2.3
+#: Longest side squared over twice the area (the side over the height on it) above which a face is a
+#: sliver (an equilateral triangle: 1.15).
+SLIVER_ASPECT = 8.0
 
 
 #: Memory sampling holds per sample (float64 intermediates, the float32 cloud; with margin).
@@ -69,22 +88,74 @@ def _check_count(n, name: str) -> int:
     return int(n)
 
 
-def _samples(mesh: Mesh, n: int, seed: int, smooth_normals: bool, crease_angle: float | None,
-             name: str) -> tuple[SplatCloud, np.ndarray]:
-    """``n`` samples uniform by area on ``mesh`` (validated) and the face of each: see :func:`sample_mesh`."""
-    areas = mesh.face_areas()
-    total = float(areas.sum())
-    if not np.isfinite(total) or total <= 0:
-        raise InputError(f"{name}: mesh has zero total area ({len(mesh.faces)} degenerate faces)")
-
-    rng = np.random.default_rng(seed)
+def _uniform_barycentrics(areas: np.ndarray, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` independent uniform samples: faces by area, barycentrics by the square-root warp (Osada 2002)."""
     cdf = np.cumsum(areas)
     # side="right" never selects a zero-area face (its cdf step is empty)
     face = np.searchsorted(cdf, rng.random(n) * cdf[-1], side="right")
     face = np.minimum(face, int(np.flatnonzero(areas > 0)[-1]))  # r * total may round up to total
     r1 = np.sqrt(rng.random(n))
     r2 = rng.random(n)
-    bary = np.column_stack([1.0 - r1, r1 * (1.0 - r2), r1 * r2])  # (n, 3)
+    return face, np.column_stack([1.0 - r1, r1 * (1.0 - r2), r1 * r2])
+
+
+#: The plastic number: ``1 / PLASTIC`` and ``1 / PLASTIC**2`` step the R2 sequence (Roberts 2018), the
+#: two-dimensional Kronecker sequence of lowest dispersion known.
+PLASTIC = 1.32471795724474602596
+
+
+def stratified_barycentrics(areas: np.ndarray, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` stratified samples of a surface of faces of ``areas``: ``(face, barycentrics)``.
+
+    Uniform by area like independent samples (every sample is, on its own, uniform on the
+    surface), but spread evenly instead of clumped:
+
+    * faces: the ``n`` numbers ``(i + r_i) / n`` (one per stratum of the area's cumulative sum,
+      ``r_i`` uniform in [0, 1)) pick the faces, so a face of area ``a`` gets ``n a / A`` samples
+      give or take less than 2 (whole strata and at most two partial ones; independent samples
+      miss by about ``sqrt(n a / A)``), sorted by face;
+    * within a face, its ``m`` samples are the R2 sequence ``(o + j / g, o' + j / g^2) mod 1``,
+      ``j = 0 .. m - 1`` (Roberts 2018; ``g`` the plastic number), rotated by a random offset
+      ``(o, o')`` per face (Cranley-Patterson rotation: each point uniform on the unit square),
+      mapped to the triangle by the square-root warp (Osada et al. 2002), which keeps area.
+
+    Measured (``benchmarks/results/preprocess_real.md``): the largest distance from a point of the
+    surface to its nearest sample is 1.7 (bunny.ply), 1.9 (frag_115.ply) and 2.25
+    (featuretype.ply, slivers) times the mean spacing ``sqrt(A / n)``, against 2.2 for
+    independent samples, and the area farther than 1.4 spacings 10x smaller.
+
+    Args:
+        areas: (F,) float64 face areas; their sum > 0.
+        n: number of samples.
+        rng: the random generator.
+
+    Returns:
+        ``face`` (n,) int64 face indices, ascending; ``bary`` (n, 3) float64 barycentrics.
+    """
+    cdf = np.cumsum(areas)
+    face = np.searchsorted(cdf, (np.arange(n) + rng.random(n)) * (cdf[-1] / n), side="right")
+    face = np.minimum(face, int(np.flatnonzero(areas > 0)[-1]))
+    j = np.arange(n) - np.searchsorted(face, face, side="left")   # index of the sample within its face
+    offset = rng.random((len(areas), 2))
+    r1 = np.sqrt(np.remainder(offset[face, 0] + j * (1.0 / PLASTIC), 1.0))
+    r2 = np.remainder(offset[face, 1] + j * (1.0 / PLASTIC ** 2), 1.0)
+    return face, np.column_stack([1.0 - r1, r1 * (1.0 - r2), r1 * r2])
+
+
+def _samples(mesh: Mesh, n: int, seed: int, smooth_normals: bool, crease_angle: float | None,
+             name: str, stratified: bool = False) -> tuple[SplatCloud, np.ndarray, np.ndarray]:
+    """``n`` samples uniform by area on ``mesh`` (validated), the face and barycentrics of each: see
+    :func:`sample_mesh`; ``stratified``: :func:`stratified_barycentrics` instead of independent samples."""
+    areas = mesh.face_areas()
+    total = float(areas.sum())
+    if not np.isfinite(total) or total <= 0:
+        raise InputError(f"{name}: mesh has zero total area ({len(mesh.faces)} degenerate faces)")
+
+    rng = np.random.default_rng(seed)
+    if stratified:
+        face, bary = stratified_barycentrics(areas, n, rng)
+    else:
+        face, bary = _uniform_barycentrics(areas, n, rng)
 
     corners = mesh.faces[face]  # (n, 3) vertex indices
     vertices = mesh.vertices.astype(np.float64)
@@ -107,7 +178,7 @@ def _samples(mesh: Mesh, n: int, seed: int, smooth_normals: bool, crease_angle: 
 
     cloud = SplatCloud(positions=positions.astype(np.float32), normals=normals.astype(np.float32),
                        colors=None if colors is None else colors.astype(np.float32), origin=mesh.origin)
-    return cloud, face
+    return cloud, face, bary
 
 
 def sample_mesh(mesh: Mesh, n: int, *, seed: int = 0, sharp_angle: float | None = None, k: int = 8,
@@ -168,7 +239,7 @@ def sample_mesh(mesh: Mesh, n: int, *, seed: int = 0, sharp_angle: float | None 
     if sharp_angle is not None:
         sharp_angle = check_sharp_angle(sharp_angle, "sample_mesh: sharp_angle")
     mesh = mesh.validated("sample_mesh: mesh")
-    cloud, face = _samples(mesh, n, seed, smooth_normals, sharp_angle, "sample_mesh")
+    cloud, face, _ = _samples(mesh, n, seed, smooth_normals, sharp_angle, "sample_mesh")
     if sharp_angle is None:
         return cloud
     return _splats_with_clip_lines(mesh, cloud, face, sharp_angle, k, shape, coverage, "sample_mesh")
@@ -192,17 +263,57 @@ def _circles(cloud: SplatCloud, k: int, name: str, order: np.ndarray | None = No
     return cloud.replace(u=u, v=v).validated(name)
 
 
-def _splats_with_clip_lines(mesh: Mesh, cloud: SplatCloud, face: np.ndarray, sharp_angle: float | None, k: int,
+def spacing_radius(area: float, n: int, coverage: float = SPACING_COVERAGE) -> float:
+    """The splat radius of ``n`` samples spread evenly over a surface of ``area`` (squared model units).
+
+    ``coverage * sqrt(area / n)`` model units: ``sqrt(area / n)`` is the mean spacing (one sample
+    per square of that side). For independent uniform samples (a Poisson process of density
+    ``n / area``) the fraction of the surface farther than this radius from every sample is
+    ``exp(-pi coverage^2)``; stratified samples (:func:`stratified_barycentrics`) have (next to)
+    none for ``coverage`` >= 2.0 on well-shaped faces, 2.3 on slivers (:data:`SPACING_COVERAGE`,
+    :data:`SLIVER_COVERAGE`, measured).
+    """
+    return float(coverage) * math.sqrt(float(area) / int(n))
+
+
+def face_coverage(mesh: Mesh) -> np.ndarray:
+    """(F,) float64 splat radius of each face's samples in mean spacings: :data:`SPACING_COVERAGE`, or
+    :data:`SLIVER_COVERAGE` where the face's longest side squared exceeds :data:`SLIVER_ASPECT` times
+    twice its area (zero-area faces, never sampled, count as slivers)."""
+    corners = mesh.vertices.astype(np.float64)[mesh.faces]
+    longest = (np.diff(corners[:, [0, 1, 2, 0]], axis=1) ** 2).sum(axis=2).max(axis=1)
+    sliver = ~(longest < SLIVER_ASPECT * 2.0 * mesh.face_areas())
+    return np.where(sliver, SLIVER_COVERAGE, SPACING_COVERAGE)
+
+
+def _spaced_circles(cloud: SplatCloud, radius, name: str) -> SplatCloud:
+    """Circles of ``radius`` (model units: a number, or (N,) per sample) in the planes normal to the
+    samples' (unit) normals."""
+    r = np.asarray(radius, dtype=np.float32)
+    if not (np.isfinite(r).all() and (r > 0).all()):
+        raise InputError(f"{name}: a splat radius from the sample spacing is not a positive number")
+    t1, t2 = tangent_frame(cloud.normals)
+    r = r[:, None] if r.ndim else r
+    return cloud.replace(u=t1 * r, v=t2 * r)
+
+
+def _splats_with_clip_lines(mesh: Mesh, cloud: SplatCloud, face: np.ndarray, sharp_angle: float | None, k: int | None,
                             shape: str | None, coverage: float | None, name: str,
-                            boundaries: bool = False) -> SplatCloud:
+                            boundaries: bool = False, radius: np.ndarray | None = None,
+                            bary: np.ndarray | None = None) -> SplatCloud:
     """Splats (normals kept, sized by the k-neighbourhoods: :func:`preprocess` with ``shape`` and
     ``coverage``, or plain circles, :func:`_circles`, when ``shape`` is None) with clip lines at the
     edges sharper than ``sharp_angle`` and, with ``boundaries``, at the open boundary edges (None
-    without a sharp angle when there is no boundary either)."""
+    without a sharp angle when there is no boundary either). ``radius``: (N,) circles of these radii
+    instead (from :func:`spacing_radius`, model units; samples in face order, no neighbour search)."""
     n = len(cloud)
     # one spatial order of the samples for the neighbour search and the search for nearby edges
-    order = spatial_order(cloud.positions) if shape is None and n >= 2 else None
-    if shape is None:
+    order = spatial_order(cloud.positions) if shape is None and radius is None and n >= 2 else None
+    if radius is not None:
+        with progress.stage("splat sizes from the sample spacing", n):
+            splats = _spaced_circles(cloud, radius, name)
+    elif shape is None:
+        assert k is not None
         # a mesh with sharp edges keeps the larger circles at its occlusion edges (splats.py)
         splats = _circles(cloud, k, name, order, SAMPLE_COVERAGE if sharp_angle is None else CREASED_SAMPLE_COVERAGE)
     else:
@@ -218,7 +329,7 @@ def _splats_with_clip_lines(mesh: Mesh, cloud: SplatCloud, face: np.ndarray, sha
         return splats
     with progress.stage("clip lines at sharp edges", n):
         lines = mesh_clip_lines(mesh, face, splats.positions, splats.u, splats.v, sharp_angle, features=features,
-                                order=order)
+                                order=order, bary=bary)
     return splats.replace(clip_lines=lines)
 
 
@@ -305,7 +416,7 @@ def samples_for_pixels(mesh: Mesh, pixels: float = DEFAULT_SPACING_PX, *, camera
 
 def surface_splats(mesh: Mesh, n: int | None = None, *, sharp_angle: float | str | None = AUTO, seed: int = 0,
                    pixels: float = DEFAULT_SPACING_PX, camera: Camera | None = None,
-                   image_size: int = DEFAULT_IMAGE_SIZE, k: int = SURFACE_K,
+                   image_size: int = DEFAULT_IMAGE_SIZE, k: int | None = None,
                    max_samples: int = MAX_SAMPLES, boundaries: bool = True) -> SplatCloud:
     """Render-ready splats of a triangle mesh's surface (what a mesh file renders as).
 
@@ -315,11 +426,12 @@ def surface_splats(mesh: Mesh, n: int | None = None, *, sharp_angle: float | str
     normal of its face's corners (the file's normals, or crease-aware normals
     at ``sharp_angle``: smooth within curved parts, split at sharp edges, as
     ``render_mesh`` shades the mesh), the interpolated vertex color, a circular
-    splat in the plane normal to it of radius 1.1 times the distance to the
-    ``k``-th nearest sample, 1.25 times on a mesh with sharp edges (Guennebaud
-    2003 eq. 7, :func:`surfsplat.geometry.splats.circular_splats`,
-    :data:`~surfsplat.geometry.splats.SAMPLE_COVERAGE`: with the renderer's
-    hole filling, no holes on screen), and clip lines where it
+    splat in the plane normal to it of radius :data:`SPACING_COVERAGE` = 2.0
+    mean spacings ``sqrt(area / n)``, 2.3 on slivers (:func:`spacing_radius`,
+    :func:`face_coverage`: the sampling knows its density, so no neighbour
+    search), times ``SAMPLE_COVERAGE / CIRCLE_COVERAGE`` = 0.88 on a mesh
+    without sharp edges (:data:`~surfsplat.geometry.splats.SAMPLE_COVERAGE`:
+    with the renderer's hole filling, no holes on screen), and clip lines where it
     reaches over an edge sharper than ``sharp_angle``: the line where the
     splat's plane meets the plane of the face across the edge (Zwicker et al.
     2004, sec. 5; :func:`surfsplat.geometry.sharp.mesh_clip_lines`); likewise
@@ -341,7 +453,10 @@ def surface_splats(mesh: Mesh, n: int | None = None, *, sharp_angle: float | str
         camera: the view the spacing is measured in; None (default): the
             bounding-box diagonal spans ``image_size`` pixels (see
             :func:`samples_for_pixels`).
-        k: neighbours that size the splats.
+        k: None (default): splats sized by the sampling, as above; an integer:
+            independent uniform samples (:func:`sample_mesh`) each sized by its
+            ``k``-th nearest sample, radius 1.25 ``h_k`` (Guennebaud 2003 eq. 7;
+            the former default with ``k`` = :data:`SURFACE_K`, 8).
         max_samples: the cap on the count when ``n`` is None.
         boundaries: clip splats at open boundary edges (default True).
 
@@ -361,7 +476,14 @@ def surface_splats(mesh: Mesh, n: int | None = None, *, sharp_angle: float | str
         n = samples_for_pixels(welded, pixels, camera=camera, image_size=image_size, max_samples=max_samples)
     n = _check_count(n, "surface_splats")
     shaded = with_shading_normals(welded, angle)  # crease normals computed once, for samples and splats
+    if k is not None and (isinstance(k, bool) or not isinstance(k, numbers.Integral) or k < 1):
+        raise InputError(f"surface_splats: k must be None or a positive integer, got {k!r}")
     with progress.stage("sampling the surface", n):
-        cloud, face = _samples(shaded, n, seed, True, angle, "surface_splats")
+        cloud, face, bary = _samples(shaded, n, seed, True, angle, "surface_splats", stratified=k is None)
+    radius = None
+    if k is None:
+        # a smooth mesh's splats shrink as its k-neighbour circles did (1.1 instead of 1.25 h_k, splats.py)
+        shrink = (SAMPLE_COVERAGE if angle is None else CREASED_SAMPLE_COVERAGE) / CIRCLE_COVERAGE
+        radius = spacing_radius(float(shaded.face_areas().sum()), n, shrink) * face_coverage(shaded)[face]
     return _splats_with_clip_lines(shaded, cloud, face, angle, k, None, None, "surface_splats",
-                                   boundaries=boundaries)
+                                   boundaries=boundaries, radius=radius, bary=bary)
