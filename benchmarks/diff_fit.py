@@ -7,15 +7,18 @@ uniform surface would show silhouettes only), rendered by ``surfsplat.render_mes
 Fibonacci sphere around the model (training) and 8 others between them (held out), at ``--size`` pixels.
 Initial cloud: ``--points`` points sampled uniformly on the surface, moved by Gaussian noise of ``--noise``
 times the bounding-box diagonal, made into splats by the view plan (grey). Fit: ``surfsplat.diff.fit.fit``
-with ``--iterations`` steps and its default options.
+with ``--iterations`` steps and its default options, once per seed of ``--seeds`` (view order, background
+colours, split directions).
 
 Measured: held-out PSNR of the fitted splats (differentiable renderer, default options, unlit, over white)
 against the mesh views; the centres' distance to the mesh (mean, as a fraction of the bounding-box
 diagonal; distance to the nearest of 2,000,000 surface samples) and the angle between each splat's normal
-and the surface's normal there (median, degrees, unsigned); wall-clock and CPU time of the fit.
+and the surface's normal there (median, degrees, unsigned); wall-clock and CPU time of the fit
+(the machine's load average after the fits is in the table's header).
 
     python benchmarks/diff_fit.py [--models bunny featuretype] [--views 32] [--size 256] [--points 5000]
-                                  [--iterations 600]
+                                  [--iterations 600] [--seeds 0 1] [--threads 1]
+                                  [--jobs 1]
 
 Writes benchmarks/results/diff_fit.md and .json, and docs/images/diff_fit_MODEL.png (two held-out views:
 mesh | fitted splats).
@@ -24,8 +27,12 @@ mesh | fitted splats).
 from __future__ import annotations
 
 import argparse
+import multiprocessing
+import os
 import sys
 import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +46,7 @@ from common import label, machine_description, write_table  # noqa: E402
 
 import surfsplat  # noqa: E402
 from surfsplat import metrics  # noqa: E402
+from surfsplat.cloud import SplatCloud  # noqa: E402
 from surfsplat.camera import Camera  # noqa: E402
 from surfsplat.diff import DiffCamera, Splats, render  # noqa: E402
 from surfsplat.diff.fit import FitOptions, FitView, fit, initial_cloud  # noqa: E402
@@ -78,8 +86,21 @@ def colored_mesh(path: Path):
     return mesh, (lo + hi) / 2, float(np.linalg.norm(hi - lo))
 
 
-def run_model(name: str, path: Path, args) -> tuple[list, np.ndarray]:
-    """Fit one model; its two table rows (initial, fitted) and a picture of two held-out views."""
+@dataclass
+class Model:
+    """One model's training and held-out views, initial splats and ground-truth samples."""
+
+    name: str
+    diagonal: float
+    train: list
+    test: list
+    init: SplatCloud
+    tree: cKDTree
+    normals: np.ndarray
+
+
+def prepare(name: str, path: Path, args) -> Model:
+    """A model's mesh views (training, held out), its noisy initial splats and dense surface samples."""
     mesh, center, diagonal = colored_mesh(path)
 
     def views(cams):
@@ -96,51 +117,48 @@ def run_model(name: str, path: Path, args) -> tuple[list, np.ndarray]:
     samples = sample_mesh(mesh, args.points, seed=1)
     points = np.asarray(samples.positions, np.float64) + np.asarray(samples.origin, np.float64)
     points += rng.normal(size=points.shape) * args.noise * diagonal
-    init = initial_cloud(points)
+    dense = sample_mesh(mesh, 2_000_000, seed=2)
+    tree = cKDTree(np.asarray(dense.positions, np.float64) + np.asarray(dense.origin, np.float64))
+    return Model(name, diagonal, train, test, initial_cloud(points), tree, np.asarray(dense.normals, np.float64))
+
+
+def geometry(model: Model, cloud) -> tuple[float, float]:
+    """Mean centre distance to the surface / diagonal and median unsigned normal error (degrees)."""
+    p = np.asarray(cloud.positions, np.float64) + np.asarray(cloud.origin, np.float64)
+    distance, index = model.tree.query(p)
+    n = np.asarray(cloud.normals, np.float64)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    cos = np.abs(np.sum(n * model.normals[index], axis=1))
+    return float(distance.mean() / model.diagonal), float(np.degrees(np.median(np.arccos(np.clip(cos, 0, 1)))))
+
+
+def held_out(model: Model, cloud) -> tuple[float, list]:
+    """Mean PSNR (dB) of the held-out views over white, and each view's mesh | splats picture."""
+    splats = Splats.from_cloud(cloud)
+    if cloud.attributes and "opacity" in cloud.attributes:
+        splats.opacity = torch.as_tensor(cloud.attributes["opacity"])
+    values, pictures = [], []
+    for view in model.test:
+        with torch.no_grad():
+            image = render(splats, DiffCamera.from_camera(view.camera), lights=UNLIT).numpy()
+        target = view.image * view.alpha[..., None] + (1.0 - view.alpha[..., None])
+        values.append(metrics.psnr(image, target))
+        pictures.append(np.concatenate([target, image], axis=1))
+    return float(np.mean(values)), pictures
+
+
+def fit_job(name: str, train: list, init: SplatCloud, iterations: int, seed: int, threads: int):
+    """One fit (in a worker process): the fitted splats, wall-clock and CPU seconds, the load after it."""
+    torch.set_num_threads(threads)
     start, cpu = time.perf_counter(), time.process_time()
 
     def log(step: int, loss: float, splats: int) -> None:
-        if step % 100 == 0 or step == args.iterations - 1:
-            print(f"{name} step {step}: loss {loss:.4f}, {splats:,} splats, {time.perf_counter() - start:.0f} s",
-                  flush=True)
+        if step % 100 == 0 or step == iterations - 1:
+            print(f"{name} seed {seed} step {step}: loss {loss:.4f}, {splats:,} splats, "
+                  f"{time.perf_counter() - start:.0f} s", flush=True)
 
-    result = fit(train, init, options=FitOptions(iterations=args.iterations, max_splats=200_000), on_step=log)
-    seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
-
-    dense = sample_mesh(mesh, 2_000_000, seed=2)
-    tree = cKDTree(np.asarray(dense.positions, np.float64) + np.asarray(dense.origin, np.float64))
-
-    def geometry(cloud) -> tuple[float, float]:
-        p = np.asarray(cloud.positions, np.float64) + np.asarray(cloud.origin, np.float64)
-        distance, index = tree.query(p)
-        n = np.asarray(cloud.normals, np.float64)
-        n /= np.linalg.norm(n, axis=1, keepdims=True)
-        cos = np.abs(np.sum(n * np.asarray(dense.normals, np.float64)[index], axis=1))
-        return float(distance.mean() / diagonal), float(np.degrees(np.median(np.arccos(np.clip(cos, 0, 1)))))
-
-    def held_out(cloud) -> tuple[float, list]:
-        splats = Splats.from_cloud(cloud)
-        if cloud.attributes and "opacity" in cloud.attributes:
-            splats.opacity = torch.as_tensor(cloud.attributes["opacity"])
-        values, pictures = [], []
-        for view in test:
-            with torch.no_grad():
-                image = render(splats, DiffCamera.from_camera(view.camera), lights=UNLIT).numpy()
-            target = view.image * view.alpha[..., None] + (1.0 - view.alpha[..., None])
-            values.append(metrics.psnr(image, target))
-            pictures.append(np.concatenate([target, image], axis=1))
-        return float(np.mean(values)), pictures
-
-    psnr0, _ = held_out(init)
-    psnr1, pictures = held_out(result.cloud)
-    d0, a0 = geometry(init)
-    d1, a1 = geometry(result.cloud)
-    strip = np.concatenate(pictures[:2], axis=0)
-    picture = label((np.clip(strip, 0, 1) * 255).round().astype(np.uint8), f"{name}: mesh | fitted splats")
-    rows = [[name, "initial (noisy points)", len(init), round(psnr0, 2), round(100 * d0, 3), round(a0, 2), 0.0, 0.0],
-            [name, f"fitted ({args.iterations} steps, {args.views} views {args.size}x{args.size})", len(result.cloud),
-             round(psnr1, 2), round(100 * d1, 3), round(a1, 2), round(seconds, 1), round(cpu, 1)]]
-    return rows, picture
+    result = fit(train, init, options=FitOptions(iterations=iterations, max_splats=200_000, seed=seed), on_step=log)
+    return result.cloud, time.perf_counter() - start, time.process_time() - cpu, os.getloadavg()[0]
 
 
 def main() -> None:
@@ -151,20 +169,47 @@ def main() -> None:
     parser.add_argument("--points", type=int, default=5000)
     parser.add_argument("--noise", type=float, default=0.002)
     parser.add_argument("--iterations", type=int, default=600)
-    parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1], help="the fit's seeds (one run each)")
+    parser.add_argument("--threads", type=int, default=1, help="PyTorch threads per fit")
+    parser.add_argument("--jobs", type=int, default=1, help="fits run at once (worker processes)")
     parser.add_argument("--pictures", type=Path, default=ROOT / "docs" / "images")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
-    rows = []
-    for name in args.models:
-        model_rows, picture = run_model(name, MODELS[name], args)
-        rows += model_rows
-        print(model_rows, flush=True)
+    models = [prepare(name, MODELS[name], args) for name in args.models]
+    jobs = [(m, seed) for m in models for seed in args.seeds]
+    # fits in worker processes (spawned: no OpenGL or thread pool inherited), --jobs at a time
+    with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = [pool.submit(fit_job, m.name, m.train, m.init, args.iterations, seed, args.threads)
+                   for m, seed in jobs]
+        fitted = [f.result() for f in futures]
+    rows, loads = [], []
+    for m in models:
+        psnr0, _ = held_out(m, m.init)
+        d0, a0 = geometry(m, m.init)
+        rows.append([m.name, "initial (noisy points)", len(m.init), round(psnr0, 2), round(100 * d0, 3), round(a0, 2),
+                     0.0, 0.0])
+        picture = None
+        for (model, seed), (cloud, seconds, cpu, load) in zip(jobs, fitted):
+            if model is not m:
+                continue
+            psnr1, pictures = held_out(m, cloud)
+            d1, a1 = geometry(m, cloud)
+            loads.append(load)
+            rows.append([m.name, f"fitted ({args.iterations} steps, {args.views} views {args.size}x{args.size}, "
+                         f"seed {seed})", len(cloud), round(psnr1, 2), round(100 * d1, 3), round(a1, 2),
+                         round(seconds, 1), round(cpu, 1)])
+            print(rows[-1], flush=True)
+            if picture is None:
+                strip = np.concatenate(pictures[:2], axis=0)
+                picture = label((np.clip(strip, 0, 1) * 255).round().astype(np.uint8),
+                                f"{m.name}: mesh | fitted splats")
         args.pictures.mkdir(parents=True, exist_ok=True)
-        Image.fromarray(picture).save(args.pictures / f"diff_fit_{name}.png", optimize=True)
+        assert picture is not None
+        Image.fromarray(picture).save(args.pictures / f"diff_fit_{m.name}.png", optimize=True)
     columns = ["model", "stage", "splats", "held-out PSNR dB", "centre distance / diagonal %",
                "normal error median deg", "wall s", "CPU s"]
-    machine = machine_description() + f", torch {torch.__version__}, {args.threads} thread(s)"
+    machine = (machine_description() + f", torch {torch.__version__}, {args.threads} thread(s) per fit, {args.jobs} "
+               f"fit(s) at once, load average after the fits {min(loads):.1f} to {max(loads):.1f}")
     write_table("diff_fit", columns, rows, machine)
     print("command: python benchmarks/diff_fit.py " + " ".join(sys.argv[1:]))
 

@@ -39,6 +39,12 @@ def add_fit_command(subparsers) -> argparse.ArgumentParser:
                    help="fraction of the steps (the first) on the images at half the resolution (default 0.5)")
     p.add_argument("--plane-weight", type=opt.number(float, low=0), default=None, metavar="W",
                    help="weight of the term tying each splat's normal to its neighbours' plane (default 0.2; 0: off)")
+    p.add_argument("--sharpen-fraction", type=opt.number(float, low=0, high=1), default=None, metavar="F",
+                   help="fraction of the steps (the last) over which the splats' soft rims and depth tests sharpen "
+                        "to the renderer's defaults (default 0.3)")
+    p.add_argument("--crease-angle", type=opt.number(float, low=0, high=90), default=None, metavar="DEG",
+                   help="neighbours whose normals differ by more than this weigh little in the plane term, "
+                        "which then keeps sharp edges (default 20; 0: all weigh alike)")
     p.add_argument("--seed", type=opt.number(int, low=0, high=2**63 - 1), default=0, help="random seed (default 0)")
     p.add_argument("--device", default=None, help="PyTorch device: cpu (default), cuda, mps")
     p.add_argument("--loss", metavar="FILE.json", help="where to write the loss curve (default: OUTPUT.loss.json)")
@@ -55,6 +61,7 @@ def cmd_fit(args) -> None:
     check_output(loss, inputs_of(args))
     settings = {k: v for k, v in (("iterations", args.iterations), ("max_splats", args.max_splats),
                                   ("coarse_fraction", args.coarse_fraction), ("plane_weight", args.plane_weight),
+                                  ("sharpen_fraction", args.sharpen_fraction), ("crease_angle", args.crease_angle),
                                   ("seed", args.seed)) if v is not None}
     result = fit(args.cameras, init=args.init, images=args.images, device=args.device, **settings)
     save_ply(result.cloud, out)

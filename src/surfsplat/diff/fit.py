@@ -18,9 +18,12 @@ images have alpha, plus ``plane_weight`` times the plane term: the mean squared 
 between each splat's plane and the directions to its ``neighbours`` nearest splats (found again every
 ``densify_every`` steps), which ties the normals to the surface the centres describe and pulls centres
 that stray off their neighbours' planes back (a local plane fit's residual, as in point-cloud normal
-estimation; the photographs alone barely constrain an unlit splat's normal). Every ``densify_every`` steps
-until ``densify_until`` of the run, splats whose mean position gradient is in the top
-``densify_fraction`` are split in two (each with 0.7 of the radius, half a radius apart along a random
+estimation; the photographs alone barely constrain an unlit splat's normal); neighbours whose normals
+differ by more than ``crease_angle`` weigh little in it, so that at a sharp edge each face keeps its own
+plane. Over the last ``sharpen_fraction`` of the steps the renderer's soft rims and depth tests narrow to
+those of ``sharpen_to`` (the renderer's defaults: the image the fitted splats are looked at with). Every
+``densify_every`` steps until ``densify_until`` of the run, splats whose mean position gradient is in the
+top ``densify_fraction`` are split in two (each with 0.7 of the radius, half a radius apart along a random
 tangent direction) and splats of opacity below ``prune_opacity`` are dropped.
 """
 
@@ -72,9 +75,13 @@ class FitOptions:
         prune_opacity: drop splats of lower opacity at each densification step.
         max_splats: never grow beyond this many splats.
         plane_weight: weight of the plane term (0: none); neighbours: how many nearest splats it uses.
+        crease_angle: degrees; a neighbour whose normal differs from the splat's by more weighs little in the
+            plane term (``exp(-(1 - |n_i . n_j|) / (1 - cos crease_angle))``; 0: all weigh alike).
         coarse_fraction: the fraction of the steps (the first ones) on the views at half the resolution
             (views of odd width or height: none).
         render: the renderer's options (soft rims and depth tests carry the gradients of the silhouettes).
+        sharpen_fraction, sharpen_to: over this fraction of the steps (the last), the renderer's
+            ``edge_softness`` and ``depth_softness`` go geometrically from ``render``'s to ``sharpen_to``'s.
         seed: random seed (view order, background colours, split directions).
     """
 
@@ -92,20 +99,30 @@ class FitOptions:
     max_splats: int = 500_000
     plane_weight: float = 0.2
     neighbours: int = 8
+    crease_angle: float = 20.0
     coarse_fraction: float = 0.5
     render: DiffOptions = field(default_factory=lambda: DiffOptions(edge_softness=0.5, depth_softness=0.3))
+    sharpen_fraction: float = 0.3
+    sharpen_to: DiffOptions = field(default_factory=DiffOptions)
     seed: int = 0
 
     def __post_init__(self) -> None:
         if int(self.iterations) < 1:
             raise InputError(f"iterations must be >= 1, got {self.iterations!r}", argument="iterations")
         for name in ("position_lr", "normal_lr", "radius_lr", "color_lr", "opacity_lr", "alpha_weight",
-                     "densify_until", "densify_fraction", "prune_opacity", "plane_weight", "coarse_fraction"):
+                     "densify_until", "densify_fraction", "prune_opacity", "plane_weight", "coarse_fraction",
+                     "sharpen_fraction", "crease_angle"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise InputError(f"{name} must be a finite number >= 0, got {value!r}", argument=name)
         if int(self.densify_every) < 1 or int(self.max_splats) < 1 or int(self.neighbours) < 1:
             raise InputError("densify_every, max_splats and neighbours must be >= 1")
+        if self.crease_angle > 90:
+            raise InputError(f"crease_angle must be <= 90 degrees, got {self.crease_angle!r}",
+                             argument="crease_angle")
+        if self.sharpen_fraction > 1:
+            raise InputError(f"sharpen_fraction must be <= 1, got {self.sharpen_fraction!r}",
+                             argument="sharpen_fraction")
         if self.coarse_fraction > 1:
             raise InputError(f"coarse_fraction must be <= 1, got {self.coarse_fraction!r}", argument="coarse_fraction")
 
@@ -238,7 +255,16 @@ class _Params:
         n = n / torch.linalg.vector_norm(n, dim=1, keepdim=True)
         d = p[self.pairs] - p[:, None, :]
         along = (d * n[:, None, :]).sum(-1)
-        return (along ** 2 / ((d * d).sum(-1) + 1e-20)).mean()
+        sine2 = along ** 2 / ((d * d).sum(-1) + 1e-20)
+        if self.options.crease_angle <= 0:
+            return sine2.mean()
+        # neighbours across a crease (normals apart by the crease angle or more) weigh little: the term
+        # then fits each side's plane apart instead of bending the normals at the edge into their mean
+        with torch.no_grad():
+            c = (n[self.pairs] * n[:, None, :]).sum(-1).abs()
+            w = torch.exp(-(1.0 - c) / (1.0 - math.cos(math.radians(self.options.crease_angle))))
+            w = w / w.sum(1, keepdim=True).clamp(min=1e-12)
+        return (w * sine2).sum(1).mean()
 
     def splats(self) -> Splats:
         t = self.t
@@ -305,6 +331,24 @@ def _halved(target: tuple[DiffCamera, torch.Tensor, torch.Tensor | None]
     return small, pool(premultiplied), None if alpha is None else pool(alpha)
 
 
+def _render_options(options: FitOptions, step: int) -> DiffOptions:
+    """The renderer's options at ``step``: ``options.render``, then over the last ``sharpen_fraction`` of the
+    steps its rim and depth-test widths going geometrically to those of ``sharpen_to``."""
+    iterations = int(options.iterations)
+    steps = int(round(options.sharpen_fraction * iterations))
+    first = iterations - steps
+    if steps == 0 or step < first:
+        return options.render
+    t = (step - first + 1) / steps
+    a, b = options.render, options.sharpen_to
+
+    def blend(x: float, y: float) -> float:
+        return x ** (1.0 - t) * y ** t if x > 0 and y > 0 else (1.0 - t) * x + t * y
+
+    return replace(a, edge_softness=blend(a.edge_softness, b.edge_softness),
+                   depth_softness=blend(a.depth_softness, b.depth_softness))
+
+
 def fit(views: list[FitView], init: SplatCloud, *, options: FitOptions | None = None,
         device: str | torch.device | None = None, on_step: Callable[[int, float, int], None] | None = None
         ) -> FitResult:
@@ -345,7 +389,7 @@ def fit(views: list[FitView], init: SplatCloud, *, options: FitOptions | None = 
             camera, premultiplied, alpha = (coarse if step < coarse_steps else fine)[order.pop()]
             background = rng.uniform(0.0, 1.0, 3) if alpha is not None else np.ones(3)
             frame = render_frame(params.splats(), camera, lights=UNLIT, background=tuple(background),
-                                 options=options.render)
+                                 options=_render_options(options, step))
             if alpha is None:
                 target = premultiplied
             else:
