@@ -191,9 +191,11 @@ def test_the_page_draws_every_technique_with_the_desktop_s_passes():
             assert (f"{program}_points" in PROGRAMS) == (technique.point_footprint is not None)
     header, _ = page_payload(torus(16, 8))
     for k in range(1, MAX_PAGE_SUPERSAMPLE + 1):   # one fill program per supersampling, as the desktop's
-        fill = plan_frame(get_technique("flat"), RenderOptions(), [(0, 1)], [], supersample=k).get("fill")
-        assert PROGRAMS[fill_program(k)][2] == {"FILL_GAP": fill.gap, "FILL_REACH": fill_reach(fill.gap)}
-        assert header["fill"][str(k)] == {"gap": fill.gap, "depth": fill_depth(fill.gap), "program": fill_program(k)}
+        for name in WEB_TECHNIQUES:   # every technique's frame: the page runs the one fill of its supersampling
+            fill = plan_frame(get_technique(name), RenderOptions(), [(0, 1)], [], supersample=k).get("fill")
+            assert PROGRAMS[fill_program(k)][2] == {"FILL_GAP": fill.gap, "FILL_REACH": fill_reach(fill.gap)}
+            assert header["fill"][str(k)] == {"gap": fill.gap, "depth": fill_depth(fill.gap),
+                                              "program": fill_program(k)}
     assert header["blended"] == [t for t in WEB_TECHNIQUES if get_technique(t).blended]
 
 

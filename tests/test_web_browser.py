@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import time
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -249,13 +250,18 @@ def test_one_self_contained_file_with_ui_0_shows_no_overlay(browser, model, tmp_
         page.close()
 
 
-# (file, source options, technique, least PSNR): a mesh, a CAD part (sampled small), aerial LiDAR; measured
-# at 320 x 240 against the desktop's defaults: 97.0 dB (edge coverage, back faces culled), 65.5 dB (with the
-# fill pass; 53.2 dB before the page filled the gaps the desktop fills) and 87.6 dB (the same splats in the
-# same order: the same pictures but for rounding)
+# (file, source options, technique, least PSNR): a mesh, a scan mesh (sampled), aerial LiDAR; measured at 320 x 240
+# against the desktop's defaults (edge coverage, the fill pass, back faces culled where the view plan culls them):
+# the bunny's pictures are equal, frag 78.6 to 84.4 dB (on the pixels but the depth ties below; the 4 or 2 pixels
+# its fill pass fills are the desktop's), the LAS sample 87.6 dB (the same splats in the same order: the same
+# pictures but for rounding)
 DATA = [("bunny.ply", SourceOptions(samples=30_000), "ewa", 80.0),
-        ("frag_115.ply", SourceOptions(samples=30_000), "flat", 60.0),
+        ("frag_115.ply", SourceOptions(samples=30_000), "flat", 75.0),
         ("simple.las", None, "points", 75.0)]
+#: The share of the pixels where two opaque disks meet the pixel's ray at one depth to float precision (at
+#: most 1e-7 apart at a depth of 2.5), so the browser's and the desktop's GL round them apart and draw another
+#: disk: the sampled scan mesh's coplanar samples show one such pixel at 320 x 240, or none.
+DEPTH_TIES = 1e-4
 
 
 @pytest.mark.parametrize("name,options,technique,least", DATA, ids=[d[0] for d in DATA])
@@ -270,6 +276,7 @@ def test_real_data_pages_match_the_desktop(browser, shared_data, tmp_path, name,
     culls = VisibilityOptions(cull_backfaces=plan.culls(camera, technique=technique))
     options = RenderOptions(visibility=culls, edl=EdlOptions() if technique == "points" else None)
     reference = drawn.render(camera, technique=technique, options=options).frame.image()
+    unfilled = drawn.render(camera, technique=technique, options=replace(options, fill_holes=False)).frame.image()
     page = opened(browser, file_url(out / "index.html", "?ui=0"))
     try:
         canvas = page.canvas()
@@ -277,7 +284,13 @@ def test_real_data_pages_match_the_desktop(browser, shared_data, tmp_path, name,
     finally:
         page.close()
     assert np.allclose(shown["eye"], camera.eye, rtol=1e-9, atol=1e-9)   # the render's default view
-    assert psnr(canvas / 255.0, reference / 255.0) >= least
+    apart = np.abs(canvas.astype(int) - reference.astype(int)).max(axis=2) > 8
+    # every pixel the desktop's fill pass fills, the page fills with the same color
+    filled = (unfilled != reference).any(axis=2)
+    assert not (apart & filled).any()
+    # elsewhere the same picture but for disks at one depth to float precision
+    assert apart.sum() <= DEPTH_TIES * apart.size
+    assert psnr(canvas / 255.0, reference / 255.0, mask=~apart) >= least
 
 
 @pytest.fixture(scope="module")
