@@ -69,7 +69,7 @@ def test_clip_lines_searched_in_spatial_order_are_the_same():
 
     box = trimesh.creation.box(extents=(2.0, 1.0, 0.5))
     mesh = Mesh(box.vertices, box.faces[2:])                           # open: one side has a hole
-    cloud, face = _samples(mesh, 20_000, 4, False, None, "box")
+    cloud, face, _ = _samples(mesh, 20_000, 4, False, None, "box")
     splats = _circles(cloud, 8, "box")
     order = spatial_order(splats.positions)
     plain = mesh_clip_lines(mesh, face, splats.positions, splats.u, splats.v, 30.0, boundaries=True)
