@@ -233,6 +233,34 @@ def test_the_crease_angle_keeps_the_plane_term_from_bending_normals_at_a_sharp_e
     assert np.median(crease_error) < 0.5        # kept
 
 
+def test_radii_are_clamped_to_a_multiple_of_the_mean_neighbour_distance():
+    # a square grid of spacing h: the 8 nearest splats are 4 at h and 4 at h * sqrt 2, their mean distance
+    # h (1 + sqrt 2) / 2; a radius above max_radius times that is clamped to it, a smaller one is kept
+    h = 0.1
+    x, y = np.meshgrid(np.arange(12) * h, np.arange(12) * h)
+    positions = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1)
+    n = len(positions)
+    inner = (x.ravel() > 0.05) & (x.ravel() < 1.05) & (y.ravel() > 0.05) & (y.ravel() < 1.05)
+    radii = np.where(np.arange(n) % 2 == 0, 10.0 * h, 0.5 * h)
+    tensors = {"positions": torch.as_tensor(positions), "normals": torch.as_tensor(np.tile([0.0, 0.0, 1.0], (n, 1))),
+               "log_radii": torch.as_tensor(np.log(radii)), "colors": torch.zeros((n, 3), dtype=torch.float64),
+               "opacity": torch.zeros(n, dtype=torch.float64)}
+    params = fit_module._Params(tensors, FitOptions(neighbours=8, max_radius=1.5), 1.0)
+    params.limit_radii()
+    after = torch.exp(params.t["log_radii"].detach()).numpy()
+    limit = 1.5 * h * (1.0 + np.sqrt(2.0)) / 2.0
+    big = np.arange(n) % 2 == 0
+    assert after[big & inner] == pytest.approx(limit, rel=1e-9)
+    assert np.all(after[big] < 1.6 * limit) and np.all(after[big] > 0.99 * limit)   # rims: farther neighbours
+    assert after[~big] == pytest.approx(0.5 * h, rel=1e-12)
+    # no limit
+    free = fit_module._Params(tensors, FitOptions(max_radius=0.0), 1.0)
+    free.limit_radii()
+    assert torch.exp(free.t["log_radii"].detach()).numpy() == pytest.approx(radii, rel=1e-12)
+    with pytest.raises(InputError, match="max_radius"):
+        FitOptions(max_radius=-1.0)
+
+
 def test_the_renderer_sharpens_over_the_last_steps_to_the_view_options():
     # before the last sharpen_fraction of the steps: the soft training options; over them the rim and depth
     # widths go geometrically to sharpen_to's, reached at the last step

@@ -45,6 +45,9 @@ def add_fit_command(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--crease-angle", type=opt.number(float, low=0, high=90), default=None, metavar="DEG",
                    help="neighbours whose normals differ by more than this weigh little in the plane term, "
                         "which then keeps sharp edges (default 20; 0: all weigh alike)")
+    p.add_argument("--max-radius", type=opt.number(float, low=0), default=None, metavar="F",
+                   help="largest splat radius, as a multiple of the mean distance to its 8 nearest splats "
+                        "(default 1.5; 0: no limit)")
     p.add_argument("--seed", type=opt.number(int, low=0, high=2**63 - 1), default=0, help="random seed (default 0)")
     p.add_argument("--device", default=None, help="PyTorch device: cpu (default), cuda, mps")
     p.add_argument("--loss", metavar="FILE.json", help="where to write the loss curve (default: OUTPUT.loss.json)")
@@ -62,6 +65,7 @@ def cmd_fit(args) -> None:
     settings = {k: v for k, v in (("iterations", args.iterations), ("max_splats", args.max_splats),
                                   ("coarse_fraction", args.coarse_fraction), ("plane_weight", args.plane_weight),
                                   ("sharpen_fraction", args.sharpen_fraction), ("crease_angle", args.crease_angle),
+                                  ("max_radius", args.max_radius),
                                   ("seed", args.seed)) if v is not None}
     result = fit(args.cameras, init=args.init, images=args.images, device=args.device, **settings)
     save_ply(result.cloud, out)

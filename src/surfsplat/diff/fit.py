@@ -20,7 +20,9 @@ between each splat's plane and the directions to its ``neighbours`` nearest spla
 that stray off their neighbours' planes back (a local plane fit's residual, as in point-cloud normal
 estimation; the photographs alone barely constrain an unlit splat's normal); neighbours whose normals
 differ by more than ``crease_angle`` weigh little in it, so that at a sharp edge each face keeps its own
-plane. Over the last ``sharpen_fraction`` of the steps the renderer's soft rims and depth tests narrow to
+plane. After every step each radius is clamped to ``max_radius`` times the mean distance to the splat's
+``neighbours`` nearest splats, so that no splat reaches across a silhouette or grows into a spike at a thin
+part's rim. Over the last ``sharpen_fraction`` of the steps the renderer's soft rims and depth tests narrow to
 those of ``sharpen_to`` (the renderer's defaults: the image the fitted splats are looked at with). Every
 ``densify_every`` steps until ``densify_until`` of the run, splats whose mean position gradient is in the
 top ``densify_fraction`` are split in two (each with 0.7 of the radius, half a radius apart along a random
@@ -77,6 +79,8 @@ class FitOptions:
         plane_weight: weight of the plane term (0: none); neighbours: how many nearest splats it uses.
         crease_angle: degrees; a neighbour whose normal differs from the splat's by more weighs little in the
             plane term (``exp(-(1 - |n_i . n_j|) / (1 - cos crease_angle))``; 0: all weigh alike).
+        max_radius: after every step, each splat's radius is clamped to this many times the mean distance to
+            its ``neighbours`` nearest splats (0: no limit).
         coarse_fraction: the fraction of the steps (the first ones) on the views at half the resolution
             (views of odd width or height: none).
         render: the renderer's options (soft rims and depth tests carry the gradients of the silhouettes).
@@ -100,6 +104,7 @@ class FitOptions:
     plane_weight: float = 0.2
     neighbours: int = 8
     crease_angle: float = 20.0
+    max_radius: float = 1.5
     coarse_fraction: float = 0.5
     render: DiffOptions = field(default_factory=lambda: DiffOptions(edge_softness=0.5, depth_softness=0.3))
     sharpen_fraction: float = 0.3
@@ -111,7 +116,7 @@ class FitOptions:
             raise InputError(f"iterations must be >= 1, got {self.iterations!r}", argument="iterations")
         for name in ("position_lr", "normal_lr", "radius_lr", "color_lr", "opacity_lr", "alpha_weight",
                      "densify_until", "densify_fraction", "prune_opacity", "plane_weight", "coarse_fraction",
-                     "sharpen_fraction", "crease_angle"):
+                     "sharpen_fraction", "crease_angle", "max_radius"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise InputError(f"{name} must be a finite number >= 0, got {value!r}", argument=name)
@@ -238,14 +243,29 @@ class _Params:
         self.find_neighbours()
 
     def find_neighbours(self) -> None:
-        """The ``options.neighbours`` nearest other splats of every splat (the plane term's pairs)."""
+        """The ``options.neighbours`` nearest other splats of every splat (the plane term's pairs) and the radius
+        limits (``max_radius`` times their mean distance)."""
         p = self.t["positions"].detach().cpu().numpy()
         k = min(int(self.options.neighbours), len(p) - 1)
-        if k < 1 or self.options.plane_weight <= 0:
-            self.pairs = None
+        self.pairs = self.max_log_radius = None
+        if k < 1:
             return
-        _, index = cKDTree(p).query(p, k + 1)
-        self.pairs = torch.as_tensor(index[:, 1:], device=self.t["positions"].device)
+        distance, index = cKDTree(p).query(p, k + 1)
+        if self.options.max_radius > 0:
+            spacing = np.maximum(distance[:, 1:].mean(axis=1), 1e-12)
+            self.max_log_radius = torch.as_tensor(np.log(self.options.max_radius * spacing),
+                                                  dtype=self.t["log_radii"].dtype,
+                                                  device=self.t["log_radii"].device)
+        if self.options.plane_weight > 0:
+            self.pairs = torch.as_tensor(index[:, 1:], device=self.t["positions"].device)
+
+    def limit_radii(self) -> None:
+        """Clamp the radii to ``options.max_radius`` times the mean distance to the ``neighbours`` nearest
+        splats (as of the last neighbour search): a splat cannot grow across a silhouette or into a spike."""
+        if self.max_log_radius is not None:
+            with torch.no_grad():
+                r = self.t["log_radii"]
+                r.copy_(torch.minimum(r, self.max_log_radius))
 
     def plane_loss(self) -> torch.Tensor | None:
         """Mean squared sine of the angle between each splat's plane and the directions to its neighbours."""
@@ -409,6 +429,7 @@ def fit(views: list[FitView], init: SplatCloud, *, options: FitOptions | None = 
                 params.grad_count += (g > 0).to(g.dtype)
             params.set_decay(0.1 ** (step / max(iterations - 1, 1)))
             params.optimizer.step()
+            params.limit_radii()
             losses.append(float(loss.detach()))
             bar.update()
             if on_step is not None:
