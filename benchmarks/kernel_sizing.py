@@ -27,7 +27,6 @@ Writes benchmarks/results/kernel_sizing.md and .json; PNGs go to ``--images`` (n
 from __future__ import annotations
 
 import argparse
-import json
 import shlex
 import sys
 import time
@@ -40,7 +39,7 @@ from scipy import ndimage
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import RESULTS, machine_description, markdown_table  # noqa: E402
+from common import machine_description, markdown_table, save_results  # noqa: E402
 from contour_quality import DATA, contour_mask, detailed_surface, score  # noqa: E402
 
 import surfsplat  # noqa: E402
@@ -185,11 +184,8 @@ def main() -> None:
     text = "\n".join([f"Machine: {machine}", f"Date: {date}", f"Command: `{command.strip()}`", "",
                       f"{args.size} x {args.size}, ewa, headlight, against the 4 x 4 mesh (the faulty scan: its "
                       "square; only its holes count).", ""] + markdown_table(columns, rows))
-    print(text)
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "kernel_sizing.md").write_text(text + "\n")
-    (RESULTS / "kernel_sizing.json").write_text(json.dumps(
-        {"machine": machine, "date": date, "command": command.strip(), "columns": columns, "rows": rows}, indent=1))
+    save_results("kernel_sizing", text + "\n", {"machine": machine, "date": date, "command": command.strip(),
+                                                   "columns": columns, "rows": rows})
 
 
 if __name__ == "__main__":
