@@ -162,6 +162,26 @@ def test_coarse_views_are_the_views_at_half_the_resolution(scene):
     assert float(small_alpha.sum()) == pytest.approx(float(alpha.sum()) / 4)
 
 
+def plane_tensors(positions: np.ndarray, normals: np.ndarray) -> dict:
+    """A fit's parameter tensors (float64) for splats at ``positions`` with ``normals``: small radii, black,
+    opacity logit 0; what the plane term reads."""
+    n = len(positions)
+    return {"positions": torch.as_tensor(positions), "normals": torch.as_tensor(normals),
+            "log_radii": torch.full((n,), -3.0, dtype=torch.float64),
+            "colors": torch.zeros((n, 3), dtype=torch.float64), "opacity": torch.zeros(n, dtype=torch.float64)}
+
+
+def descend_plane_term(params, steps: int, lr: float) -> np.ndarray:
+    """Adam on the normals alone (positions fixed) down the plane term for ``steps`` steps; the normals after."""
+    params.t["positions"].requires_grad_(False)
+    optimizer = torch.optim.Adam([params.t["normals"]], lr=lr)
+    for _ in range(steps):
+        optimizer.zero_grad()
+        params.plane_loss().backward()
+        optimizer.step()
+    return params.t["normals"].detach().numpy()
+
+
 def test_the_plane_term_turns_normals_into_their_neighbours_plane():
     # splats on the plane z = 0 with tilted normals: the term is the mean squared sine between each normal's
     # plane and the directions to its neighbours, zero for the plane's normal; descending it on the
@@ -169,21 +189,13 @@ def test_the_plane_term_turns_normals_into_their_neighbours_plane():
     rng = np.random.default_rng(3)
     positions = np.concatenate([rng.uniform(-1, 1, (200, 2)), np.zeros((200, 1))], axis=1)
     normals = np.array([0.0, 0.0, 1.0]) + rng.normal(size=(200, 3)) * 0.3
-    tensors = {"positions": torch.as_tensor(positions), "normals": torch.as_tensor(normals),
-               "log_radii": torch.full((200,), -3.0, dtype=torch.float64),
-               "colors": torch.zeros((200, 3), dtype=torch.float64), "opacity": torch.zeros(200, dtype=torch.float64)}
+    tensors = plane_tensors(positions, normals)
     params = fit_module._Params(tensors, FitOptions(plane_weight=1.0, neighbours=6), 1.0)
     sine2 = 1.0 - (normals[:, 2] / np.linalg.norm(normals, axis=1)) ** 2
     with torch.no_grad():
         before = float(params.plane_loss())
     assert 0.3 * sine2.mean() < before < sine2.mean()   # directions within the plane: at most the tilt
-    params.t["positions"].requires_grad_(False)
-    optimizer = torch.optim.Adam([params.t["normals"]], lr=0.02)
-    for _ in range(150):
-        optimizer.zero_grad()
-        params.plane_loss().backward()
-        optimizer.step()
-    n = params.t["normals"].detach().numpy()
+    n = descend_plane_term(params, steps=150, lr=0.02)
     assert np.median(np.abs(n[:, 2]) / np.linalg.norm(n, axis=1)) > 0.999
     with torch.no_grad():
         assert float(params.plane_loss()) < 1e-3 * before
@@ -205,9 +217,7 @@ def test_the_crease_angle_keeps_the_plane_term_from_bending_normals_at_a_sharp_e
     positions = np.concatenate([np.stack([-a[:, 0], 2 * a[:, 1] - 1, np.zeros(300)], 1),
                                 np.stack([np.zeros(300), 2 * b[:, 1] - 1, b[:, 0]], 1)])
     truth = np.concatenate([np.tile([0.0, 0.0, 1.0], (300, 1)), np.tile([1.0, 0.0, 0.0], (300, 1))])
-    tensors = {"positions": torch.as_tensor(positions), "normals": torch.as_tensor(truth.copy()),
-               "log_radii": torch.full((600,), -3.0, dtype=torch.float64),
-               "colors": torch.zeros((600, 3), dtype=torch.float64), "opacity": torch.zeros(600, dtype=torch.float64)}
+    tensors = plane_tensors(positions, truth.copy())
     near_edge = np.abs(positions[:, 0]) + positions[:, 2] < 0.1
 
     def descend(crease: float) -> tuple[float, np.ndarray]:
@@ -215,13 +225,7 @@ def test_the_crease_angle_keeps_the_plane_term_from_bending_normals_at_a_sharp_e
                                     FitOptions(neighbours=8, crease_angle=crease), 1.0)
         with torch.no_grad():
             start = float(params.plane_loss())
-        params.t["positions"].requires_grad_(False)
-        optimizer = torch.optim.Adam([params.t["normals"]], lr=0.01)
-        for _ in range(100):
-            optimizer.zero_grad()
-            params.plane_loss().backward()
-            optimizer.step()
-        n = params.t["normals"].detach().numpy()
+        n = descend_plane_term(params, steps=100, lr=0.01)
         cos = np.abs(np.sum(n * truth, axis=1)) / np.linalg.norm(n, axis=1)
         return start, np.degrees(np.arccos(np.clip(cos[near_edge], 0, 1)))
 
