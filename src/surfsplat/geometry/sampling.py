@@ -35,7 +35,6 @@ from .. import progress
 from ..camera import Camera
 from ..cloud import SplatCloud
 from ..errors import InputError
-from ..frames import tangent_frame
 from ..io.atomic import memory_limit
 from ..io.mesh import Mesh
 from ..io.surface import AUTO, resolve_sharp_angle, shading_normals, weld, with_shading_normals
@@ -292,9 +291,8 @@ def _spaced_circles(cloud: SplatCloud, radius, name: str) -> SplatCloud:
     r = np.asarray(radius, dtype=np.float32)
     if not (np.isfinite(r).all() and (r > 0).all()):
         raise InputError(f"{name}: a splat radius from the sample spacing is not a positive number")
-    t1, t2 = tangent_frame(cloud.normals)
-    r = r[:, None] if r.ndim else r
-    return cloud.replace(u=t1 * r, v=t2 * r)
+    u, v = circular_splats(cloud.normals, np.broadcast_to(r, (len(cloud),))[:, None], coverage=1.0)
+    return cloud.replace(u=u, v=v)
 
 
 def _splats_with_clip_lines(mesh: Mesh, cloud: SplatCloud, face: np.ndarray, sharp_angle: float | None, k: int | None,
