@@ -219,8 +219,13 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
         u, v, features = _sized(pts, normals, idx, dist, rows, cell_axes, shape, base, max_anisotropy,
                                 sharp_angle, oriented=orient or not need_normals, refine=need_normals)
         normals = features.normals if features is not None else normals
+    # given normals say there is a surface (mesh samples, scanner normals): only raw points are judged
+    vol = volumetric(lam) & ~special if need_normals else np.zeros(m, dtype=bool)
+    if features is not None:  # two planes meeting at an edge are not a volume
+        vol &= ~features.feature & ~features.feature[idx].any(axis=1)
     if gaps:
-        fixed = special | lin
+        # the non-planar splats are given round ones below: their cells need no tracing
+        fixed = special | lin | vol
         if features is not None:
             # splats at sharp features get the global factor: their clip lines cut them, and their
             # cells, bounded by the other face's points projected onto their plane, end short of the edge
@@ -230,10 +235,6 @@ def preprocess(cloud, *, k: int = 8, shape: str = "ellipse", orient: bool = True
         with progress.stage("splat ellipses grown to their Voronoi cells", m):
             u, v, grown = cover_cells(pts, idx, u, v, exclude=fixed, tree=tree)
         progress.message(f"  {int((grown > 1).any(axis=1).sum()):,} splats grown to cover their Voronoi cells")
-    # given normals say there is a surface (mesh samples, scanner normals): only raw points are judged
-    vol = volumetric(lam) & ~special if need_normals else np.zeros(m, dtype=bool)
-    if features is not None:  # two planes meeting at an edge are not a volume
-        vol &= ~features.feature & ~features.feature[idx].any(axis=1)
     if vol.any():
         surface = ~vol & ~special
         minor = row_norms(v[surface] if surface.any() else v)

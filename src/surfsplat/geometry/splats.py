@@ -49,8 +49,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..frames import tangent_frame
-from .common import (block_covariance, block_offsets, check_indices, check_oriented_points, check_vectors, columns,
-                     for_blocks, neighbour_offsets, parallel, row_norms)
+from .common import (BLOCK, block_covariance, block_offsets, check_indices, check_oriented_points, check_vectors,
+                     columns, for_blocks, neighbour_offsets, parallel, row_norms)
 from .neighbors import kdtree, knn_rows
 from .normals import smallest_eigenvectors
 
@@ -478,13 +478,15 @@ def cover_cells(positions, indices, u, v, *, margin: float = GAP_MARGIN, wide: t
         unresolved[rows[sel]] = far
         is_open[rows] = open_
 
-    def first(sl):
-        d = block_offsets(cols, idx, sl)
+    def first(at):
+        d = neighbour_offsets(cols, at, idx[at])
         dist = np.sqrt((d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).max(axis=0))
-        trace(d, np.arange(sl.start, sl.stop), dist, dist)
+        trace(d, at, dist, dist)
 
     tree = kdtree(pts) if tree is None else tree
-    for_blocks(first, n)
+    # the excluded splats keep their axes: their cells are not traced (they still bound the others')
+    live = np.flatnonzero(~skip)
+    parallel(first, [live[s:s + BLOCK] for s in range(0, len(live), BLOCK)])
     rows = np.flatnonzero(unresolved & ~skip)
     kw = k
     wide_dist = np.zeros((0, k), dtype=np.float32)

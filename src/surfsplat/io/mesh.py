@@ -12,12 +12,12 @@ STL, OFF, GLB and glTF files (trimesh, here: :func:`read_trimesh`).
 from __future__ import annotations
 
 import re
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import trimesh
 
 from ..cloud import MAX_COORDINATE, split_origin
 from ..errors import InputError, file_reader
@@ -246,6 +246,8 @@ def read_trimesh(path: Path, file_type: str | None = None) -> Mesh:
     name = file_type.upper()
     if file_type == "obj":
         check_obj_indices(Path(path), source)
+    import trimesh   # deferred: 0.7 s to import, needed by these formats only (see _trimesh)
+
     try:
         loaded = trimesh.load(source, file_type=file_type, process=False)
         parts = _trimesh_parts(loaded)
@@ -308,9 +310,19 @@ def check_obj_indices(path: Path, source: str) -> None:
                          f"{int(too_big.sum())} corners out of range")
 
 
+def _trimesh():
+    """The trimesh module where it is loaded already (a trimesh object was handed over or read), else
+    None: no object can then be a trimesh geometry. ``import surfsplat`` does not import trimesh (0.7 s
+    of every command's start); the functions that make trimesh objects import it."""
+    return sys.modules.get("trimesh")
+
+
 def _trimesh_parts(loaded) -> list[tuple[Any, np.ndarray]]:
     """``[(Trimesh or PointCloud, 4x4 transform)]``: a single geometry with the identity, or
     every geometry instance of a Scene with its node's world transform."""
+    trimesh = _trimesh()
+    if trimesh is None:
+        return []
     if isinstance(loaded, (trimesh.Trimesh, trimesh.PointCloud)):
         return [(loaded, np.eye(4))]
     if not isinstance(loaded, trimesh.Scene):
@@ -331,7 +343,8 @@ def _trimesh_arrays(geometry, transform: np.ndarray):
     vertices = vertices @ transform[:3, :3].T + transform[:3, 3]
     faces = np.asarray(getattr(geometry, "faces", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)
     normals = colors = None
-    if isinstance(geometry, trimesh.Trimesh):
+    trimesh = _trimesh()
+    if trimesh is not None and isinstance(geometry, trimesh.Trimesh):
         # trimesh keeps normals read from the file in its cache; asking for
         # ``vertex_normals`` otherwise computes them (angle-weighted), so look first.
         cache = getattr(getattr(geometry, "_cache", None), "cache", {})

@@ -24,13 +24,17 @@ Every failure is an :class:`~surfsplat.errors.InputError` naming the object's ty
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import trimesh
 
 from ..cloud import SplatCloud
 from ..errors import InputError
-from .mesh import Mesh, _trimesh_arrays, _trimesh_parts
+from .mesh import Mesh, _trimesh, _trimesh_arrays, _trimesh_parts
 from .surface import weld
+
+if TYPE_CHECKING:
+    import trimesh
 
 #: What :func:`from_object` accepts, for messages.
 ACCEPTED = ("a SplatCloud, a Mesh, an (N, 3) array of positions, a dict / structured array / "
@@ -64,7 +68,8 @@ def from_object(obj, *, extras: dict | None = None) -> SplatCloud | Mesh:
 
 
 def _convert(obj, what: str, extras: dict | None) -> SplatCloud | Mesh:
-    if isinstance(obj, (trimesh.Trimesh, trimesh.PointCloud, trimesh.Scene)):
+    trimesh = _trimesh()   # an object of trimesh's has it loaded
+    if trimesh is not None and isinstance(obj, (trimesh.Trimesh, trimesh.PointCloud, trimesh.Scene)):
         return _from_trimesh(obj, what)
     if isinstance(obj, np.ndarray):
         if obj.dtype.names:
@@ -163,6 +168,8 @@ def to_trimesh(cloud: SplatCloud) -> trimesh.PointCloud:
     if cloud.colors is not None:
         rgb = np.round(np.clip(cloud.colors, 0.0, 1.0) * 255.0).astype(np.uint8)
         colors = np.column_stack([rgb, np.full(len(cloud), 255, np.uint8)])
+    import trimesh   # deferred: 0.7 s to import (see surfsplat.io.mesh._trimesh)
+
     out = trimesh.PointCloud(cloud.world_positions(), colors=colors)
     if cloud.normals is not None:
         out.metadata["normals"] = cloud.normals.copy()

@@ -45,7 +45,6 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-import trimesh
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
@@ -197,6 +196,8 @@ def _wound_consistently(mesh: Mesh) -> Mesh:
     gives averaged vertex normals that cancel and samples lit from the wrong side (dark dots)."""
     if consistent_winding(mesh.faces):
         return mesh
+    import trimesh   # deferred (0.7 s): a mesh wound inconsistently is rare
+
     fixed = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
     trimesh.repair.fix_winding(fixed)
     faces = np.asarray(fixed.faces, dtype=np.int64)

@@ -292,21 +292,27 @@ def ordered_buffers(ctx: moderngl.Context, arrays: dict[str, np.ndarray], order:
     """The attribute ``arrays`` (:func:`splat_arrays`, GPU units) copied to float32 buffers in ``order``,
     one attribute's copy at a time, colours clipped to [0, 1]; and the :func:`block_bounds` of the splats
     in that order (``radii``: GPU units, in the arrays' order)."""
-    blocks = block_bounds(arrays["position"][order], np.asarray(radii)[order])
+    blocks = None
     buffers = {}
     for name, values in arrays.items():
-        values = np.asarray(values, dtype="f4")[order]
+        # np.take of whole rows: ~2.5x faster than fancy indexing of (N, 3) arrays
+        values = np.take(np.asarray(values, dtype="f4"), order, axis=0)
         if name == "color":
             np.clip(values, 0.0, 1.0, out=values)
+        if name == "position":
+            blocks = block_bounds(values, np.take(np.asarray(radii), order))
         buffers[name] = ctx.buffer(values)
         del values
+    assert blocks is not None   # every cloud has positions
     return buffers, blocks
 
 
 def block_bounds(positions: np.ndarray, radii: np.ndarray) -> np.ndarray:
     """(B, 7) float64 per block of :data:`BLOCK` consecutive splats (the last one shorter): the lower
     and upper corner of their centers' bounding box and their largest radius (the units given)."""
-    p = np.asarray(positions, dtype=np.float64)
+    p, r = np.asarray(positions), np.asarray(radii)
     starts = np.arange(0, len(p), BLOCK)
-    return np.column_stack([np.minimum.reduceat(p, starts, axis=0), np.maximum.reduceat(p, starts, axis=0),
-                            np.maximum.reduceat(np.asarray(radii, dtype=np.float64), starts)])
+    # extremes in the given precision, then widened: the same numbers, without a float64 copy of all
+    bounds = [np.minimum.reduceat(p, starts, axis=0), np.maximum.reduceat(p, starts, axis=0),
+              np.maximum.reduceat(r, starts)]
+    return np.column_stack([b.astype(np.float64) for b in bounds])
