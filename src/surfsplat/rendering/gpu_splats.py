@@ -59,6 +59,9 @@ class GpuSplats:
     #: Per block of :data:`BLOCK` consecutive splats (:func:`block_bounds`, GPU units): lower and upper
     #: corner of the centers, largest radius; None: no block is split off.
     blocks: np.ndarray | None = None
+    #: Per block of :attr:`blocks`: the cone of its splats' normals (:func:`block_cones`); None: no
+    #: block is culled as back-facing (:meth:`facing_blocks`).
+    cones: np.ndarray | None = None
 
     def draw_ranges(self, camera: Camera, point_radius: float) -> tuple[list, list]:
         """``(quads, points)``: the ``(first, count)`` ranges of splats a frame draws as instanced quads
@@ -165,6 +168,29 @@ class GpuSplats:
             for start, end, kind in zip(bounds[:-1].tolist(), bounds[1:].tolist(), kinds.tolist()):
                 (picked if kind else others).append((start, end - start))
         return others, picked
+
+    def facing_blocks(self, camera: Camera) -> np.ndarray | None:
+        """(B,) bool per block of :attr:`blocks`: some splat of it may face the eye (``camera``: the
+        GPU frame's); None without :attr:`cones`. Where back faces are culled, the shaders drop a
+        splat whose plane and shading normal both face away from the eye (``splat_vertex.glsl``); a
+        block is dropped here only when that holds for every splat: for centers in its box (center
+        ``c``, half-diagonal ``R``) and normals in its cone (axis ``a``, half-angle ``alpha``),
+        ``n . (e - p) <= |d| cos(max(theta - alpha, 0)) + R`` with ``d = e - c`` and ``theta`` the
+        angle between ``a`` and ``d`` (the back-face test of a normal cone, Pajarola et al. 2003,
+        sec. 5.1). Blocks in Morton order are compact: the CAD part featuretype.ply sampled
+        for 1024 x 1024 (2 M splats) drops 56 of its 489 blocks, a fifth of its back-facing splats."""
+        if self.blocks is None or self.cones is None:
+            return None
+        lo, hi = self.blocks[:, :3], self.blocks[:, 3:6]
+        d = np.asarray(camera.eye, dtype=np.float64) - 0.5 * (lo + hi)
+        length = np.linalg.norm(d, axis=1)
+        half = 0.5 * np.linalg.norm(hi - lo, axis=1)
+        axis, cos_a, sin_a = self.cones[:, :3], self.cones[:, 3], self.cones[:, 4]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cos_t = np.clip(np.einsum("ij,ij->i", axis, d) / length, -1.0, 1.0)
+        sin_t = np.sqrt(1.0 - cos_t * cos_t)
+        reach = np.where(cos_t < cos_a, length * (cos_t * cos_a + sin_t * sin_a), length) + half + self.cones[:, 5]
+        return ~(reach < -1e-4 * length)   # NaN (the eye at a block's center): kept
 
     def release(self) -> None:
         """Free the GPU buffers."""
@@ -288,12 +314,15 @@ def _block_corners(lo: np.ndarray, hi: np.ndarray, view: np.ndarray) -> np.ndarr
 
 
 def ordered_buffers(ctx: moderngl.Context, arrays: dict[str, np.ndarray], order: np.ndarray,
-                    radii: np.ndarray) -> tuple[dict[str, moderngl.Buffer], np.ndarray]:
+                    radii: np.ndarray) -> tuple[dict[str, moderngl.Buffer], np.ndarray, np.ndarray | None]:
     """The attribute ``arrays`` (:func:`splat_arrays`, GPU units) copied to float32 buffers in ``order``,
-    one attribute's copy at a time, colours clipped to [0, 1]; and the :func:`block_bounds` of the splats
-    in that order (``radii``: GPU units, in the arrays' order)."""
+    one attribute's copy at a time, colours clipped to [0, 1]; the :func:`block_bounds` of the splats
+    in that order (``radii``: GPU units, in the arrays' order), and their :func:`block_cones` (None for
+    splats with a linear normal field, which the back-face test of the shaders keeps by more than
+    their normals)."""
     blocks = None
     buffers = {}
+    kept = {}
     for name, values in arrays.items():
         # np.take of whole rows: ~2.5x faster than fancy indexing of (N, 3) arrays
         values = np.take(np.asarray(values, dtype="f4"), order, axis=0)
@@ -302,9 +331,48 @@ def ordered_buffers(ctx: moderngl.Context, arrays: dict[str, np.ndarray], order:
         if name == "position":
             blocks = block_bounds(values, np.take(np.asarray(radii), order))
         buffers[name] = ctx.buffer(values)
+        if name in ("normal", "u", "v") and "normal_field" not in arrays:
+            kept[name] = values
         del values
     assert blocks is not None   # every cloud has positions
-    return buffers, blocks
+    cones = block_cones(kept["normal"], kept["u"], kept["v"]) if len(kept) == 3 else None
+    return buffers, blocks, cones
+
+
+#: Slack (radians) added to the half-angle of each block's normal cone (:func:`block_cones`): float32
+#: rounding of the normals the shaders recompute.
+CONE_SLACK = 1e-3
+
+
+def block_cones(normals: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(B, 6) float64 per block of :data:`BLOCK` consecutive splats: a cone bounding both the shading
+    normals and the oriented plane normals ``u x v`` of its splats (the two the shaders' back-face
+    test reads, ``splat_vertex.glsl``): unit axis, cosine and sine of the half-angle (with
+    :data:`CONE_SLACK`), and the largest ``|(n . u, n . v)|`` (GPU units: how far a shading normal
+    leans out of its splat's plane, times the axes). A block whose normals sum to about zero gets the
+    whole sphere (cosine -1). The normal cones of Pajarola et al. 2003 (sec. 3.3), per block of the
+    GPU's order."""
+    n = len(normals)
+    starts = np.arange(0, n, BLOCK)
+    shading = normals / np.maximum(np.sqrt(np.einsum("ij,ij->i", normals, normals)), np.float32(1e-30))[:, None]
+    plane = np.cross(u, v)
+    plane /= np.maximum(np.sqrt(np.einsum("ij,ij->i", plane, plane)), np.float32(1e-30))[:, None]
+    plane[np.einsum("ij,ij->i", plane, shading) < 0] *= -1.0   # oriented as the shaders orient it
+    total = np.add.reduceat(shading.astype(np.float64), starts) + np.add.reduceat(plane.astype(np.float64), starts)
+    length = np.linalg.norm(total, axis=1)
+    axis = total / np.maximum(length, 1e-300)[:, None]
+    per_splat = np.repeat(axis.astype(np.float32), np.diff(np.append(starts, n)), axis=0)
+    cos = np.minimum(np.minimum.reduceat(np.einsum("ij,ij->i", shading, per_splat), starts),
+                     np.minimum.reduceat(np.einsum("ij,ij->i", plane, per_splat), starts)).astype(np.float64)
+    angle = np.arccos(np.clip(cos, -1.0, 1.0)) + CONE_SLACK
+    # a degenerate block (normals cancelling, or zero axes) bounds nothing: the whole sphere
+    angle[~(length > 1e-6 * np.diff(np.append(starts, n)))] = np.pi
+    angle = np.minimum(angle, np.pi)
+    # the shaders keep a splat also where its shading normal leans out of its plane by |(n . u, n . v)|
+    # (field_faces_eye without a normal field): the block's largest such lean widens its test
+    lean = np.maximum.reduceat(np.hypot(np.einsum("ij,ij->i", shading, u), np.einsum("ij,ij->i", shading, v)),
+                               starts).astype(np.float64)
+    return np.column_stack([axis, np.cos(angle), np.sin(angle), lean])
 
 
 def block_bounds(positions: np.ndarray, radii: np.ndarray) -> np.ndarray:

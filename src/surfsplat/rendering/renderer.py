@@ -248,8 +248,9 @@ class Renderer:
         arrays, scale = splat_arrays(cloud)
         radii = cloud.radii * np.float32(scale)
         order, class_start, class_radius = radius_classes(radii, cloud.positions)
-        buffers, blocks = ordered_buffers(self.ctx, arrays, order, radii)
+        buffers, blocks, cones = ordered_buffers(self.ctx, arrays, order, radii)
         return GpuSplats(buffers, len(cloud), cloud.bounds(), float(class_radius[0]) / scale, blocks=blocks,
+                         cones=cones,
                          class_start=class_start, class_radius=class_radius,
                          origin=np.asarray(cloud.origin, dtype=np.float64), scale=scale)
 
@@ -301,6 +302,9 @@ class Renderer:
         visible = splats.visible_blocks(camera, FRUSTUM_MARGIN_PX * supersample, tile)
         if visible is None:
             return quads, points
+        facing = splats.facing_blocks(camera) if options.visibility.cull_backfaces else None
+        if facing is not None:   # blocks whose every splat the shaders would cull as back-facing
+            visible &= facing
         quads, points = splats.split_blocks(quads, visible)[1], splats.split_blocks(points, visible)[1]
         scale = point_scale(camera, technique, options, supersample, self.point_px)
         if quads and scale > 0:

@@ -194,7 +194,7 @@ def upload_sequential(renderer: Renderer, splats: SplatCloud, lod: np.ndarray,
     key[(kind == 0) & (r >= big)] = np.inf
     by = np.lexsort((key, kind, klass))   # class, then the kind, then the key
     order, klass, kind = order[by], klass[by], kind[by]
-    buffers, blocks = ordered_buffers(renderer.ctx, arrays, order, radii)
+    buffers, blocks, _ = ordered_buffers(renderer.ctx, arrays, order, radii)
     r, d, a, b = (arrays["lod"][order, k].astype(np.float64) for k in range(4))
     segment_start = np.flatnonzero(np.diff(klass * 3 + kind, prepend=-1))
     ends = np.append(segment_start[1:], len(order))
