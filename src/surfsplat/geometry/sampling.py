@@ -141,6 +141,19 @@ def stratified_barycentrics(areas: np.ndarray, n: int, rng: np.random.Generator)
     return face, np.column_stack([1.0 - r1, r1 * (1.0 - r2), r1 * r2])
 
 
+def _interpolated(bary: np.ndarray, values: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """(n, d) ``sum_k bary[:, k] values[at][:, k]``: the barycentric interpolation of per-corner ``values``
+    ((V, d) gathered by the (n, 3) indices ``at``, or (F, 3, d) by the (n,) faces ``at``), summed in
+    corner order (the sums ``einsum("nk,nkd->nd")`` forms, without its (n, 3, d) gather)."""
+    out = None
+    for k in range(3):
+        corner = np.take(values[:, k], at, axis=0) if values.ndim == 3 else np.take(values, at[:, k], axis=0)
+        term = bary[:, k:k + 1] * corner
+        out = term if out is None else np.add(out, term, out=out)
+    assert out is not None
+    return out
+
+
 def _samples(mesh: Mesh, n: int, seed: int, smooth_normals: bool, crease_angle: float | None,
              name: str, stratified: bool = False) -> tuple[SplatCloud, np.ndarray, np.ndarray]:
     """``n`` samples uniform by area on ``mesh`` (validated), the face and barycentrics of each: see
@@ -158,12 +171,11 @@ def _samples(mesh: Mesh, n: int, seed: int, smooth_normals: bool, crease_angle: 
 
     corners = mesh.faces[face]  # (n, 3) vertex indices
     vertices = mesh.vertices.astype(np.float64)
-    positions = np.einsum("nk,nkd->nd", bary, vertices[corners])
+    positions = _interpolated(bary, vertices, corners)
 
     normals = mesh.face_normals()[face].astype(np.float64)
     if mesh.has_normals or smooth_normals:
-        corner_normals = shading_normals(mesh, crease_angle)[face].astype(np.float64)
-        smooth = np.einsum("nk,nkd->nd", bary, corner_normals)
+        smooth = _interpolated(bary, shading_normals(mesh, crease_angle).astype(np.float64), face)
         flip = np.einsum("nd,nd->n", normals, smooth) < 0
         normals[flip] *= -1.0
         if smooth_normals:
@@ -173,7 +185,7 @@ def _samples(mesh: Mesh, n: int, seed: int, smooth_normals: bool, crease_angle: 
 
     colors = None
     if mesh.vertex_colors is not None:
-        colors = np.einsum("nk,nkd->nd", bary, mesh.vertex_colors.astype(np.float64)[corners])
+        colors = _interpolated(bary, mesh.vertex_colors.astype(np.float64), corners)
 
     cloud = SplatCloud(positions=positions.astype(np.float32), normals=normals.astype(np.float32),
                        colors=None if colors is None else colors.astype(np.float32), origin=mesh.origin)
