@@ -74,9 +74,15 @@ def outward_splats(splats: SplatCloud) -> SplatCloud:
     (divergence theorem), so the mean of ``(p - c) . n`` over samples uniform by area has the sign
     of the orientation: negative, every normal is flipped (the sampled mesh was wound inward, like
     the Stanford bunny), with the slopes of a linear normal field."""
-    p = splats.positions.astype(np.float64)
-    flux = np.einsum("nd,nd->n", p - p.mean(axis=0), splats.normals.astype(np.float64)).mean()
+    flux = outward_flux(splats.positions.astype(np.float64), splats.normals.astype(np.float64))
     return splats if flux >= 0 else flipped_normals(splats)
+
+
+def outward_flux(positions: np.ndarray, normals: np.ndarray) -> float:
+    """The mean of ``(p - c) . n`` over samples (``c`` their mean; model units): positive where the
+    normals of samples uniform by area on a closed surface point out of the solid (see
+    :func:`outward_splats`)."""
+    return float(np.einsum("nd,nd->n", positions - positions.mean(axis=0), normals).mean())
 
 
 def flipped_normals(splats: SplatCloud) -> SplatCloud:

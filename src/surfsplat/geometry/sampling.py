@@ -38,6 +38,7 @@ from ..errors import InputError
 from ..io.atomic import memory_limit
 from ..io.mesh import Mesh
 from ..io.surface import AUTO, resolve_sharp_angle, shading_normals, weld, with_shading_normals
+from .closed import flipped_normals, outward_flux
 from .neighbors import kth_distance, spatial_order
 from .preprocess import preprocess
 from .sharp import check_sharp_angle, mesh_clip_lines, mesh_features
@@ -427,7 +428,8 @@ def samples_for_pixels(mesh: Mesh, pixels: float = DEFAULT_SPACING_PX, *, camera
 def surface_splats(mesh: Mesh, n: int | None = None, *, sharp_angle: float | str | None = AUTO, seed: int = 0,
                    pixels: float = DEFAULT_SPACING_PX, camera: Camera | None = None,
                    image_size: int = DEFAULT_IMAGE_SIZE, k: int | None = None,
-                   max_samples: int = MAX_SAMPLES, boundaries: bool = True) -> SplatCloud:
+                   max_samples: int = MAX_SAMPLES, boundaries: bool = True,
+                   facing_eye=None) -> SplatCloud:
     """Render-ready splats of a triangle mesh's surface (what a mesh file renders as).
 
     Steps: weld the mesh (:func:`surfsplat.io.surface.weld`: a triangle soup or
@@ -469,6 +471,12 @@ def surface_splats(mesh: Mesh, n: int | None = None, *, sharp_angle: float | str
             the former default with ``k`` = :data:`SURFACE_K`, 8).
         max_samples: the cap on the count when ``n`` is None.
         boundaries: clip splats at open boundary edges (default True).
+        facing_eye: None (default), or a position (model units, the mesh's frame) from which a
+            closed mesh is seen with back faces culled: the ``n`` samples are drawn as without it,
+            given outward normals (:func:`~surfsplat.geometry.closed.outward_splats`' rule over
+            all of them), and only those whose normal does not face away from it are kept and sized
+            (the others are splats the renderer culls: :func:`facing_samples`). The kept splats
+            equal the corresponding ones of the whole sampling.
 
     Returns:
         A validated SplatCloud of ``n`` splats: positions, unit normals, u and
@@ -495,5 +503,32 @@ def surface_splats(mesh: Mesh, n: int | None = None, *, sharp_angle: float | str
         # a smooth mesh's splats shrink as its k-neighbour circles did (1.1 instead of 1.25 h_k, splats.py)
         shrink = (SAMPLE_COVERAGE if angle is None else CREASED_SAMPLE_COVERAGE) / CIRCLE_COVERAGE
         radius = spacing_radius(float(shaded.face_areas().sum()), n, shrink) * face_coverage(shaded)[face]
-    return _splats_with_clip_lines(shaded, cloud, face, angle, k, None, None, "surface_splats",
-                                   boundaries=boundaries, radius=radius, bary=bary)
+    flip = False
+    if facing_eye is not None:
+        keep, flip = facing_samples(cloud, facing_eye)
+        cloud, face, bary = cloud.subset(keep), face[keep], bary[keep]
+        radius = None if radius is None else radius[keep]
+        progress.message(f"{len(cloud):,} of them face the eye (the others are culled)")
+    splats = _splats_with_clip_lines(shaded, cloud, face, angle, k, None, None, "surface_splats",
+                                     boundaries=boundaries, radius=radius, bary=bary)
+    return flipped_normals(splats) if flip else splats
+
+
+#: Samples :func:`facing_samples` keeps facing away by up to this cosine times their distance to the
+#: eye: the shaders cull a splat facing away by any amount, after float32 rounding.
+FACING_TOLERANCE = 1e-4
+
+
+def facing_samples(samples: SplatCloud, eye) -> tuple[np.ndarray, bool]:
+    """``(keep, flip)``: (N,) bool, the samples of a closed surface whose normal, turned outward, does
+    not face away from ``eye`` (model units, the samples' frame) by more than
+    :data:`FACING_TOLERANCE`; and whether the normals point inward (the sign of the flux of
+    :func:`~surfsplat.geometry.closed.outward_splats`, over all the samples). Only the kept ones can
+    be drawn where back faces are culled (``splat_vertex.glsl``: a circle's plane normal is its
+    normal)."""
+    p = samples.positions.astype(np.float64)
+    nrm = samples.normals.astype(np.float64)
+    flip = outward_flux(p, nrm) < 0
+    to_eye = np.asarray(eye, dtype=np.float64) - p
+    facing = np.einsum("nd,nd->n", nrm, to_eye) * (-1.0 if flip else 1.0)
+    return facing >= -FACING_TOLERANCE * np.sqrt(np.einsum("nd,nd->n", to_eye, to_eye)), bool(flip)

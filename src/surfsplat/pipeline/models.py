@@ -49,8 +49,13 @@ class Model(Protocol):
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """(lo, hi) of the points, model units (relative to the points' origin)."""
 
-    def surface(self, camera: Camera | None, options: SourceOptions, image_size: int) -> "Model":
-        """The model as splats (a mesh's surface sampled for ``camera``, others as they are)."""
+    def surface(self, camera: Camera | None, options: SourceOptions, image_size: int,
+                facing: bool = False) -> "Model":
+        """The model as splats (a mesh's surface sampled for ``camera``, others as they are; ``facing``:
+        a closed mesh seen with back faces culled keeps only the samples facing ``camera``'s eye)."""
+
+    def facing_only(self) -> bool:
+        """Whether :meth:`surface` with ``facing`` keeps only the samples facing the eye (a closed mesh's)."""
 
     def tree(self) -> "Model":
         """The model as a hierarchy (a cloud's point-octree built; a hierarchy as it is)."""
@@ -82,8 +87,11 @@ class CloudModel:
     def bounds(self):
         return self.data.bounds()
 
-    def surface(self, camera, options, image_size):
+    def surface(self, camera, options, image_size, facing=False):
         return self
+
+    def facing_only(self):
+        return False
 
     def tree(self) -> "HierarchyModel":
         with progress.stage(f"building the point-octree of {len(self.data):,} splats"):
@@ -117,8 +125,11 @@ class _TreeModel:
     def bounds(self):
         return self.data.points.bounds()
 
-    def surface(self, camera, options, image_size):
+    def surface(self, camera, options, image_size, facing=False):
         return self
+
+    def facing_only(self):
+        return False
 
     def tree(self):
         return self
@@ -195,10 +206,16 @@ class MeshModel:
     def bounds(self):
         return self.points().bounds()
 
-    def surface(self, camera, options, image_size):
+    def facing_only(self):
+        return self.closed and self.color is None   # a colouring's range is the whole sampling's
+
+    def surface(self, camera, options, image_size, facing=False):
         """The surface sampled for ``camera`` (``options.spacing_px`` apart on screen) or, without a
         camera, with the model's diagonal spanning ``image_size`` pixels; ``options.samples`` if given.
-        A closed mesh's splats get outward normals so that back-face culling keeps the visible side."""
+        A closed mesh's splats get outward normals so that back-face culling keeps the visible side;
+        with ``facing`` (a closed mesh, :meth:`facing_only`, and a camera) only the samples facing its
+        eye are kept (``surface_splats(facing_eye=...)``: the others are culled in the view; about
+        half of them from outside)."""
         n = options.samples
         if n is None:
             n = samples_for_pixels(self.data, options.spacing_px, camera=camera, image_size=image_size)
@@ -206,10 +223,13 @@ class MeshModel:
                  f"{options.spacing_px:g} px apart at {camera.width}x{camera.height}" if camera is not None else
                  f"{options.spacing_px:g} px apart with the model {image_size} px wide")
         progress.message(f"{n:,} samples on the surface ({where})")
-        cloud = surface_splats(self.data, n, sharp_angle=options.sharp_angle, seed=options.seed)
+        eye = None
+        if facing and camera is not None and self.facing_only():
+            eye = np.asarray(camera.eye, dtype=np.float64) - np.asarray(self.data.origin, dtype=np.float64)
+        cloud = surface_splats(self.data, n, sharp_angle=options.sharp_angle, seed=options.seed, facing_eye=eye)
         if self.color is not None:
             cloud = CloudModel(cloud).colored(self.color, self.up).data
-        if self.closed:
+        if self.closed and eye is None:   # facing_eye turned them outward already
             cloud = outward_splats(cloud)
         lines = cloud.clip_lines is not None
         progress.message(f"{len(cloud):,} surface splats" + (", clipped at sharp and open edges" if lines else ""))

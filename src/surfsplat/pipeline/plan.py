@@ -152,6 +152,7 @@ class View:
         self.model: Model = as_model(read).colored(self.source_options.color, self.up)
         self._told_up = False
         self._drawn: Model | None = None        # the model as splats, oriented outward where closed
+        self._facing: tuple | None = None       # (eye, camera) whose facing samples alone _drawn holds, if so
         self._outward = False
         self._tree: Model | None = None         # the hierarchy a cut needs (built once for a cloud)
         self._layout: SequentialLayout | None = None   # the GPU LOD layout of the hierarchy
@@ -178,13 +179,40 @@ class View:
 
     # -- what is drawn ---------------------------------------------------------
 
-    def sample(self, camera: Camera | None = None, image_size: int = defaults.API_IMAGE_SIZE) -> Model:
+    def sample(self, camera: Camera | None = None, image_size: int = defaults.API_IMAGE_SIZE,
+               facing: bool | None = None) -> Model:
         """The model as splats, made once: a mesh's surface sampled for ``camera`` (or with the model
-        ``image_size`` pixels wide), oriented outward where it samples closed surfaces."""
+        ``image_size`` pixels wide), oriented outward where it samples closed surfaces.
+
+        ``facing=True`` (:meth:`render`, where the view culls back faces and nothing was sampled
+        yet): a closed mesh keeps only the samples facing ``camera``'s eye (the others would be
+        culled: about half the sampling, sizing, upload and drawing of a single picture). Those serve
+        that camera only: asked for another camera (or ``facing=False``), the whole surface is
+        sampled once, at the density of that first camera (the same samples as without ``facing``),
+        and kept for every later view. ``None``: what is there, where it serves."""
+        eye = None if camera is None else tuple(np.asarray(camera.eye, dtype=np.float64).tolist())
+        if self._drawn is not None and self._facing is not None and (facing is False or eye != self._facing[0]):
+            # the facing samples of another view: the whole surface, at the density of the first view
+            camera, self._drawn, self._facing, facing = self._facing[1], None, None, False
         if self._drawn is None:
-            surface = self.model.surface(camera, self.source_options, image_size)
+            facing = bool(facing) and eye is not None and self.model.facing_only()
+            surface = self.model.surface(camera, self.source_options, image_size, facing=facing)
             self._drawn, self._outward = surface.outward()
+            self._facing = (eye, camera) if facing else None
         return self._drawn
+
+    def _facing_first(self, camera: Camera, options: RenderOptions, technique: TechniqueName) -> bool:
+        """Whether :meth:`render` samples only the faces ``camera`` sees (:meth:`sample`'s ``facing``):
+        nothing sampled yet, not interactive, a closed mesh, and back faces culled in this view as
+        :meth:`culls` would decide (asked, or automatic: seen from outside its bounds by a technique
+        with a fringe)."""
+        if self._drawn is not None or self.interactive or not self.model.facing_only():
+            return False
+        asked = options.visibility.cull_backfaces
+        if asked is not None:
+            return bool(asked)
+        return automatic_culling(True, self.model.bounds(), camera.eye, sampled_mesh=True,
+                                 fringe=get_technique(technique).edge_fringe)
 
     def tree(self, camera: Camera | None = None) -> Model:
         """The model as a hierarchy (built once over :meth:`sample` for a cloud)."""
@@ -232,7 +260,7 @@ class View:
                           supersample=supersample, lights=lights)
         background, options = check_background(background), options or RenderOptions()
         camera = self.camera(camera, width, height)
-        drawn = self.sample(camera)
+        drawn = self.sample(camera, facing=self._facing_first(camera, options, technique))
         options = replace(options, visibility=replace(options.visibility,
                                                       cull_backfaces=self.culls(camera, options, technique)))
         strategy = self.strategy(camera)
@@ -271,7 +299,7 @@ class View:
         if cloud is self._source:
             return self.source_key
         if self._drawn is not None and cloud is self._drawn.points():
-            return ("drawn", self.source_options) + self.source_key
+            return ("drawn", self.source_options, None if self._facing is None else self._facing[0]) + self.source_key
         return None
 
     def _render_gpu(self, camera, technique, lights, background, options, supersample) -> RenderResult:
