@@ -112,7 +112,7 @@ def breakdown_worker(args: list[str]) -> dict:
         t = time.perf_counter()
         with stage(name, *a, **k) as s:
             yield s
-        add(f"  stage: {name}", time.perf_counter() - t)
+        add("  stage: loading the file" if name.startswith("loading ") else f"  stage: {name}", time.perf_counter() - t)
 
     for module in list(sys.modules.values()):
         if module is not None and module.__name__.startswith("surfsplat") and getattr(module, "stage", None) is stage:
