@@ -245,8 +245,9 @@ class Renderer:
             raise InputError("the SplatCloud has no normals or splat axes; run surfsplat.preprocess() first")
         if len(cloud) == 0:
             raise InputError("the SplatCloud is empty")
-        arrays, scale = splat_arrays(cloud)
-        radii = cloud.radii * np.float32(scale)
+        radii = cloud.radii
+        arrays, scale = splat_arrays(cloud, radii)
+        radii = radii * np.float32(scale)
         order, class_start, class_radius = radius_classes(radii, cloud.positions)
         buffers, blocks, cones = ordered_buffers(self.ctx, arrays, order, radii)
         return GpuSplats(buffers, len(cloud), cloud.bounds(), float(class_radius[0]) / scale, blocks=blocks,
