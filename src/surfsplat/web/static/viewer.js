@@ -58,6 +58,8 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
 
   // ---- decoding: the twin of surfsplat/web/format.py --------------------------------------------
   function bytes(b64) {
+    // the native decoder where the browser has it (Chromium 140+, Firefox 133+, Safari 18.2+): 10x the loop
+    if (Uint8Array.fromBase64) return Uint8Array.fromBase64(b64);
     var bin = atob(b64), out = new Uint8Array(bin.length);
     for (var i = 0; i < bin.length; ++i) out[i] = bin.charCodeAt(i);
     return out;
@@ -1215,7 +1217,10 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     clearTimeout(refineTimer);
     if (preview) {
       try { render('points'); } catch (e) { fail(String(e && e.message || e)); return; }
-      if (state.firstFrameMs === null) state.timings.preview = state.frameMs;
+      if (state.firstFrameMs === null) {
+        state.timings.preview = state.frameMs;
+        if (state.profile) state.timings.previewPasses = Object.assign({}, state.passMs);
+      }
       hudText('points', state.frameMs, true);
       refineTimer = setTimeout(function () { requestAnimationFrame(function () { setTimeout(loadAll, 0); }); }, 0);
     } else if (state.technique !== 'points' && slow) {
