@@ -148,13 +148,13 @@ def test_a_large_page_s_first_frame_is_a_decimated_preview_then_the_full_frame(b
                                 width=W, height=H))
     page = opened(browser, file_url(site / "index.html", "?ui=0&profile=1&preview=2048" + camera_hash(camera, "ewa")))
     try:
-        step = page.evaluate("surfsplat.previewStep")
+        step, splats = page.evaluate("surfsplat.previewStep"), page.evaluate("surfsplat.firstDrawn")
         first = page.evaluate("surfsplat.firstImage")
         canvas = page.canvas()
         hud = page.evaluate("document.getElementById('hud').textContent")
     finally:
         page.close()
-    assert step == -(-len(model) // 2048) == 5
+    assert step == -(-len(model) // 2048) == 5 and splats == len(range(0, len(model), step))
     preview = np.asarray(Image.open(io.BytesIO(base64.b64decode(first.split(",", 1)[1]))).convert("RGB"))
     # the preview: every 5th splat of the page's order as points, their axes grown by sqrt(5) (the same area)
     drawn = as_drawn(model)
@@ -352,9 +352,11 @@ def test_the_page_cuts_a_hierarchy_within_the_budget_as_the_desktop_does(browser
     export(hierarchy_file, out, browser_lod=True, point_budget=budget)
     view = View(hierarchy_file, lod=LodOptions(tolerance=1.0, point_budget=budget, shading="flat"))
     result = view.render(view.camera(None, W, H), technique="ewa", options=RenderOptions())
-    page = opened(browser, file_url(out / "index.html", "?ui=0"))
+    # the first frame: the cut within the preview's budget (?preview=N; 131,072 unless told), then the page's
+    page = opened(browser, file_url(out / "index.html", "?ui=0&preview=1000"))
     try:
         drawn, canvas = page.evaluate("surfsplat.drawn"), page.canvas()
+        assert page.evaluate("surfsplat.firstDrawn") <= 1000 < drawn
         # more budget on the page: more drawn, up to the tolerance cut
         page.evaluate("var e = document.getElementById('budget'); e.value = 100000; "
                       "e.dispatchEvent(new Event('change'))")

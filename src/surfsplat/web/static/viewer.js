@@ -393,9 +393,9 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     if (H.lod || (params.color && params.color !== OWN_COLORS)) return 1;
     // every preview point within the largest GL_POINTS point (points.vert clamps its diameter)
     if (Math.min(maxPoint, 1024) < H.uniforms.points.u_point_size[1] * state.supersample + 2) return 1;
-    var most = Number(params.preview) >= 1 ? Math.floor(Number(params.preview)) : PREVIEW_SPLATS;   // ?preview=N
-    return Math.ceil(H.count / most);
+    return Math.ceil(H.count / previewSplats());
   }
+  function previewSplats() { return Number(params.preview) >= 1 ? Math.floor(Number(params.preview)) : PREVIEW_SPLATS; }   // ?preview=N
   function uploadPreview(d, step) {
     var vao = gl.createVertexArray();
     gl.bindVertexArray(vao);
@@ -1234,6 +1234,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     }
     if (state.firstFrameMs === null) {
       state.firstFrameMs = performance.now();
+      state.firstDrawn = preview ? preview.count : H.lod ? state.drawn : H.count;   // splats the first frame drew
       root.setAttribute('data-first-frame', '1');
       if (state.profile) state.firstImage = canvas.toDataURL('image/png');   // the benchmark's look at it
     }
@@ -1267,7 +1268,12 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
                       fov: Number(params.fov) > 0 ? Number(params.fov) : H.fov};
       state.moved = true;
     }
-    if (H.lod) selectCut(state.camera, canvas.width, canvas.height);
+    if (H.lod) {   // a browser-LOD page's first frame: the cut within the preview's budget (coarser nodes)
+      var budget = state.budget;
+      state.budget = Math.min(budget, previewSplats());
+      selectCut(state.camera, canvas.width, canvas.height);
+      state.budget = budget;
+    }
     syncControls();
     if (params.color && params.color !== OWN_COLORS) setColorBy(params.color);
     dirty = false;
