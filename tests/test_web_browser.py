@@ -4,12 +4,15 @@ picture of the same camera; the tests skip where no Chromium is installed (.ci/r
 
 from __future__ import annotations
 
+import base64
+import io
 import json
 import time
 from dataclasses import replace
 
 import numpy as np
 import pytest
+from PIL import Image
 
 from surfsplat.camera import Camera
 from surfsplat.metrics import psnr
@@ -92,8 +95,13 @@ def test_the_page_opens_from_a_file_url_at_the_render_default_view(browser, site
         assert np.allclose(state["camera"]["eye"], expected.eye, rtol=0, atol=1e-9)
         assert np.allclose(state["camera"]["target"], expected.target, rtol=0, atol=1e-9)
         assert f"{len(model):,} splats drawn" in state["hud"] and "ms/frame" in state["hud"]
-        # every program of shaders.js compiled and linked in the browser (a failure is an error above)
-        assert sorted(page.evaluate("surfsplat.programs")) == sorted(PROGRAMS)
+        # programs are compiled on first use: the default ewa page's frames needed ewa's and the points preview's
+        # alone; asked, every program of shaders.js compiles and links in the browser (a failure: an error)
+        used = set(page.evaluate("surfsplat.programs"))
+        assert {"ewa_visibility_points", "ewa_accumulation_points", "normalize_edges"} <= used
+        assert not used & {"phong_accumulation", "flat", "blend_visibility_points"}
+        assert sorted(page.evaluate("surfsplat.compileAll()")) == sorted(PROGRAMS)
+        assert page.collect() == [] and page.evaluate("surfsplat.errors.length") == 0
         image = page.canvas()
         assert image.shape == (H, W, 3) and (image.min(axis=2) < 250).mean() > 0.1   # the torus is drawn
     finally:
@@ -129,6 +137,40 @@ def test_the_canvas_is_the_desktop_render_of_the_same_camera(browser, site, mode
     background = (canvas == 255).all(axis=2)
     covered = ~(reference == 255).all(axis=2)
     assert (background & covered).sum() <= 0.001 * covered.sum()
+
+
+# measured at 320 x 240: the preview is the desktop's points of the same subset pixel for pixel (SwiftShader against
+# llvmpipe), no hole; the full frame after it against the desktop's ewa 97.0 dB, as without a preview
+def test_a_large_page_s_first_frame_is_a_decimated_preview_then_the_full_frame(browser, site, model):
+    # ?preview=N: the first frame from about N splats (a page of over 131,072 splats does this by default)
+    view = View(as_drawn(model))
+    camera = view.camera(Camera(eye=(2.2, -1.1, 2.6), target=(0.1, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov=35.0,
+                                width=W, height=H))
+    page = opened(browser, file_url(site / "index.html", "?ui=0&profile=1&preview=2048" + camera_hash(camera, "ewa")))
+    try:
+        step, splats = page.evaluate("surfsplat.previewStep"), page.evaluate("surfsplat.firstDrawn")
+        first = page.evaluate("surfsplat.firstImage")
+        canvas = page.canvas()
+        hud = page.evaluate("document.getElementById('hud').textContent")
+    finally:
+        page.close()
+    assert step == -(-len(model) // 2048) == 5 and splats == len(range(0, len(model), step))
+    preview = np.asarray(Image.open(io.BytesIO(base64.b64decode(first.split(",", 1)[1]))).convert("RGB"))
+    # the preview: every 5th splat of the page's order as points, their axes grown by sqrt(5) (the same area)
+    drawn = as_drawn(model)
+    grow = np.float32(np.sqrt(step))
+    rows = np.arange(0, len(drawn), step)
+    subset = drawn.subset(rows).replace(u=drawn.u[rows] * grow, v=drawn.v[rows] * grow)
+    points = View(subset).render(camera, technique="points", options=RenderOptions()).frame.image()
+    assert psnr(preview / 255.0, points / 255.0) >= 80.0
+    # it covers the surface: the full frame's covered pixels it leaves as background are few
+    covered = ~(canvas == 255).all(axis=2)
+    assert ((preview == 255).all(axis=2) & covered).sum() <= 0.002 * covered.sum()
+    # then the full frame of every splat, unchanged
+    options = RenderOptions()
+    reference = view.render(camera, technique="ewa", options=options).frame.image()
+    assert psnr(canvas / 255.0, reference / 255.0) >= 80.0
+    assert f"{len(model):,} splats drawn" in hud and "preview" not in hud
 
 
 # measured at 320 x 240 against `surfsplat render --supersample K` of the same splats: ewa 101.8 dB (K = 2), points
@@ -310,9 +352,11 @@ def test_the_page_cuts_a_hierarchy_within_the_budget_as_the_desktop_does(browser
     export(hierarchy_file, out, browser_lod=True, point_budget=budget)
     view = View(hierarchy_file, lod=LodOptions(tolerance=1.0, point_budget=budget, shading="flat"))
     result = view.render(view.camera(None, W, H), technique="ewa", options=RenderOptions())
-    page = opened(browser, file_url(out / "index.html", "?ui=0"))
+    # the first frame: the cut within the preview's budget (?preview=N; 131,072 unless told), then the page's
+    page = opened(browser, file_url(out / "index.html", "?ui=0&preview=1000"))
     try:
         drawn, canvas = page.evaluate("surfsplat.drawn"), page.canvas()
+        assert page.evaluate("surfsplat.firstDrawn") <= 1000 < drawn
         # more budget on the page: more drawn, up to the tolerance cut
         page.evaluate("var e = document.getElementById('budget'); e.value = 100000; "
                       "e.dispatchEvent(new Event('change'))")

@@ -35,7 +35,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
 
   var state = {
     technique: H.technique, background: H.background.slice(), edl: H.technique === 'points',
-    camera: null, frameMs: 0, frames: 0, splats: H.count, errors: [], ready: false, firstFrameMs: null,
+    camera: null, frameMs: 0, frames: 0, timings: {}, splats: H.count, errors: [], ready: false, firstFrameMs: null,
     colorBy: 'own colours',
     ui: true, width: 0, height: 0, supersample: 1
   };
@@ -58,6 +58,8 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
 
   // ---- decoding: the twin of surfsplat/web/format.py --------------------------------------------
   function bytes(b64) {
+    // the native decoder where the browser has it (Chromium 140+, Firefox 133+, Safari 18.2+): 10x the loop
+    if (Uint8Array.fromBase64) return Uint8Array.fromBase64(b64);
     var bin = atob(b64), out = new Uint8Array(bin.length);
     for (var i = 0; i < bin.length; ++i) out[i] = bin.charCodeAt(i);
     return out;
@@ -74,19 +76,26 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     return [x / len, y / len, z / len];
   }
 
-  function decode(hd, s) {   // a page's splats (H, DATA.streams) or a streamed cell's
+  // A page's splats (H, DATA.streams) or a streamed cell's. With a step (the decimated first preview) only
+  // splats 0, step, 2 step, ... and only what the points program reads (position, normal, colour, u, v),
+  // their axes grown by grow; codes, where given, memoizes the streams' bytes for the full decode after it.
+  function decode(hd, s, step, grow, codes) {
     var H = hd, n = H.count;
-    var qp = u16(s.position), qn = u16(s.normal), qa = u16(s.angle), qr = u16(s.radii);
-    var pos = new Float32Array(3 * n), nrm = new Float32Array(3 * n), u = new Float32Array(3 * n),
-        v = new Float32Array(3 * n);
+    step = step || 1; grow = grow || 1; codes = codes || {};
+    function code(key) { if (!(key in codes)) codes[key] = bytes(s[key]); return codes[key]; }
+    function code16(key) { var b = code(key); return new Uint16Array(b.buffer, b.byteOffset, b.length / 2); }
+    var qp = code16('position'), qn = code16('normal'), qa = code16('angle'), qr = code16('radii'), qc = code('color');
+    var m = Math.ceil(n / step);
+    var pos = new Float32Array(3 * m), nrm = new Float32Array(3 * m), u = new Float32Array(3 * m),
+        v = new Float32Array(3 * m);
     var lo = H.lo, hi = H.hi, U16 = 65535;   // format.U16
     var w0 = hi[0] - lo[0], w1 = hi[1] - lo[1], w2 = hi[2] - lo[2];
     var l0 = H.log_radius[0], lw = H.log_radius[1] - H.log_radius[0];
-    for (var i = 0; i < n; ++i) {
-      var k = 3 * i;
-      pos[k] = lo[0] + qp[k] / U16 * w0;
-      pos[k + 1] = lo[1] + qp[k + 1] / U16 * w1;
-      pos[k + 2] = lo[2] + qp[k + 2] / U16 * w2;
+    for (var r = 0; r < m; ++r) {
+      var i = r * step, k = 3 * r, q = 3 * i;
+      pos[k] = lo[0] + qp[q] / U16 * w0;
+      pos[k + 1] = lo[1] + qp[q + 1] / U16 * w1;
+      pos[k + 2] = lo[2] + qp[q + 2] / U16 * w2;
       var dn = octahedral(qn, i), x = dn[0], y = dn[1], z = dn[2];
       nrm[k] = x; nrm[k + 1] = y; nrm[k + 2] = z;
       // tangent_basis (Duff et al. 2017)
@@ -95,15 +104,21 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       var b2x = b, b2y = sign + y * y * a, b2z = -y;
       var ang = qa[i] * (Math.PI / 65536), c = Math.cos(ang), sn = Math.sin(ang);
       var dx = c * b1x + sn * b2x, dy = c * b1y + sn * b2y, dz = c * b1z + sn * b2z;
-      var ru = Math.pow(2, l0 + qr[2 * i] / U16 * lw), rv = Math.pow(2, l0 + qr[2 * i + 1] / U16 * lw);
+      var ru = grow * Math.pow(2, l0 + qr[2 * i] / U16 * lw), rv = grow * Math.pow(2, l0 + qr[2 * i + 1] / U16 * lw);
       u[k] = dx * ru; u[k + 1] = dy * ru; u[k + 2] = dz * ru;
       v[k] = (y * dz - z * dy) * rv; v[k + 1] = (z * dx - x * dz) * rv; v[k + 2] = (x * dy - y * dx) * rv;
     }
     if (s.shading) {   // Phong splats (page.encoded): the normal codes the plane; the shading normal apart
-      var qs = u16(s.shading);
-      for (i = 0; i < n; ++i) { var sh = octahedral(qs, i); nrm[3 * i] = sh[0]; nrm[3 * i + 1] = sh[1]; nrm[3 * i + 2] = sh[2]; }
+      var qs = code16('shading');
+      for (r = 0; r < m; ++r) { var sh = octahedral(qs, r * step); nrm[3 * r] = sh[0]; nrm[3 * r + 1] = sh[1]; nrm[3 * r + 2] = sh[2]; }
     }
-    var out = {position: pos, normal: nrm, u: u, v: v, color: bytes(s.color)};
+    var color = qc;
+    if (step > 1) {
+      color = new Uint8Array(3 * m);
+      for (r = 0; r < m; ++r) { color[3 * r] = qc[3 * r * step]; color[3 * r + 1] = qc[3 * r * step + 1]; color[3 * r + 2] = qc[3 * r * step + 2]; }
+    }
+    var out = {position: pos, normal: nrm, u: u, v: v, color: color, count: m};
+    if (step > 1) return out;
     if (s.normal_field) out.normalField = u16(s.normal_field);   // (alpha, beta) as float16, flipped with the axes
     if (s.clip) {   // format.encode_clip_lines: the rows that cut and their two lines, float16 (zero: no cut)
       var rb = bytes(s.clip_rows), rows = new Uint32Array(rb.buffer, rb.byteOffset, rb.length / 4), lines = u16(s.clip);
@@ -218,7 +233,24 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     });
   }
 
+  // Programs are compiled and linked on first use (a frame of one technique needs 3-6 of the 29): the first
+  // frame waits for its own programs only. state.compileAll() builds every one (the tests: each links here).
   var programs = {}, linked = {};
+  function program(name) {
+    if (!(name in programs)) {
+      if (!(name in SHADERS.programs)) throw new Error('no program ' + name + ' in shaders.js');
+      var start = performance.now();
+      programs[name] = build(name);
+      state.programs = Object.keys(programs);
+      state.timings.compile = (state.timings.compile || 0) + performance.now() - start;
+    }
+    return programs[name];
+  }
+  state.programs = [];   // the programs compiled and linked so far
+  state.compileAll = function () {
+    try { for (var name in SHADERS.programs) program(name); } catch (e) { fail(String(e && e.message || e)); }
+    return state.programs;
+  };
   function build(name) {   // programs of the same sources (phong's and blend's visibility) are linked once
     var p = SHADERS.programs[name], key = p.vertex + '\u0000' + p.fragment;
     if (!(key in linked)) linked[key] = link(name, p);
@@ -353,6 +385,53 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     for (i = 6; i < ATTRIBUTES.length; ++i) gl.vertexAttrib4f(i, 0, 0, 0, 0);   // unbound: no clip lines, no normal field
   }
 
+  // The decimated first preview of a large page: every step-th splat (a spatially even subset: each radius
+  // class is in Morton order, web_order), drawn as points with its axes grown by sqrt(step) so that the
+  // surface stays covered, before the other splats are decoded; then the full-quality frame.
+  var PREVIEW_SPLATS = 131072, preview = null, pageCodes = null;
+  function previewStep() {
+    if (H.lod || (params.color && params.color !== OWN_COLORS)) return 1;
+    // every preview point within the largest GL_POINTS point (points.vert clamps its diameter)
+    if (Math.min(maxPoint, 1024) < H.uniforms.points.u_point_size[1] * state.supersample + 2) return 1;
+    return Math.ceil(H.count / previewSplats());
+  }
+  function previewSplats() { return Number(params.preview) >= 1 ? Math.floor(Number(params.preview)) : PREVIEW_SPLATS; }   // ?preview=N
+  function uploadPreview(d, step) {
+    var vao = gl.createVertexArray();
+    gl.bindVertexArray(vao);
+    var buffers = [attribute(1, d.position, 3, gl.FLOAT, false), attribute(2, d.normal, 3, gl.FLOAT, false),
+                   attribute(3, d.color, 3, gl.UNSIGNED_BYTE, true), attribute(4, d.u, 3, gl.FLOAT, false),
+                   attribute(5, d.v, 3, gl.FLOAT, false)];
+    gl.bindVertexArray(null);
+    gl.vertexAttrib2f(0, 0, 0);
+    for (var j = 6; j < ATTRIBUTES.length; ++j) gl.vertexAttrib4f(j, 0, 0, 0, 0);
+    return {vao: vao, buffers: buffers, count: d.count, step: step};
+  }
+  // the page's splats decoded and uploaded (after the preview where there is one)
+  function loadSplats() {
+    var start = performance.now();
+    splats = decode(H, DATA.streams, 1, 1, pageCodes || {});
+    pageCodes = null;
+    if (H.lod) {
+      tree = readTree(DATA.streams);
+      state.budget = Number(params.budget) >= 1 ? Math.floor(Number(params.budget)) : H.lod.budget;
+    }
+    state.timings.decode = performance.now() - start;
+    start = performance.now();
+    upload(splats);
+    if (H.lod) {
+      topTree = {T: tree, M: H.lod.nodes, offsets: H.lod.level_offsets, vao: pointsVao, elements: elements, drawn: 0};
+      if (H.lod.streamed) startStreaming();
+    }
+    state.timings.upload = performance.now() - start;
+    if (preview) {
+      preview.buffers.forEach(function (b) { gl.deleteBuffer(b); });
+      gl.deleteVertexArray(preview.vao);
+      preview = null;
+      if (state.colorBy !== OWN_COLORS) setColorBy(state.colorBy);
+    }
+  }
+
   // ---- colour by attribute (surfsplat.web.colors): the desktop viewer's C key --------------------------
   // A mode maps each splat's value (an exported attribute, or the elevation of its decoded position along
   // the up axis) to t = (value - lo) / (hi - lo) in [0, 1] and takes entry min(floor(256 t), 255) of its
@@ -396,6 +475,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   function setColorBy(name) {
     if (colorModes().indexOf(name) < 0) return;
     state.colorBy = name;
+    if (preview) { syncControls(); return; }   // applied once the splats are loaded
     var colors = modeColors(name, H, DATA.streams, splats.position, splats.color);
     gl.bindBuffer(gl.ARRAY_BUFFER, colorBuffers[0]);
     gl.bufferData(gl.ARRAY_BUFFER, colors, gl.STATIC_DRAW);
@@ -744,8 +824,15 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   }
 
   function drawSplats(name, values, frame, technique) {
+    if (preview) {   // the decimated first preview (technique points)
+      setUniforms(program('points_points'), Object.assign({u_max_point: maxPoint}, values));
+      gl.bindVertexArray(preview.vao);
+      gl.drawArrays(gl.POINTS, 0, preview.count);
+      gl.bindVertexArray(null);
+      return;
+    }
     if (H.lod) {   // every entry of the cut as a point (node splats stay within the tolerance or the budget's)
-      setUniforms(programs[name + '_points'], Object.assign({u_max_point: maxPoint}, values));
+      setUniforms(program(name + '_points'), Object.assign({u_max_point: maxPoint}, values));
       var trees = [topTree];
       if (cells) cells.forEach(function (c) { if (c.tree) trees.push(c.tree); });
       trees.forEach(function (x) {
@@ -758,12 +845,12 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     }
     var quads = Math.min(largerThan(pointRadius(frame, technique)), quadCount);
     if (quads > 0) {
-      setUniforms(programs[name], values);
+      setUniforms(program(name), values);
       gl.bindVertexArray(quadsVao);
       gl.drawArrays(gl.TRIANGLES, 0, 6 * quads);
     }
     if (quads < H.count) {
-      setUniforms(programs[name + '_points'], Object.assign({u_max_point: maxPoint}, values));
+      setUniforms(program(name + '_points'), Object.assign({u_max_point: maxPoint}, values));
       gl.bindVertexArray(pointsVao);
       gl.drawArrays(gl.POINTS, quads, H.count - quads);
     }
@@ -834,7 +921,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       gl.disable(gl.BLEND);
       gl.bindFramebuffer(gl.FRAMEBUFFER, t.fboCracks);
       bindTexture(SIDE_UNIT, t.side);
-      fullscreen(programs.cracks, {u_side: SIDE_UNIT});
+      fullscreen(program('cracks'), {u_side: SIDE_UNIT});
       mark('cracks');
       // 3. accumulation: additive blending of the weighted colours, depths and normals
       bindTexture(SIDE_UNIT, t.cracks);
@@ -861,7 +948,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     bindTexture(0, t.accum);
     bindTexture(1, t.aux);
     if (blended) bindTexture(COVER_UNIT, t.cover);
-    var normalization = blended ? programs.normalize_edges : programs.normalize;
+    var normalization = program(blended ? 'normalize_edges' : 'normalize');
     var normalize = {u_accum: 0, u_aux: 1, u_side: SIDE_UNIT, u_cover: COVER_UNIT, u_background: state.background,
                      u_edge_fringe: blended && H.edge_fringe.indexOf(technique) >= 0};
     // the last pass writes the canvas, or the targets eye-dome lighting reads
@@ -875,7 +962,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       bindTexture(NORM_DEPTH_UNIT, t.normDepth);
       bindTexture(NORM_Z_UNIT, t.normZ);
       var fill = H.fill[String(K)];
-      fullscreen(programs[fill.program], {u_norm_color: NORM_COLOR_UNIT, u_norm_depth: NORM_DEPTH_UNIT,
+      fullscreen(program(fill.program), {u_norm_color: NORM_COLOR_UNIT, u_norm_depth: NORM_DEPTH_UNIT,
                                           u_norm_z: NORM_Z_UNIT, u_fill_depth: fill.depth});
     } else {
       last();
@@ -888,13 +975,13 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       else gl.bindFramebuffer(gl.FRAMEBUFFER, null);
       bindTexture(EDL_COLOR_UNIT, t.out);
       bindTexture(EDL_DEPTH_UNIT, t.depthSum);
-      fullscreen(programs.downsample, {u_sub_color: EDL_COLOR_UNIT, u_sub_depth: EDL_DEPTH_UNIT, u_factor: K});
+      fullscreen(program('downsample'), {u_sub_color: EDL_COLOR_UNIT, u_sub_depth: EDL_DEPTH_UNIT, u_factor: K});
     }
     if (state.edl) {
       gl.bindFramebuffer(gl.FRAMEBUFFER, null);
       bindTexture(EDL_COLOR_UNIT, image.out);
       bindTexture(EDL_DEPTH_UNIT, image.depthSum);
-      fullscreen(programs.edl, {u_color: EDL_COLOR_UNIT, u_depth: EDL_DEPTH_UNIT, u_background: state.background,
+      fullscreen(program('edl'), {u_color: EDL_COLOR_UNIT, u_depth: EDL_DEPTH_UNIT, u_background: state.background,
                                 u_edl_strength: H.edl.strength, u_edl_offsets: [].concat.apply([], H.edl.offsets)});
     }
     gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, probe);   // waits for the frame (gl.finish need not)
@@ -1027,7 +1114,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   }
 
   function screenshot() {
-    render();
+    render(preview ? 'points' : state.technique);
     var link = document.createElement('a');
     link.download = String(H.name).split(/[\\/]/).pop().replace(/\.[^.]*$/, '') + '-' + state.technique + '.png';
     link.href = canvas.toDataURL('image/png');
@@ -1093,10 +1180,11 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   // drawn with "points" (one pass, the cheapest), and the full frame follows when the camera stops.
   var PREVIEW_MS = 250, SETTLE_MS = 300;
   var lastFullMs = null, lastChange = 0, refineTimer = null;
-  function hudText(technique, ms, preview) {
-    hud.textContent = (H.lod ? state.drawn : H.count).toLocaleString('en') + ' splats drawn \u00b7 ' + ms.toFixed(1) + ' ms/frame \u00b7 ' +
+  function hudText(technique, ms, moving) {
+    hud.textContent = (preview ? preview.count : H.lod ? state.drawn : H.count).toLocaleString('en') + ' splats drawn \u00b7 ' + ms.toFixed(1) + ' ms/frame \u00b7 ' +
                       technique + (state.edl ? ' + EDL' : '') +
-                      (cells ? ' \u00b7 ' + stream.loaded + '/' + cells.length + ' cells loaded' : '') + (preview ? ' (preview; full quality when still)' : '');
+                      (cells ? ' \u00b7 ' + stream.loaded + '/' + cells.length + ' cells loaded' : '') +
+                      (preview ? ' (preview: 1 splat in ' + preview.step + '; loading the others)' : moving ? ' (preview; full quality when still)' : '');
   }
   function full() {
     refineTimer = null;
@@ -1115,12 +1203,27 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       root.setAttribute('data-ready', '1');
     }
   }
+  // after the decimated preview (drawn, and shown before this long task): every splat, then full quality
+  function loadAll() {
+    refineTimer = null;
+    if (!preview) return;
+    try { loadSplats(); } catch (e) { fail(String(e && e.message || e)); return; }
+    full();
+  }
   function tick() {
     dirty = false;
     if (sizeCanvas() && !params.eye && !state.moved) home();
     var slow = lastFullMs === null || lastFullMs > PREVIEW_MS;
     clearTimeout(refineTimer);
-    if (state.technique !== 'points' && slow) {
+    if (preview) {
+      try { render('points'); } catch (e) { fail(String(e && e.message || e)); return; }
+      if (state.firstFrameMs === null) {
+        state.timings.preview = state.frameMs;
+        if (state.profile) state.timings.previewPasses = Object.assign({}, state.passMs);
+      }
+      hudText('points', state.frameMs, true);
+      refineTimer = setTimeout(function () { requestAnimationFrame(function () { setTimeout(loadAll, 0); }); }, 0);
+    } else if (state.technique !== 'points' && slow) {
       try { render('points'); } catch (e) { fail(String(e && e.message || e)); return; }
       hudText('points', state.frameMs, true);
       var wait = Math.max(0, SETTLE_MS - (performance.now() - lastChange));
@@ -1131,15 +1234,16 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     }
     if (state.firstFrameMs === null) {
       state.firstFrameMs = performance.now();
+      state.firstDrawn = preview ? preview.count : H.lod ? state.drawn : H.count;   // splats the first frame drew
       root.setAttribute('data-first-frame', '1');
+      if (state.profile) state.firstImage = canvas.toDataURL('image/png');   // the benchmark's look at it
     }
   }
 
   // ---- start ----------------------------------------------------------------------------------------
   try {
     state.profile = params.profile === '1';
-    var t0 = performance.now();
-    state.timings = {};
+    state.timings.start = performance.now();   // ms after navigation: the page's scripts loaded and parsed
     if (params.ui === '0') { state.ui = false; root.classList.add('noui'); }
     if (params.technique && params.technique in H.uniforms) state.technique = params.technique;
     var K = Math.floor(Number(params.supersample || H.supersample || 1));
@@ -1148,21 +1252,14 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     state.edl = params.edl !== undefined ? params.edl === '1' : state.technique === 'points';
     if (H.blended.indexOf(state.technique) >= 0 && !floatBlend) state.technique = 'flat';
     root.style.background = hex(state.background);
-    for (var p in SHADERS.programs) programs[p] = build(p);
-    state.programs = Object.keys(programs);   // every shipped program compiled and linked
-    state.timings.compile = performance.now() - t0;
-    splats = decode(H, DATA.streams);
-    if (H.lod) {
-      tree = readTree(DATA.streams);
-      state.budget = Number(params.budget) >= 1 ? Math.floor(Number(params.budget)) : H.lod.budget;
-    }
-    state.timings.decode = performance.now() - t0 - state.timings.compile;
-    upload(splats);
-    if (H.lod) {
-      topTree = {T: tree, M: H.lod.nodes, offsets: H.lod.level_offsets, vao: pointsVao, elements: elements, drawn: 0};
-      if (H.lod.streamed) startStreaming();
-    }
-    state.timings.upload = performance.now() - t0 - state.timings.compile - state.timings.decode;
+    var step = previewStep();
+    state.previewStep = step;
+    if (step > 1) {   // the first frame from every step-th splat (the rest decoded after it: loadAll)
+      var t1 = performance.now();
+      pageCodes = {};
+      preview = uploadPreview(decode(H, DATA.streams, step, Math.sqrt(step), pageCodes), step);
+      state.timings.previewLoad = performance.now() - t1;
+    } else loadSplats();
     sizeCanvas();
     home();
     var eye = parseVec(params.eye || ''), target = parseVec(params.target || ''), up = parseVec(params.up || '');
@@ -1171,7 +1268,12 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
                       fov: Number(params.fov) > 0 ? Number(params.fov) : H.fov};
       state.moved = true;
     }
-    if (H.lod) selectCut(state.camera, canvas.width, canvas.height);
+    if (H.lod) {   // a browser-LOD page's first frame: the cut within the preview's budget (coarser nodes)
+      var budget = state.budget;
+      state.budget = Math.min(budget, previewSplats());
+      selectCut(state.camera, canvas.width, canvas.height);
+      state.budget = budget;
+    }
     syncControls();
     if (params.color && params.color !== OWN_COLORS) setColorBy(params.color);
     dirty = false;
