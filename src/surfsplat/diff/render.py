@@ -15,11 +15,18 @@ taken from :mod:`surfsplat.reference` run on tensors:
   place of the hard ``z <= D``; a fringe fragment (beyond its own disk) also needs ``D <= z + 2 band``
   (``fringe_hidden``). ``depth_softness = 0`` is the hard test. With ``separate_sides`` (the default,
   as ``VisibilityOptions``) only the splats seen from the same side as the nearest disk blend.
-- coverage: the OpenGL passes show the background where no disk covers the pixel's centre. Here the
-  pixel's alpha is ``1 - prod_i (1 - o_i m_i)`` with ``m_i`` the disk's coverage smoothed over
-  ``edge_softness`` pixels across its rim (0: the hard test) and ``o_i`` the splat's opacity, so the
-  silhouette moves with the splats; the colour is the normalized blend ``sum w c / sum w``
-  (Guennebaud 2003, eq. 18), clamped to [0, 1] and composited over the background by alpha.
+- coverage: without edge coverage the OpenGL passes show the background where no disk covers the pixel's
+  centre. Here the centre's coverage is ``A = 1 - prod_i (1 - o_i m_i)`` with ``m_i`` the disk's coverage
+  of the centre smoothed over ``edge_softness`` pixels across its rim (0: the hard test) and ``o_i`` the
+  splat's opacity, so the silhouette moves with the splats; the colour is the normalized blend
+  ``sum w c / sum w`` (Guennebaud 2003, eq. 18), clamped to [0, 1] and composited over the background by
+  alpha. With ``edge_coverage`` (the default, as ``VisibilityOptions``) a rim pixel's alpha is instead the
+  fraction of its area the disks cover, by OpenGL's rule (``reference.edge_alpha``: normalize.frag): each
+  pair brings the disk's pixel coverage ``c_i`` (times its opacity) and the signed distance ``d_i`` of the
+  pixel's centre to its rim (``reference.disk_coverage``: splat_fragment.glsl), their soft maxima are
+  summed per pixel weighted by the soft depth test, and the alpha of a covered pixel and that of an
+  uncovered one (set by its 8 neighbours: whether the centre is covered is discrete) are mixed by ``A``;
+  gradients flow through ``A``, ``c_i`` and ``d_i``.
 
 Evaluation is vectorized and tiled: splats are binned to horizontal bands of rows by their boxes, and
 each band evaluates its (pixel, splat) pairs in batched tensor operations with the per-pixel sums as
@@ -43,6 +50,9 @@ from .scene import DiffCamera, Splats
 
 #: Smallest depth of a drawn splat centre when the camera has no near plane (the Jacobian needs z > 0).
 MIN_DEPTH = 1e-6
+#: Scale of the (s, t) of a ray meeting a splat's plane behind the eye (far outside the ellipse, as
+#: splat_fragment.glsl's footprint_st).
+HORIZON = 1e6
 
 
 @dataclass(frozen=True)
@@ -55,6 +65,8 @@ class DiffOptions:
         depth_epsilon: visibility offset along the rays in splat radii (``VisibilityOptions``).
         depth_softness: width of the soft depth test, as a fraction of each splat's epsilon band (0: hard).
         edge_softness: width in pixels over which a disk's coverage falls to 0 across its rim (0: hard).
+        edge_coverage: rim pixels take the fraction of their area the disks cover as alpha, as the OpenGL
+            passes do with ``VisibilityOptions.edge_coverage`` (the default); off: the papers' rims.
         separate_sides: a pixel blends only the splats seen from the side (front or back of their
             normals) of its nearest one (``VisibilityOptions.separate_sides``).
         min_visibility: with gradients, pairs whose soft depth test passes less than this are left out of
@@ -71,6 +83,7 @@ class DiffOptions:
     max_pairs: int = 4_000_000
     min_visibility: float = 1e-4
     separate_sides: bool = True
+    edge_coverage: bool = True
 
     def __post_init__(self) -> None:
         for name in ("cutoff", "depth_epsilon", "depth_softness", "edge_softness", "min_visibility"):
@@ -102,9 +115,13 @@ class DiffFrame:
 
 # Rows of the per-splat feature table (column-major, one column per splat: a pair's gather is one indexing
 # and each feature a contiguous row of it): p, u, v, n (3 each), the projected centre (2), the conic V^-1
-# (xx, xy, yy), the peak weight, the lit colour (3), opacity, radius, rho, seen from the back.
+# (xx, xy, yy), the peak weight, the lit colour (3), opacity, radius, rho, seen from the back, the rim
+# Jacobian (d(s, t)/dx, d(s, t)/dy: reference.rim_jacobian, row-major).
 _P, _N, _CENTER = slice(0, 3), slice(9, 12), slice(12, 14)
-_COLUMNS = [3, 3, 3, 3, 2, 1, 1, 1, 1, 3, 1, 1, 1, 1]
+_COLUMNS = [3, 3, 3, 3, 2, 1, 1, 1, 1, 3, 1, 1, 1, 1, 4]
+#: Per-pixel sums of a band: (sum w c, sum w, sum w z, sum log(1 - o m)) and with edge coverage the soft
+#: maxima's sums (reference.soft_maxima) and whether a disk covers the pixel's centre.
+_SUMS, _EDGE_SUMS = 6, 11
 
 
 def _splat_table(splats: Splats, camera: DiffCamera, lights: Lights, options: DiffOptions):
@@ -146,9 +163,13 @@ def _splat_table(splats: Splats, camera: DiffCamera, lights: Lights, options: Di
     opacity = splats.opacity[idx] if splats.opacity is not None else torch.ones_like(scale)
     radius = torch.maximum(ref.norm(u), ref.norm(v))
     rho = torch.sqrt(torch.abs(ref.det2(jac)) + 1e-12)   # projected radius, pixels (geometric mean)
+    if options.edge_coverage:
+        rim = ref.rim_jacobian(f, p, plane, u, v).reshape(-1, 4)
+    else:
+        rim = torch.zeros((len(p), 4), dtype=p.dtype, device=p.device)
     table = torch.cat([p, u, v, plane, center, conic[:, 0, 0, None], conic[:, 0, 1, None], conic[:, 1, 1, None],
                        scale[:, None], color, opacity[:, None], radius[:, None], rho[:, None],
-                       back[idx].to(p.dtype)], dim=1).t().contiguous()
+                       back[idx].to(p.dtype), rim], dim=1).t().contiguous()
     with torch.no_grad():
         c, h = center.detach(), half.detach()
         lo = torch.ceil(c - h - 0.5)
@@ -177,9 +198,11 @@ def _band_pairs(box: torch.Tensor, row0: int, row1: int) -> tuple[torch.Tensor, 
 
 
 def _visibility(hit: torch.Tensor, z: torch.Tensor, band: torch.Tensor, inside: torch.Tensor,
-                from_back: torch.Tensor, pixel: torch.Tensor, npix: int, options: DiffOptions) -> torch.Tensor:
+                from_back: torch.Tensor, pixel: torch.Tensor, npix: int,
+                options: DiffOptions) -> tuple[torch.Tensor, torch.Tensor]:
     """The soft depth test's factor of each pair (ray/plane distance ``hit``, fragment depth ``z``, epsilon
-    ``band``, ``inside`` its disk, the splat seen ``from_back``) against the nearest disk at its pixel."""
+    ``band``, ``inside`` its disk, the splat seen ``from_back``) against the nearest disk at its pixel, and
+    (npix,) whether a disk covers each pixel's centre."""
     dtype, device = hit.dtype, hit.device
     # Guennebaud 2003, sec. 5: the nearest disk's depth at the pixel, offset by epsilon along the ray
     # for each side of the splats (seen from the front, from the back) apart: the side the eye sees
@@ -204,7 +227,7 @@ def _visibility(hit: torch.Tensor, z: torch.Tensor, band: torch.Tensor, inside: 
     vis = torch.where(inside, vis, vis * fringe)
     if options.separate_sides:
         vis = torch.where(pixel_back[pixel] == from_back, vis, torch.zeros_like(vis))
-    return torch.where(covered[pixel], vis, torch.ones_like(vis))
+    return torch.where(covered[pixel], vis, torch.ones_like(vis)), covered
 
 
 @torch.no_grad()
@@ -228,15 +251,25 @@ def _visible_pairs(table: torch.Tensor, sid: torch.Tensor, ix: torch.Tensor, iy:
     x = (ix.to(t.dtype) + 0.5 - cx) / f
     y = (iy.to(t.dtype) + 0.5 - cy) / f
     hit = n_p / (nx * x + ny * y - nz)
-    s = hit * (ux * x + uy * y - uz) - u_p
-    r = hit * (vx * x + vy * y - vz) - v_p
+    front = torch.isfinite(hit) & (hit > 0)
+    s_ray, r_ray = ux * x + uy * y - uz, vx * x + vy * y - vz
+    s = torch.where(front, hit * s_ray - u_p, HORIZON * s_ray)
+    r = torch.where(front, hit * r_ray - v_p, HORIZON * r_ray)
     r2 = s * s + r * r
     shrink = torch.rsqrt(torch.clamp(r2, min=1.0))   # fringe fragments: the nearest disk point's depth
     z = -(pz + shrink * (s * uz_ + r * vz_))
     band = options.depth_epsilon * radius * torch.rsqrt(x * x + y * y + 1.0)
     inside = (r2 <= 1.0) & (hit > 0)
-    vis = _visibility(hit, z, band, inside, back > 0.5, pixel, npix, options)
-    return torch.isfinite(hit) & (hit > 0) & (vis >= options.min_visibility)
+    vis = _visibility(hit, z, band, inside, back > 0.5, pixel, npix, options)[0]
+    return _drawn(hit, options) & (vis >= options.min_visibility)
+
+
+def _drawn(hit: torch.Tensor, options: DiffOptions) -> torch.Tensor:
+    """Which pairs (ray/plane distance ``hit``) the accumulation draws: those whose ray meets the splat's
+    plane in front of the eye, and with edge coverage also those meeting it behind the eye (a fringe
+    fragment beyond the plane's horizon: splat_fragment.glsl's footprint_st), whose coverage counts."""
+    finite = torch.isfinite(hit)
+    return finite if options.edge_coverage else finite & (hit > 0)
 
 
 def _pair_terms(table: torch.Tensor, sid: torch.Tensor, ix: torch.Tensor, iy: torch.Tensor, pixel: torch.Tensor,
@@ -247,28 +280,37 @@ def _pair_terms(table: torch.Tensor, sid: torch.Tensor, ix: torch.Tensor, iy: to
     # one gather and one split: their backward is one scatter and one concatenation; the vectors are made
     # (pairs, 3) contiguous so that the formulas and the sums of their gradients run on one layout
     rows = torch.index_select(table, 1, sid)
-    p, u, v, n, center, cxx, cxy, cyy, scale, color, opacity, radius, rho, back = (
+    p, u, v, n, center, cxx, cxy, cyy, scale, color, opacity, radius, rho, back, rim = (
         c.T.contiguous() if len(c) > 1 else c.T for c in rows.split(_COLUMNS, dim=0))
     pix = torch.stack([ix, iy], dim=1).to(dtype) + 0.5
     offset = pix - center
     beta = ref.conic_beta(cxx[:, 0], cxy[:, 0], cyy[:, 0], offset[:, 0], offset[:, 1])
     rays = ref.rays_through(pix, f, principal)
     hit = ref.ray_plane_distance(rays, p, n)
-    st = ref.splat_coordinates(rays, hit, p, u, v)
+    with torch.no_grad():
+        front = hit > 0
+    st = ref.splat_coordinates(rays, torch.where(front, hit, torch.ones_like(hit)), p, u, v)
+    if not bool(front.all()):
+        # the ray meets the plane behind the eye: (s, t) go off to the plane's horizon in the ray's direction
+        horizon = HORIZON * torch.stack([ref.dot(rays, u) / ref.dot(u, u), ref.dot(rays, v) / ref.dot(v, v)], dim=-1)
+        st = torch.where(front[:, None], st, horizon)
     r2 = ref.dot(st, st)
     z = ref.footprint_depth(st, p, u, v)
     band = options.depth_epsilon * radius[:, 0] / ref.norm(rays)
     with torch.no_grad():
         inside = (r2 <= 1.0) & (hit > 0)   # a ray meeting the plane behind the eye does not hit the disk
         from_back = back[:, 0] > 0.5
-    vis = _visibility(hit, z, band, inside, from_back, pixel, npix, options)
-    return {"beta": beta, "r2": r2, "z": z, "vis": vis, "inside": inside, "scale": scale[:, 0],
-            "color": color, "opacity": opacity[:, 0], "rho": rho[:, 0], "hit": hit}
+    vis, covered = _visibility(hit, z, band, inside, from_back, pixel, npix, options)
+    terms = {"beta": beta, "r2": r2, "z": z, "vis": vis, "inside": inside, "scale": scale[:, 0],
+             "color": color, "opacity": opacity[:, 0], "rho": rho[:, 0], "hit": hit, "covered": covered}
+    if options.edge_coverage:
+        terms["cover"], terms["distance"] = ref.disk_coverage(rim.reshape(-1, 2, 2), offset)
+    return terms
 
 
 def _band(table: torch.Tensor, box: torch.Tensor, camera: DiffCamera, options: DiffOptions, row0: int,
           row1: int) -> torch.Tensor:
-    """Per-pixel sums of window rows [row0, row1): (rows * W, 6) = (sum w c, sum w, sum w z, sum log(1 - o m))."""
+    """Per-pixel sums of window rows [row0, row1): (rows * W, 6 or 11), see ``_SUMS``."""
     width = camera.width
     dtype, device = table.dtype, table.device
     npix = (row1 - row0) * width
@@ -289,8 +331,7 @@ def _band(table: torch.Tensor, box: torch.Tensor, camera: DiffCamera, options: D
             rows = torch.index_select(t, 1, sid)
             pix = torch.stack([ix, iy], dim=1).to(dtype) + 0.5
             rays = ref.rays_through(pix, camera.focal.detach(), camera.principal)
-            hit = ref.ray_plane_distance(rays, rows[_P].T, rows[_N].T)
-            keep = torch.isfinite(hit) & (hit > 0)
+            keep = _drawn(ref.ray_plane_distance(rays, rows[_P].T, rows[_N].T), options)
         sid, ix, iy, pixel = sid[keep], ix[keep], iy[keep], pixel[keep]
     terms = _pair_terms(table, sid, ix, iy, pixel, npix, camera, options)
     opacity, r2 = terms["opacity"], terms["r2"]
@@ -301,9 +342,18 @@ def _band(table: torch.Tensor, box: torch.Tensor, camera: DiffCamera, options: D
     else:
         m = terms["inside"].to(dtype)
     log_clear = torch.log1p(-torch.clamp(opacity * m, max=1.0 - 8.0 * torch.finfo(dtype).eps))
-    values = torch.cat([w[:, None] * terms["color"], w[:, None], (w * terms["z"])[:, None], log_clear[:, None]],
-                       dim=1)
-    return torch.zeros((npix, 6), dtype=dtype, device=device).index_add(0, pixel, values)
+    columns = [w[:, None] * terms["color"], w[:, None], (w * terms["z"])[:, None], log_clear[:, None]]
+    if options.edge_coverage:
+        # the soft maxima of splat_fragment.glsl's out_cover, each fragment weighted by its depth test
+        c, d, vis = opacity * terms["cover"], terms["distance"], terms["vis"]
+        e = vis * torch.exp(ref.COVER_SHARPNESS * (c - 1.0))
+        ed = vis * torch.exp(ref.DISTANCE_SHARPNESS * (d - ref.COVER_REACH))
+        columns += [e[:, None], (c * e)[:, None], ed[:, None], (d * ed)[:, None]]
+    sums = torch.zeros((npix, _EDGE_SUMS - 1 if options.edge_coverage else _SUMS), dtype=dtype,
+                       device=device).index_add(0, pixel, torch.cat(columns, dim=1))
+    if options.edge_coverage:
+        sums = torch.cat([sums, terms["covered"].to(dtype)[:, None]], dim=1)
+    return sums
 
 
 def _bands(box: torch.Tensor, height: int, max_pairs: int) -> list[tuple[int, int]]:
@@ -346,13 +396,17 @@ def render_frame(splats: Splats, camera: DiffCamera, *, lights: Lights | None = 
             parts.append(checkpoint(_band, table, box, camera, options, row0, row1, use_reentrant=False))
         else:
             parts.append(_band(table, box, camera, options, row0, row1))
-    sums = torch.cat(parts, dim=0).reshape(height, width, 6).flip(0)   # window rows (y up) -> image rows
+    sums = torch.cat(parts, dim=0).reshape(height, width, -1).flip(0)   # window rows (y up) -> image rows
     weight = sums[..., 3]
     has = weight > 0
     safe = torch.where(has, weight, torch.ones_like(weight))
     color = torch.clamp(sums[..., :3] / safe[..., None], 0.0, 1.0)
     depth = torch.where(has, sums[..., 4] / safe, torch.zeros_like(weight))
-    alpha = torch.where(has, -torch.expm1(sums[..., 5]), torch.zeros_like(weight))
+    center = -torch.expm1(sums[..., 5])
+    if options.edge_coverage:
+        cover, distance, reached = ref.soft_maxima(sums[..., 6], sums[..., 7], sums[..., 8], sums[..., 9])
+        center = ref.edge_alpha(sums[..., 10].detach() > 0.5, cover, distance, reached, center=center)
+    alpha = torch.where(has, center, torch.zeros_like(weight))
     bg = torch.as_tensor(background, dtype=color.dtype, device=color.device)
     image = alpha[..., None] * color + (1.0 - alpha[..., None]) * bg
     return DiffFrame(color=image, alpha=alpha, depth=depth, weight=weight)
