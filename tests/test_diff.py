@@ -183,6 +183,35 @@ def test_sphere_rim_alpha_approaches_the_exact_coverage(count):
     assert (on[exact == 0] < 0.5).all() and (on[metrics.dilate(exact > 0, 1) == 0] == 0).all()
 
 
+def test_flat_ray_formulas_are_the_direct_ones():
+    # footprint_hits (per-splat coefficients, flat per-pixel products: the differentiable renderer's form)
+    # against ray_plane_distance, splat_coordinates and footprint_depth, on NumPy and PyTorch
+    camera = Camera(width=64, height=48, fov=30, near=0.1, far=10)
+    p, u, v = random_splats(40)
+    n = reference.plane_normals(np.cross(u, v), u, v)
+    pixels = reference.project(camera, p)[:, None] + np.random.default_rng(5).normal(size=(40, 6, 2)) * (
+        np.array([0.8] * 5 + [30.0])[None, :, None])   # near the splats, and far (some rays meet the planes behind)
+    rays = reference.pixel_rays(camera, pixels)
+    hit = reference.ray_plane_distance(rays, p, n)
+    st = reference.splat_coordinates(rays, hit, p, u, v)
+    front = hit > 0
+    assert 0 < np.sum(~front) and 0.1 < np.mean((st ** 2).sum(-1)[front] <= 1.0) < 0.9
+    # a ray meeting the plane behind the eye goes off to the plane's horizon (splat_fragment.glsl's footprint_st)
+    horizon = reference.HORIZON * np.stack([(rays * u[:, None]).sum(-1) / (u * u).sum(-1)[:, None],
+                                            (rays * v[:, None]).sum(-1) / (v * v).sum(-1)[:, None]], -1)
+    st = np.where(front[..., None], st, horizon)
+    z = reference.footprint_depth(st.reshape(-1, 2), np.repeat(p, 6, 0), np.repeat(u, 6, 0),
+                                  np.repeat(v, 6, 0)).reshape(40, 6)
+    coefficients = reference.ray_coefficients(p, n, u, v)[:, :, None]
+    for xp_coefficients, x, y in ((coefficients, rays[..., 0], rays[..., 1]),
+                                  (torch.as_tensor(coefficients), torch.as_tensor(rays[..., 0]),
+                                   torch.as_tensor(rays[..., 1]))):
+        got = [np.asarray(a) for a in reference.footprint_hits(xp_coefficients, x, y)]
+        np.testing.assert_allclose(got[0], hit, rtol=1e-12)
+        np.testing.assert_allclose(np.stack(got[1:3], -1), st, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(got[3], z, rtol=1e-12)
+
+
 def test_edge_coverage_constants_are_the_shaders():
     import re
     from importlib import resources

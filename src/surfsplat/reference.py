@@ -204,6 +204,52 @@ def footprint_depth(st, p_cam, u_cam, v_cam) -> Any:
     return -(p_cam[..., 2] + st[..., 0] * u_cam[..., 2] + st[..., 1] * v_cam[..., 2])
 
 
+#: Scale of the (s, t) of a ray meeting a splat's plane behind the eye: far outside the ellipse, in the
+#: direction of the plane's horizon the ray points to (``footprint_st`` in splat_fragment.glsl).
+HORIZON = 1e6
+
+#: Number of rows of :func:`ray_coefficients`.
+RAY_COEFFICIENTS = 15
+
+
+def ray_coefficients(p_cam, n_cam, u_cam, v_cam) -> Any:
+    """(15, N) per-splat coefficients of the ray/splat formulas in flat form (rows): the normal
+    ``(n_x, n_y, n_z, n . p)``, the dual axes ``u / u.u`` and ``u . p / u.u`` (4), the same of ``v`` (4), and
+    ``(p_z, u_z, v_z)``. With them the per-pixel formulas (:func:`footprint_hits`) are a few products of
+    scalars: the same quantities as :func:`ray_plane_distance`, :func:`splat_coordinates` and
+    :func:`footprint_depth` (for the rays ``(x, y, -1)``), with each dot product taken once per splat.
+    ``p_cam``, ``n_cam``, ``u_cam``, ``v_cam``: (N, 3) camera space."""
+    xp = array_namespace(p_cam, n_cam, u_cam, v_cam)
+    uu, vv = dot(u_cam, u_cam), dot(v_cam, v_cam)
+    return xp.stack([n_cam[:, 0], n_cam[:, 1], n_cam[:, 2], dot(n_cam, p_cam),
+                     u_cam[:, 0] / uu, u_cam[:, 1] / uu, u_cam[:, 2] / uu, dot(u_cam, p_cam) / uu,
+                     v_cam[:, 0] / vv, v_cam[:, 1] / vv, v_cam[:, 2] / vv, dot(v_cam, p_cam) / vv,
+                     p_cam[:, 2], u_cam[:, 2], v_cam[:, 2]])
+
+
+def footprint_hits(coefficients, x, y) -> tuple[Any, Any, Any, Any]:
+    """``(hit, s, t, z)`` of the rays ``(x, y, -1)`` (camera space, z = -1: ``x = (px - cx) / f``) and the
+    splats of :func:`ray_coefficients` rows ``coefficients`` (any sequence of 15 arrays broadcasting with
+    ``x``, ``y``): the ray parameter (= depth) of the hit with the plane, its normalized (s, t) (``footprint_st``
+    in splat_fragment.glsl: a ray meeting the plane behind the eye, or parallel to it, takes
+    ``HORIZON`` times its direction's (s, t)), and the depth a fragment there gets (:func:`footprint_depth`)."""
+    xp = array_namespace(x, y, coefficients[0])
+    nx, ny, nz, n_p, ux, uy, uz, u_p, vx, vy, vz, v_p, pz, uz_, vz_ = (coefficients[k] for k in range(15))
+    with _errstate(xp):
+        hit = n_p / (nx * x + ny * y - nz)
+    front = hit > 0   # False for NaN; an infinite hit (a ray parallel to the plane) leaves the plane too
+    front = front & (hit < float("inf"))
+    h = xp.where(front, hit, 0.0)
+    s_ray = ux * x + uy * y - uz
+    t_ray = vx * x + vy * y - vz
+    s = xp.where(front, h * s_ray - u_p, HORIZON * s_ray)
+    t = xp.where(front, h * t_ray - v_p, HORIZON * t_ray)
+    len2 = s * s + t * t
+    shrink = 1.0 / xp.sqrt(xp.where(len2 > 1.0, len2, 1.0))   # beyond the rim: the nearest disk point
+    z = -(pz + shrink * (s * uz_ + t * vz_))
+    return hit, s, t, z
+
+
 def window_depth(z: np.ndarray, near: float, far: float) -> np.ndarray:
     """Camera-space depth (model units) -> stored depth in [0, 1], linear between near and far.
 
@@ -346,13 +392,14 @@ def disk_coverage(rim_jac, offset) -> tuple[Any, Any]:
     ``disk_coverage`` in splat_fragment.glsl (no clip lines). ``rim_jac``: (..., 2, 2) of
     :func:`rim_jacobian` (zeros: coverage 0, distance ``-COVER_REACH``); ``offset``: (..., 2) pixel centre
     minus the projected splat centre, window pixels. Returns two (...) arrays."""
-    xp = array_namespace(rim_jac, offset)
-    jxx, jxy, jyx, jyy = rim_jac[..., 0, 0], rim_jac[..., 0, 1], rim_jac[..., 1, 0], rim_jac[..., 1, 1]
-    return _disk_coverage(xp, jxx, jxy, jyx, jyy, offset[..., 0], offset[..., 1])
+    return rim_coverage(rim_jac[..., 0, 0], rim_jac[..., 0, 1], rim_jac[..., 1, 0], rim_jac[..., 1, 1],
+                        offset[..., 0], offset[..., 1])
 
 
-def _disk_coverage(xp, jxx, jxy, jyx, jyy, dx, dy) -> tuple[Any, Any]:
-    """:func:`disk_coverage` on the entries of the rim Jacobian (rows s, t; columns x, y) and the offsets."""
+def rim_coverage(jxx, jxy, jyx, jyy, dx, dy) -> tuple[Any, Any]:
+    """:func:`disk_coverage` on the entries of the rim Jacobian (rows s, t; columns x, y) and the offsets
+    ``(dx, dy)``, all (...) arrays."""
+    xp = array_namespace(jxx, jxy, jyx, jyy, dx, dy)
     s = jxx * dx + jxy * dy
     t = jyx * dx + jyy * dy
     r2 = s * s + t * t
@@ -405,7 +452,9 @@ def edge_alpha(covered, cover, distance, reached, center=None) -> Any:
     its centre to the union's rim, bounded by each open neighbour q's rim distance plus ``|q - p|``
     (distances are 1-Lipschitz); its own coverage where no fragment reached an open neighbour.
     ``center``: (H, W) the differentiable renderer's soft coverage of the centre in [0, 1] (None:
-    ``covered``): the alpha of a covered pixel and that of an uncovered one mixed by it.
+    ``covered``): on the rim and outside, the alpha of a covered pixel and that of an uncovered one mixed
+    by it; inside (covered, no open neighbour) ``center`` itself, which reads neither ``cover`` nor
+    ``distance`` there.
     """
     xp = array_namespace(covered, cover, distance, reached)
     count = sum(_shifted(covered, dy, dx, False).astype(int) if xp is np else
@@ -427,7 +476,7 @@ def edge_alpha(covered, cover, distance, reached, center=None) -> Any:
     alpha_out = xp.where(crack, 1.0, xp.clip(cover, None, 0.5))
     if center is None:
         return xp.where(covered, alpha_in, alpha_out)
-    return center * alpha_in + (1.0 - center) * alpha_out
+    return xp.where(covered & ~rim, center, center * alpha_in + (1.0 - center) * alpha_out)
 
 
 # -- techniques "phong" and "blend": object-space kernels at the exact ray/splat hit -------------

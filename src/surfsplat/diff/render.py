@@ -50,9 +50,6 @@ from .scene import DiffCamera, Splats
 
 #: Smallest depth of a drawn splat centre when the camera has no near plane (the Jacobian needs z > 0).
 MIN_DEPTH = 1e-6
-#: Scale of the (s, t) of a ray meeting a splat's plane behind the eye (far outside the ellipse, as
-#: splat_fragment.glsl's footprint_st).
-HORIZON = 1e6
 
 
 @dataclass(frozen=True)
@@ -114,14 +111,15 @@ class DiffFrame:
 
 
 # Rows of the per-splat feature table (column-major, one column per splat: a pair's gather is one indexing
-# and each feature a contiguous row of it): p, u, v, n (3 each), the projected centre (2), the conic V^-1
-# (xx, xy, yy), the peak weight, the lit colour (3), opacity, radius, rho, seen from the back, the rim
-# Jacobian (d(s, t)/dx, d(s, t)/dy: reference.rim_jacobian, row-major).
-_P, _N, _CENTER = slice(0, 3), slice(9, 12), slice(12, 14)
-_COLUMNS = [3, 3, 3, 3, 2, 1, 1, 1, 1, 3, 1, 1, 1, 1, 4]
-#: Per-pixel sums of a band: (sum w c, sum w, sum w z, sum log(1 - o m)) and with edge coverage the soft
-#: maxima's sums (reference.soft_maxima) and whether a disk covers the pixel's centre.
-_SUMS, _EDGE_SUMS = 6, 11
+# and each feature a contiguous row of it): the ray/splat coefficients (reference.ray_coefficients, 15),
+# radius, seen from the back (the rows the visibility needs, first), the projected centre (2), the conic
+# V^-1 (xx, xy, yy), the peak weight, the lit colour (3), opacity, rho, the rim Jacobian (d(s, t)/dx,
+# d(s, t)/dy: reference.rim_jacobian, row-major).
+_RADIUS, _BACK = ref.RAY_COEFFICIENTS, ref.RAY_COEFFICIENTS + 1
+_VISIBILITY = slice(0, _BACK + 1)
+_CENTER_CONIC = slice(_BACK + 1, _BACK + 6)
+_SCALE, _COLOR, _OPACITY, _RHO = _BACK + 6, slice(_BACK + 7, _BACK + 10), _BACK + 10, _BACK + 11
+_RIM = slice(_BACK + 12, _BACK + 16)
 
 
 def _splat_table(splats: Splats, camera: DiffCamera, lights: Lights, options: DiffOptions):
@@ -167,9 +165,9 @@ def _splat_table(splats: Splats, camera: DiffCamera, lights: Lights, options: Di
         rim = ref.rim_jacobian(f, p, plane, u, v).reshape(-1, 4)
     else:
         rim = torch.zeros((len(p), 4), dtype=p.dtype, device=p.device)
-    table = torch.cat([p, u, v, plane, center, conic[:, 0, 0, None], conic[:, 0, 1, None], conic[:, 1, 1, None],
-                       scale[:, None], color, opacity[:, None], radius[:, None], rho[:, None],
-                       back[idx].to(p.dtype), rim], dim=1).t().contiguous()
+    table = torch.cat([ref.ray_coefficients(p, plane, u, v).T, radius[:, None], back[idx].to(p.dtype), center,
+                       conic[:, 0, 0, None], conic[:, 0, 1, None], conic[:, 1, 1, None], scale[:, None], color,
+                       opacity[:, None], rho[:, None], rim], dim=1).t().contiguous()
     with torch.no_grad():
         c, h = center.detach(), half.detach()
         lo = torch.ceil(c - h - 0.5)
@@ -233,35 +231,26 @@ def _visibility(hit: torch.Tensor, z: torch.Tensor, band: torch.Tensor, inside: 
 @torch.no_grad()
 def _visible_pairs(table: torch.Tensor, sid: torch.Tensor, ix: torch.Tensor, iy: torch.Tensor, pixel: torch.Tensor,
                    npix: int, camera: DiffCamera, options: DiffOptions) -> torch.Tensor:
-    """Which pairs the differentiable pass keeps: the ray meets the splat's plane in front of the eye and the
-    soft depth test passes at least ``min_visibility``. The quantities of :func:`_pair_terms` that decide
-    it (ray/plane distance, disk coordinates, footprint depth), with their dot products taken per splat
-    (``n.ray = n_x x + n_y y - n_z`` for the ray ``(x, y, -1)``, ``s = (hit u.ray - u.p) / u.u``): one
-    gather of a column-major table and flat arithmetic, no (pairs, 3) temporaries."""
-    t = table.detach()
-    p, u, v, n = t[_P].T, t[3:6].T, t[6:9].T, t[_N].T
-    uu, vv = (u * u).sum(1), (v * v).sum(1)
-    columns = torch.stack([n[:, 0], n[:, 1], n[:, 2], (n * p).sum(1),
-                           u[:, 0] / uu, u[:, 1] / uu, u[:, 2] / uu, (p * u).sum(1) / uu,
-                           v[:, 0] / vv, v[:, 1] / vv, v[:, 2] / vv, (p * v).sum(1) / vv,
-                           p[:, 2], u[:, 2], v[:, 2], t[22], t[24]])
-    (nx, ny, nz, n_p, ux, uy, uz, u_p, vx, vy, vz, v_p, pz, uz_, vz_, radius, back) = columns.index_select(1, sid)
-    f = float(camera.focal.detach())
-    cx, cy = camera.principal
-    x = (ix.to(t.dtype) + 0.5 - cx) / f
-    y = (iy.to(t.dtype) + 0.5 - cy) / f
-    hit = n_p / (nx * x + ny * y - nz)
-    front = torch.isfinite(hit) & (hit > 0)
-    s_ray, r_ray = ux * x + uy * y - uz, vx * x + vy * y - vz
-    s = torch.where(front, hit * s_ray - u_p, HORIZON * s_ray)
-    r = torch.where(front, hit * r_ray - v_p, HORIZON * r_ray)
+    """Which pairs the differentiable pass keeps: drawn (``_drawn``) and the soft depth test passes at least
+    ``min_visibility``. The quantities of :func:`_pair_terms` that decide it (ray/plane distance, disk
+    coordinates, footprint depth), from the rows the visibility needs only."""
+    rows = torch.index_select(table.detach()[_VISIBILITY], 1, sid)
+    x, y = _pixel_rays(ix, iy, camera, detach=True)
+    hit, s, r, z = ref.footprint_hits(rows, x, y)
     r2 = s * s + r * r
-    shrink = torch.rsqrt(torch.clamp(r2, min=1.0))   # fringe fragments: the nearest disk point's depth
-    z = -(pz + shrink * (s * uz_ + r * vz_))
-    band = options.depth_epsilon * radius * torch.rsqrt(x * x + y * y + 1.0)
+    band = options.depth_epsilon * rows[_RADIUS] * torch.rsqrt(x * x + y * y + 1.0)
     inside = (r2 <= 1.0) & (hit > 0)
-    vis = _visibility(hit, z, band, inside, back > 0.5, pixel, npix, options)[0]
+    vis = _visibility(hit, z, band, inside, rows[_BACK] > 0.5, pixel, npix, options)[0]
     return _drawn(hit, options) & (vis >= options.min_visibility)
+
+
+def _pixel_rays(ix: torch.Tensor, iy: torch.Tensor, camera: DiffCamera,
+                detach: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
+    """(x, y) of the rays ``(x, y, -1)`` through the centres of window pixels ``(ix, iy)`` (differentiable
+    with respect to the focal length unless ``detach``)."""
+    f = camera.focal.detach() if detach else camera.focal
+    cx, cy = camera.principal
+    return (ix.to(f.dtype) + (0.5 - cx)) / f, (iy.to(f.dtype) + (0.5 - cy)) / f
 
 
 def _drawn(hit: torch.Tensor, options: DiffOptions) -> torch.Tensor:
@@ -275,42 +264,38 @@ def _drawn(hit: torch.Tensor, options: DiffOptions) -> torch.Tensor:
 def _pair_terms(table: torch.Tensor, sid: torch.Tensor, ix: torch.Tensor, iy: torch.Tensor, pixel: torch.Tensor,
                 npix: int, camera: DiffCamera, options: DiffOptions) -> dict[str, torch.Tensor]:
     """The per-pair terms of pairs (splat ``sid``, window pixel ``(ix, iy)``, band pixel index ``pixel``)."""
+    # one gather and one unbind (their backward: one stack, one scatter); each feature a contiguous row,
+    # flat arithmetic on (pairs,) rows (a select per row would make each row's gradient a whole table's)
+    rows = torch.index_select(table[:_RIM.start], 1, sid).unbind(0)
     dtype = table.dtype
-    f, principal = camera.focal, camera.principal
-    # one gather and one split: their backward is one scatter and one concatenation; the vectors are made
-    # (pairs, 3) contiguous so that the formulas and the sums of their gradients run on one layout
-    rows = torch.index_select(table, 1, sid)
-    p, u, v, n, center, cxx, cxy, cyy, scale, color, opacity, radius, rho, back, rim = (
-        c.T.contiguous() if len(c) > 1 else c.T for c in rows.split(_COLUMNS, dim=0))
-    pix = torch.stack([ix, iy], dim=1).to(dtype) + 0.5
-    offset = pix - center
-    beta = ref.conic_beta(cxx[:, 0], cxy[:, 0], cyy[:, 0], offset[:, 0], offset[:, 1])
-    rays = ref.rays_through(pix, f, principal)
-    hit = ref.ray_plane_distance(rays, p, n)
-    with torch.no_grad():
-        front = hit > 0
-    st = ref.splat_coordinates(rays, torch.where(front, hit, torch.ones_like(hit)), p, u, v)
-    if not bool(front.all()):
-        # the ray meets the plane behind the eye: (s, t) go off to the plane's horizon in the ray's direction
-        horizon = HORIZON * torch.stack([ref.dot(rays, u) / ref.dot(u, u), ref.dot(rays, v) / ref.dot(v, v)], dim=-1)
-        st = torch.where(front[:, None], st, horizon)
-    r2 = ref.dot(st, st)
-    z = ref.footprint_depth(st, p, u, v)
-    band = options.depth_epsilon * radius[:, 0] / ref.norm(rays)
+    dx = ix.to(dtype) + 0.5 - rows[_CENTER_CONIC.start]
+    dy = iy.to(dtype) + 0.5 - rows[_CENTER_CONIC.start + 1]
+    beta = ref.conic_beta(rows[_CENTER_CONIC.start + 2], rows[_CENTER_CONIC.start + 3],
+                          rows[_CENTER_CONIC.start + 4], dx, dy)
+    x, y = _pixel_rays(ix, iy, camera)
+    hit, s, r, z = ref.footprint_hits(rows, x, y)
+    r2 = s * s + r * r
+    band = options.depth_epsilon * rows[_RADIUS] * torch.rsqrt(x * x + y * y + 1.0)
     with torch.no_grad():
         inside = (r2 <= 1.0) & (hit > 0)   # a ray meeting the plane behind the eye does not hit the disk
-        from_back = back[:, 0] > 0.5
+        from_back = rows[_BACK] > 0.5
     vis, covered = _visibility(hit, z, band, inside, from_back, pixel, npix, options)
-    terms = {"beta": beta, "r2": r2, "z": z, "vis": vis, "inside": inside, "scale": scale[:, 0],
-             "color": color, "opacity": opacity[:, 0], "rho": rho[:, 0], "hit": hit, "covered": covered}
-    if options.edge_coverage:
-        terms["cover"], terms["distance"] = ref.disk_coverage(rim.reshape(-1, 2, 2), offset)
-    return terms
+    return {"beta": beta, "r2": r2, "z": z, "vis": vis, "inside": inside, "scale": rows[_SCALE],
+            "color": rows[_COLOR], "opacity": rows[_OPACITY], "rho": rows[_RHO], "hit": hit, "covered": covered,
+            "dx": dx, "dy": dy}
+
+
+def _select(keep: torch.Tensor, *columns: torch.Tensor) -> tuple[torch.Tensor, ...]:
+    """The entries of the (M,) integer ``columns`` where ``keep``: one nonzero and one gather for all."""
+    index = torch.nonzero(keep).squeeze(1)
+    return torch.stack(columns).index_select(1, index).unbind(0)
 
 
 def _band(table: torch.Tensor, box: torch.Tensor, camera: DiffCamera, options: DiffOptions, row0: int,
           row1: int) -> torch.Tensor:
-    """Per-pixel sums of window rows [row0, row1): (rows * W, 6 or 11), see ``_SUMS``."""
+    """Per-pixel sums of window rows [row0, row1): (rows * W, 6) = (sum w c, sum w, sum w z, sum log(1 - o m)),
+    and with edge coverage 5 more: the soft maxima's sums (reference.soft_maxima) and whether a disk covers the
+    pixel's centre."""
     width = camera.width
     dtype, device = table.dtype, table.device
     npix = (row1 - row0) * width
@@ -320,19 +305,18 @@ def _band(table: torch.Tensor, box: torch.Tensor, camera: DiffCamera, options: D
         # (those hidden far behind the nearest surface weigh nothing) whose soft depth test passes
         sid, ix, iy = _band_pairs(box, row0, row1)
         t = table.detach()
-        rows = torch.index_select(t[12:17], 1, sid)   # centre and conic: one gather
+        rows = torch.index_select(t[_CENTER_CONIC], 1, sid)   # centre and conic: one gather
         keep = ref.conic_beta(rows[2], rows[3], rows[4], ix.to(dtype) + 0.5 - rows[0],
                               iy.to(dtype) + 0.5 - rows[1]) <= options.cutoff
-        sid, ix, iy = sid[keep], ix[keep], iy[keep]
+        sid, ix, iy = _select(keep, sid, ix, iy)
         pixel = (iy - row0) * width + ix
         if options.min_visibility > 0 and differentiable:
             keep = _visible_pairs(t, sid, ix, iy, pixel, npix, camera, options)
         else:
-            rows = torch.index_select(t, 1, sid)
-            pix = torch.stack([ix, iy], dim=1).to(dtype) + 0.5
-            rays = ref.rays_through(pix, camera.focal.detach(), camera.principal)
-            keep = _drawn(ref.ray_plane_distance(rays, rows[_P].T, rows[_N].T), options)
-        sid, ix, iy, pixel = sid[keep], ix[keep], iy[keep], pixel[keep]
+            rows = torch.index_select(t[:4], 1, sid)   # the normal and n . p
+            x, y = _pixel_rays(ix, iy, camera, detach=True)
+            keep = _drawn(rows[3] / (rows[0] * x + rows[1] * y - rows[2]), options)
+        sid, ix, iy, pixel = _select(keep, sid, ix, iy, pixel)
     terms = _pair_terms(table, sid, ix, iy, pixel, npix, camera, options)
     opacity, r2 = terms["opacity"], terms["r2"]
     w = opacity * terms["scale"] * torch.exp(-terms["beta"]) * terms["vis"]
@@ -342,18 +326,41 @@ def _band(table: torch.Tensor, box: torch.Tensor, camera: DiffCamera, options: D
     else:
         m = terms["inside"].to(dtype)
     log_clear = torch.log1p(-torch.clamp(opacity * m, max=1.0 - 8.0 * torch.finfo(dtype).eps))
-    columns = [w[:, None] * terms["color"], w[:, None], (w * terms["z"])[:, None], log_clear[:, None]]
+    color = terms["color"]
+    columns = [w * color[0], w * color[1], w * color[2], w, w * terms["z"], log_clear]
+    sums = torch.zeros((npix, len(columns)), dtype=dtype, device=device).index_add(0, pixel,
+                                                                                  torch.stack(columns, dim=1))
     if options.edge_coverage:
-        # the soft maxima of splat_fragment.glsl's out_cover, each fragment weighted by its depth test
-        c, d, vis = opacity * terms["cover"], terms["distance"], terms["vis"]
-        e = vis * torch.exp(ref.COVER_SHARPNESS * (c - 1.0))
-        ed = vis * torch.exp(ref.DISTANCE_SHARPNESS * (d - ref.COVER_REACH))
-        columns += [e[:, None], (c * e)[:, None], ed[:, None], (d * ed)[:, None]]
-    sums = torch.zeros((npix, _EDGE_SUMS - 1 if options.edge_coverage else _SUMS), dtype=dtype,
-                       device=device).index_add(0, pixel, torch.cat(columns, dim=1))
-    if options.edge_coverage:
-        sums = torch.cat([sums, terms["covered"].to(dtype)[:, None]], dim=1)
+        sums = torch.cat([sums, _edge_sums(table, sid, pixel, terms, camera, row0, row1)], dim=1)
     return sums
+
+
+def _edge_sums(table: torch.Tensor, sid: torch.Tensor, pixel: torch.Tensor, terms: dict[str, torch.Tensor],
+               camera: DiffCamera, row0: int, row1: int) -> torch.Tensor:
+    """(band pixels, 5): the soft maxima's sums of splat_fragment.glsl's out_cover (reference.soft_maxima),
+    each fragment weighted by its depth test, and whether a disk covers the pixel's centre. Only the
+    pixels whose alpha reads them are summed (reference.edge_alpha: those within one pixel of one that no
+    disk covers, and the band's first and last rows, whose neighbours lie in other bands); the others
+    are inside the surface and keep zeros."""
+    covered = terms["covered"]
+    dtype = table.dtype
+    with torch.no_grad():
+        uncovered = (~covered).to(dtype).reshape(1, 1, row1 - row0, camera.width)
+        near = torch.nn.functional.max_pool2d(uncovered, 3, stride=1, padding=1)[0, 0] > 0
+        if row0 > 0:
+            near[0] = True
+        if row1 < camera.height:
+            near[-1] = True
+        sub = torch.nonzero(near.reshape(-1)[pixel]).squeeze(1)
+    jxx, jxy, jyx, jyy = torch.index_select(table[_RIM], 1, sid[sub]).unbind(0)
+    cover, d = ref.rim_coverage(jxx, jxy, jyx, jyy, terms["dx"][sub], terms["dy"][sub])
+    c = terms["opacity"][sub] * cover
+    vis = terms["vis"][sub]
+    e = vis * torch.exp(ref.COVER_SHARPNESS * (c - 1.0))
+    ed = vis * torch.exp(ref.DISTANCE_SHARPNESS * (d - ref.COVER_REACH))
+    sums = torch.zeros((len(covered), 4), dtype=dtype, device=table.device)
+    sums = sums.index_add(0, pixel[sub], torch.stack([e, c * e, ed, d * ed], dim=1))
+    return torch.cat([sums, covered.to(dtype)[:, None]], dim=1)
 
 
 def _bands(box: torch.Tensor, height: int, max_pairs: int) -> list[tuple[int, int]]:
