@@ -204,13 +204,12 @@ def _visibility(hit: torch.Tensor, z: torch.Tensor, band: torch.Tensor, inside: 
     dtype, device = hit.dtype, hit.device
     # Guennebaud 2003, sec. 5: the nearest disk's depth at the pixel, offset by epsilon along the ray
     # for each side of the splats (seen from the front, from the back) apart: the side the eye sees
-    # nearest is the pixel's (visibility.glsl's record), and with separate sides only it blends
-    offset_depth = hit + band
-    nearest = []
-    for side in (~from_back, from_back):
-        sel = inside & side
-        start = torch.full((npix,), float("inf"), dtype=dtype, device=device)
-        nearest.append(start.scatter_reduce(0, pixel[sel], offset_depth[sel], "amin", include_self=True))
+    # nearest is the pixel's (visibility.glsl's record), and with separate sides only it blends. One
+    # scatter over (pixel, side) of every pair, the pairs beyond their disks at infinity
+    offset_depth = torch.where(inside, hit + band, torch.full_like(hit, float("inf")))
+    start = torch.full((2 * npix,), float("inf"), dtype=dtype, device=device)
+    nearest = start.scatter_reduce(0, 2 * pixel + from_back.long(), offset_depth, "amin",
+                                   include_self=True).view(npix, 2).unbind(1)
     pixel_back = nearest[1] < nearest[0]
     nearest_depth = torch.minimum(nearest[0], nearest[1])
     covered = torch.isfinite(nearest_depth)
