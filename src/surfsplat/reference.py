@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from .arrays import array_namespace, as_float, det2, dot, inv2, matrix2, norm
+from .arrays import array_namespace, as_float, det2, dot, inv2, matrix2, norm, unstack
 from .arrays import cross as _cross
 from .camera import Camera
 from .lighting import Lights
@@ -220,11 +220,11 @@ def ray_coefficients(p_cam, n_cam, u_cam, v_cam) -> Any:
     :func:`footprint_depth` (for the rays ``(x, y, -1)``), with each dot product taken once per splat.
     ``p_cam``, ``n_cam``, ``u_cam``, ``v_cam``: (N, 3) camera space."""
     xp = array_namespace(p_cam, n_cam, u_cam, v_cam)
-    uu, vv = dot(u_cam, u_cam), dot(v_cam, v_cam)
-    return xp.stack([n_cam[:, 0], n_cam[:, 1], n_cam[:, 2], dot(n_cam, p_cam),
-                     u_cam[:, 0] / uu, u_cam[:, 1] / uu, u_cam[:, 2] / uu, dot(u_cam, p_cam) / uu,
-                     v_cam[:, 0] / vv, v_cam[:, 1] / vv, v_cam[:, 2] / vv, dot(v_cam, p_cam) / vv,
-                     p_cam[:, 2], u_cam[:, 2], v_cam[:, 2]])
+    (px, py, pz), (nx, ny, nz), (ux, uy, uz), (vx, vy, vz) = (unstack(a) for a in (p_cam, n_cam, u_cam, v_cam))
+    uu, vv = ux * ux + uy * uy + uz * uz, vx * vx + vy * vy + vz * vz
+    return xp.stack([nx, ny, nz, nx * px + ny * py + nz * pz,
+                     ux / uu, uy / uu, uz / uu, (ux * px + uy * py + uz * pz) / uu,
+                     vx / vv, vy / vv, vz / vv, (vx * px + vy * py + vz * pz) / vv, pz, uz, vz])
 
 
 def footprint_hits(coefficients, x, y) -> tuple[Any, Any, Any, Any]:

@@ -167,9 +167,10 @@ def _splat_table(splats: Splats, camera: DiffCamera, lights: Lights, options: Di
         rim = ref.rim_jacobian(f, p, plane, u, v).reshape(-1, 4)
     else:
         rim = torch.zeros((len(p), 4), dtype=p.dtype, device=p.device)
-    table = torch.cat([ref.ray_coefficients(p, plane, u, v).T, radius[:, None], back[idx].to(p.dtype), center,
-                       conic[:, 0, 0, None], conic[:, 0, 1, None], conic[:, 1, 1, None], scale[:, None], color,
-                       opacity[:, None], rho[:, None], rim], dim=1).t().contiguous().unbind(0)
+    xx, xy, _, yy = conic.reshape(-1, 4).unbind(1)
+    table = tuple(t.contiguous() for t in (*ref.ray_coefficients(p, plane, u, v).unbind(0), radius,
+                                           back[idx, 0].to(p.dtype), *center.unbind(1), xx, xy, yy, scale,
+                                           *color.unbind(1), opacity, rho, *rim.unbind(1)))
     with torch.no_grad():
         c, h = center.detach(), half.detach()
         lo = torch.ceil(c - h - 0.5)
