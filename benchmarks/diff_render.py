@@ -6,10 +6,13 @@ clip lines: the differentiable renderer does not draw them; coloured by height s
 detail). Camera: the view plan's automatic framing (``surfsplat.prepare(cloud).camera()``), default
 lights. For 256 x 256 and 512 x 512 pixels:
 
-- PSNR of the differentiable forward image (float32, default ``DiffOptions``) against the OpenGL frame
-  (``surfsplat.render(cloud, camera, technique="ewa")``), over the whole image and inside OpenGL's
-  silhouette eroded by 2 px; the same with hard rims and hard depth tests (``edge_softness = 0``,
-  ``depth_softness = 0``); holes: pixels inside OpenGL's silhouette eroded by 1 px that the
+- PSNR of the differentiable forward image (float32, default ``DiffOptions``: edge coverage on, as the
+  OpenGL default) against the OpenGL frame (``surfsplat.render(cloud, camera, technique="ewa")``), over
+  the whole image, over the silhouette's ring (pixels within 1 px of OpenGL's silhouette, alpha 0.5, on
+  either side) and inside OpenGL's silhouette eroded by 2 px; the same with hard rims and hard depth
+  tests (``edge_softness = 0``, ``depth_softness = 0``); the whole image and the ring without the
+  differentiable renderer's edge coverage (``DiffOptions(edge_coverage=False)``: all-or-nothing rims)
+  against the same OpenGL frame; holes: pixels inside OpenGL's silhouette eroded by 1 px that the
   differentiable image leaves below alpha 0.5; rim pixels: pixels covered (alpha >= 0.5) in one image
   and not in the other;
 - time of one forward pass without gradients, and of a forward + backward pass with gradients to
@@ -81,9 +84,11 @@ def run_case(name: str, cloud, size: int, images: Path, threads: tuple[int, ...]
     with torch.no_grad():
         soft = render_frame(splats, cam)
         hard = render_frame(splats, cam, options=DiffOptions(edge_softness=0.0, depth_softness=0.0))
+        papers = render_frame(splats, cam, options=DiffOptions(edge_coverage=False)).color.numpy()
     image = soft.color.numpy()
     covered = gl.alpha > 0.5
     inner = metrics.erode(covered, 2)
+    ring = metrics.dilate(covered, 1) & ~metrics.erode(covered, 1)
     holes = int((metrics.erode(covered, 1) & (soft.alpha.numpy() < 0.5)).sum())
     rim = int((covered & (soft.alpha.numpy() < 0.5)).sum() + (~covered & (soft.alpha.numpy() >= 0.5)).sum())
     strip = np.concatenate([gl.color, image, np.clip(np.abs(gl.color - image) * 10, 0, 1)], axis=1)
@@ -108,8 +113,9 @@ def run_case(name: str, cloud, size: int, images: Path, threads: tuple[int, ...]
         (f_wall, _), (fb_wall, fb_cpu) = timed(forward), timed(forward_backward)
         times += [round(f_wall, 3), round(fb_wall, 3), round(fb_cpu, 3)]
     return [name, f"{size}x{size}", len(cloud), round(metrics.psnr(image, gl.color), 2),
-            round(metrics.psnr(image, gl.color, mask=inner), 2), round(metrics.psnr(hard.color.numpy(), gl.color), 2),
-            holes, rim, *times]
+            round(metrics.psnr(image, gl.color, mask=ring), 2), round(metrics.psnr(image, gl.color, mask=inner), 2),
+            round(metrics.psnr(hard.color.numpy(), gl.color), 2), round(metrics.psnr(papers, gl.color), 2),
+            round(metrics.psnr(papers, gl.color, mask=ring), 2), holes, rim, *times]
 
 
 def main() -> None:
@@ -126,7 +132,8 @@ def main() -> None:
     if args.bunny.exists():
         cases.append(("bunny", bunny(args.bunny, args.splats)))
     rows = [run_case(name, cloud, size, args.images, threads) for name, cloud in cases for size in (256, 512)]
-    columns = ["scene", "pixels", "splats", "PSNR dB", "PSNR inside dB", "PSNR hard dB", "holes", "rim pixels"]
+    columns = ["scene", "pixels", "splats", "PSNR dB", "PSNR ring dB", "PSNR inside dB", "PSNR hard dB",
+               "PSNR no edge coverage dB", "PSNR ring no edge coverage dB", "holes", "rim pixels"]
     for count in threads:
         columns += [f"forward s ({count} thr.)", f"forward+backward s ({count} thr.)",
                     f"forward+backward CPU s ({count} thr.)"]

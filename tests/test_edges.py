@@ -2,8 +2,8 @@
 pixel the splats' disks cover (``VisibilityOptions.edge_coverage``, splat_fragment.glsl, normalize.frag).
 
 References: the exact area of a pixel box on one side of a straight line (brute force on a fine grid,
-and its closed form below, the NumPy twin of the shader's ``halfplane_coverage``); the exact sphere
-ray-cast on 8 x 8 sub-samples per pixel.
+and its closed form, ``reference.halfplane_coverage``, the NumPy twin of the shader's
+``halfplane_coverage``); the exact sphere ray-cast on 8 x 8 sub-samples per pixel.
 """
 
 from __future__ import annotations
@@ -24,18 +24,7 @@ def renderer():
     return Renderer()
 
 
-def halfplane_coverage(d: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """Area of the unit pixel box {|x|, |y| <= 1/2} where ``n . x <= d`` (``n`` (..., 2) unit): the CDF at
-    ``d`` of ``n . x`` over the box, the convolution of two uniform distributions of widths |n_x|, |n_y|
-    (a trapezoid). The shader's ``halfplane_coverage`` (splat_fragment.glsl)."""
-    m = np.abs(n)
-    a, b = m.max(axis=-1), m.min(axis=-1)
-    x = np.abs(d)
-    t = np.maximum(0.5 * (a + b) - x, 0.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ramp = np.where(a * b > 1e-8, 0.5 * t * t / (a * b), 0.0)
-    tail = np.where(x < 0.5 * (a - b), 0.5 - x / a, ramp)
-    return np.where(d >= 0, 1.0 - tail, tail)
+halfplane_coverage = reference.halfplane_coverage   # the shader's formula, NumPy (and PyTorch) twin
 
 
 def test_halfplane_coverage_is_the_area_of_the_box_beside_the_line():

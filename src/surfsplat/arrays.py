@@ -54,6 +54,14 @@ def cross(a: Any, b: Any) -> Any:
                      a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
 
+def unstack(a: Any, axis: int = -1) -> tuple[Any, ...]:
+    """The slices of ``a`` along ``axis`` (NumPy's ``unstack``, PyTorch's ``unbind``: on PyTorch the
+    gradients of all slices flow back as one stack, not one full-size tensor per slice)."""
+    if is_torch(a):
+        return tuple(a.unbind(axis))
+    return tuple(np.moveaxis(a, axis, 0))
+
+
 def matrix2(xx: Any, xy: Any, yx: Any, yy: Any) -> Any:
     """(..., 2, 2) matrices from their four (...) entries."""
     xp = array_namespace(xx, xy, yx, yy)

@@ -19,10 +19,24 @@ from typing import Any
 
 import numpy as np
 
-from .arrays import array_namespace, as_float, det2, dot, inv2, matrix2, norm
+from .arrays import array_namespace, as_float, det2, dot, inv2, matrix2, norm, unstack
 from .arrays import cross as _cross
 from .camera import Camera
 from .lighting import Lights
+# the edge-coverage formulas, re-exported: reference.disk_coverage, reference.edge_alpha, ...
+from .reference_edges import (
+    COVER_SHARPNESS as COVER_SHARPNESS,
+    DISTANCE_SHARPNESS as DISTANCE_SHARPNESS,
+    COVER_REACH as COVER_REACH,
+    RIM_SQUEEZE as RIM_SQUEEZE,
+    RIM_SQUEEZE_FALLOFF as RIM_SQUEEZE_FALLOFF,
+    halfplane_coverage as halfplane_coverage,
+    rim_jacobian as rim_jacobian,
+    disk_coverage as disk_coverage,
+    rim_coverage as rim_coverage,
+    soft_maxima as soft_maxima,
+    edge_alpha as edge_alpha,
+)
 
 
 def _errstate(xp) -> Any:
@@ -202,6 +216,52 @@ def footprint_depth(st, p_cam, u_cam, v_cam) -> Any:
     len2 = xp.sum(st * st, axis=-1, keepdims=True)
     st = st / xp.sqrt(xp.where(len2 > 1.0, len2, 1.0))
     return -(p_cam[..., 2] + st[..., 0] * u_cam[..., 2] + st[..., 1] * v_cam[..., 2])
+
+
+#: Scale of the (s, t) of a ray meeting a splat's plane behind the eye: far outside the ellipse, in the
+#: direction of the plane's horizon the ray points to (``footprint_st`` in splat_fragment.glsl).
+HORIZON = 1e6
+
+#: Number of rows of :func:`ray_coefficients`.
+RAY_COEFFICIENTS = 15
+
+
+def ray_coefficients(p_cam, n_cam, u_cam, v_cam) -> Any:
+    """(15, N) per-splat coefficients of the ray/splat formulas in flat form (rows): the normal
+    ``(n_x, n_y, n_z, n . p)``, the dual axes ``u / u.u`` and ``u . p / u.u`` (4), the same of ``v`` (4), and
+    ``(p_z, u_z, v_z)``. With them the per-pixel formulas (:func:`footprint_hits`) are a few products of
+    scalars: the same quantities as :func:`ray_plane_distance`, :func:`splat_coordinates` and
+    :func:`footprint_depth` (for the rays ``(x, y, -1)``), with each dot product taken once per splat.
+    ``p_cam``, ``n_cam``, ``u_cam``, ``v_cam``: (N, 3) camera space."""
+    xp = array_namespace(p_cam, n_cam, u_cam, v_cam)
+    (px, py, pz), (nx, ny, nz), (ux, uy, uz), (vx, vy, vz) = (unstack(a) for a in (p_cam, n_cam, u_cam, v_cam))
+    uu, vv = ux * ux + uy * uy + uz * uz, vx * vx + vy * vy + vz * vz
+    return xp.stack([nx, ny, nz, nx * px + ny * py + nz * pz,
+                     ux / uu, uy / uu, uz / uu, (ux * px + uy * py + uz * pz) / uu,
+                     vx / vv, vy / vv, vz / vv, (vx * px + vy * py + vz * pz) / vv, pz, uz, vz])
+
+
+def footprint_hits(coefficients, x, y) -> tuple[Any, Any, Any, Any]:
+    """``(hit, s, t, z)`` of the rays ``(x, y, -1)`` (camera space, z = -1: ``x = (px - cx) / f``) and the
+    splats of :func:`ray_coefficients` rows ``coefficients`` (any sequence of 15 arrays broadcasting with
+    ``x``, ``y``): the ray parameter (= depth) of the hit with the plane, its normalized (s, t) (``footprint_st``
+    in splat_fragment.glsl: a ray meeting the plane behind the eye, or parallel to it, takes
+    ``HORIZON`` times its direction's (s, t)), and the depth a fragment there gets (:func:`footprint_depth`)."""
+    xp = array_namespace(x, y, coefficients[0])
+    nx, ny, nz, n_p, ux, uy, uz, u_p, vx, vy, vz, v_p, pz, uz_, vz_ = (coefficients[k] for k in range(15))
+    with _errstate(xp):
+        hit = n_p / (nx * x + ny * y - nz)
+    front = hit > 0   # False for NaN; an infinite hit (a ray parallel to the plane) leaves the plane too
+    front = front & (hit < float("inf"))
+    h = xp.where(front, hit, 0.0)
+    s_ray = ux * x + uy * y - uz
+    t_ray = vx * x + vy * y - vz
+    s = xp.where(front, h * s_ray - u_p, HORIZON * s_ray)
+    t = xp.where(front, h * t_ray - v_p, HORIZON * t_ray)
+    len2 = s * s + t * t
+    shrink = 1.0 / xp.sqrt(xp.where(len2 > 1.0, len2, 1.0))   # beyond the rim: the nearest disk point
+    z = -(pz + shrink * (s * uz_ + t * vz_))
+    return hit, s, t, z
 
 
 def window_depth(z: np.ndarray, near: float, far: float) -> np.ndarray:

@@ -15,11 +15,18 @@ taken from :mod:`surfsplat.reference` run on tensors:
   place of the hard ``z <= D``; a fringe fragment (beyond its own disk) also needs ``D <= z + 2 band``
   (``fringe_hidden``). ``depth_softness = 0`` is the hard test. With ``separate_sides`` (the default,
   as ``VisibilityOptions``) only the splats seen from the same side as the nearest disk blend.
-- coverage: the OpenGL passes show the background where no disk covers the pixel's centre. Here the
-  pixel's alpha is ``1 - prod_i (1 - o_i m_i)`` with ``m_i`` the disk's coverage smoothed over
-  ``edge_softness`` pixels across its rim (0: the hard test) and ``o_i`` the splat's opacity, so the
-  silhouette moves with the splats; the colour is the normalized blend ``sum w c / sum w``
-  (Guennebaud 2003, eq. 18), clamped to [0, 1] and composited over the background by alpha.
+- coverage: without edge coverage the OpenGL passes show the background where no disk covers the pixel's
+  centre. Here the centre's coverage is ``A = 1 - prod_i (1 - o_i m_i)`` with ``m_i`` the disk's coverage
+  of the centre smoothed over ``edge_softness`` pixels across its rim (0: the hard test) and ``o_i`` the
+  splat's opacity, so the silhouette moves with the splats; the colour is the normalized blend
+  ``sum w c / sum w`` (Guennebaud 2003, eq. 18), clamped to [0, 1] and composited over the background by
+  alpha. With ``edge_coverage`` (the default, as ``VisibilityOptions``) a rim pixel's alpha is instead the
+  fraction of its area the disks cover, by OpenGL's rule (``reference.edge_alpha``: normalize.frag): each
+  pair brings the disk's pixel coverage ``c_i`` (times its opacity) and the signed distance ``d_i`` of the
+  pixel's centre to its rim (``reference.disk_coverage``: splat_fragment.glsl), their soft maxima are
+  summed per pixel weighted by the soft depth test, and the alpha of a covered pixel and that of an
+  uncovered one (set by its 8 neighbours: whether the centre is covered is discrete) are mixed by ``A``;
+  gradients flow through ``A``, ``c_i`` and ``d_i``.
 
 Evaluation is vectorized and tiled: splats are binned to horizontal bands of rows by their boxes, and
 each band evaluates its (pixel, splat) pairs in batched tensor operations with the per-pixel sums as
@@ -55,6 +62,8 @@ class DiffOptions:
         depth_epsilon: visibility offset along the rays in splat radii (``VisibilityOptions``).
         depth_softness: width of the soft depth test, as a fraction of each splat's epsilon band (0: hard).
         edge_softness: width in pixels over which a disk's coverage falls to 0 across its rim (0: hard).
+        edge_coverage: rim pixels take the fraction of their area the disks cover as alpha, as the OpenGL
+            passes do with ``VisibilityOptions.edge_coverage`` (the default); off: the papers' rims.
         separate_sides: a pixel blends only the splats seen from the side (front or back of their
             normals) of its nearest one (``VisibilityOptions.separate_sides``).
         min_visibility: with gradients, pairs whose soft depth test passes less than this are left out of
@@ -71,6 +80,7 @@ class DiffOptions:
     max_pairs: int = 4_000_000
     min_visibility: float = 1e-4
     separate_sides: bool = True
+    edge_coverage: bool = True
 
     def __post_init__(self) -> None:
         for name in ("cutoff", "depth_epsilon", "depth_softness", "edge_softness", "min_visibility"):
@@ -100,16 +110,23 @@ class DiffFrame:
     weight: torch.Tensor
 
 
-# Rows of the per-splat feature table (column-major, one column per splat: a pair's gather is one indexing
-# and each feature a contiguous row of it): p, u, v, n (3 each), the projected centre (2), the conic V^-1
-# (xx, xy, yy), the peak weight, the lit colour (3), opacity, radius, rho, seen from the back.
-_P, _N, _CENTER = slice(0, 3), slice(9, 12), slice(12, 14)
-_COLUMNS = [3, 3, 3, 3, 2, 1, 1, 1, 1, 3, 1, 1, 1, 1]
+# Rows of the per-splat feature table (one (splats,) tensor per feature: a pair's gather is a 1-D gather per
+# feature, whose backward is a 1-D scatter, twice as fast on CPU as gathering columns of a 2-D table and
+# giving each feature's per-pair values as a contiguous row): the ray/splat coefficients
+# (reference.ray_coefficients, 15), radius, seen from the back (the rows the visibility needs, first), the
+# projected centre (2), the conic V^-1 (xx, xy, yy), the peak weight, the lit colour (3), opacity, rho,
+# the rim Jacobian (d(s, t)/dx, d(s, t)/dy: reference.rim_jacobian, row-major).
+Table = tuple[torch.Tensor, ...]
+_RADIUS, _BACK = ref.RAY_COEFFICIENTS, ref.RAY_COEFFICIENTS + 1
+_VISIBILITY = slice(0, _BACK + 1)
+_CENTER_CONIC = slice(_BACK + 1, _BACK + 6)
+_SCALE, _COLOR, _OPACITY, _RHO = _BACK + 6, slice(_BACK + 7, _BACK + 10), _BACK + 10, _BACK + 11
+_RIM = slice(_BACK + 12, _BACK + 16)
 
 
 def _splat_table(splats: Splats, camera: DiffCamera, lights: Lights, options: DiffOptions):
-    """Per-splat stage (the vertex shader's work): the (features, splats) table of the drawn splats and
-    their inclusive pixel boxes (x0, x1, y0, y1) in window pixels (y up)."""
+    """Per-splat stage (the vertex shader's work): the table of the drawn splats (a tuple of (splats,)
+    feature rows) and their inclusive pixel boxes (x0, x1, y0, y1) in window pixels (y up)."""
     r, f = camera.rotation, camera.focal
     p = ref.transform_points(r, camera.translation, splats.positions)
     u = splats.u @ r.T
@@ -146,9 +163,14 @@ def _splat_table(splats: Splats, camera: DiffCamera, lights: Lights, options: Di
     opacity = splats.opacity[idx] if splats.opacity is not None else torch.ones_like(scale)
     radius = torch.maximum(ref.norm(u), ref.norm(v))
     rho = torch.sqrt(torch.abs(ref.det2(jac)) + 1e-12)   # projected radius, pixels (geometric mean)
-    table = torch.cat([p, u, v, plane, center, conic[:, 0, 0, None], conic[:, 0, 1, None], conic[:, 1, 1, None],
-                       scale[:, None], color, opacity[:, None], radius[:, None], rho[:, None],
-                       back[idx].to(p.dtype)], dim=1).t().contiguous()
+    if options.edge_coverage:
+        rim = ref.rim_jacobian(f, p, plane, u, v).reshape(-1, 4)
+    else:
+        rim = torch.zeros((len(p), 4), dtype=p.dtype, device=p.device)
+    xx, xy, _, yy = conic.reshape(-1, 4).unbind(1)
+    table = tuple(t.contiguous() for t in (*ref.ray_coefficients(p, plane, u, v).unbind(0), radius,
+                                           back[idx, 0].to(p.dtype), *center.unbind(1), xx, xy, yy, scale,
+                                           *color.unbind(1), opacity, rho, *rim.unbind(1)))
     with torch.no_grad():
         c, h = center.detach(), half.detach()
         lo = torch.ceil(c - h - 0.5)
@@ -163,33 +185,38 @@ def _splat_table(splats: Splats, camera: DiffCamera, lights: Lights, options: Di
 
 
 def _band_pairs(box: torch.Tensor, row0: int, row1: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """(splat, x, y) of every pixel of the splats' boxes in window rows [row0, row1)."""
+    """(splat, x, y) of every pixel of the splats' boxes in window rows [row0, row1), splat by splat and row
+    by row: the (splat, row) segments first, then their pixels (repeats and sums, no division)."""
     y0 = torch.clamp(box[:, 2], min=row0)
-    y1 = torch.clamp(box[:, 3], max=row1 - 1)
+    ny = (torch.clamp(box[:, 3], max=row1 - 1) - y0 + 1).clamp(min=0)
     nx = (box[:, 1] - box[:, 0] + 1).clamp(min=0)
-    ny = (y1 - y0 + 1).clamp(min=0)
-    count = nx * ny
-    sid = torch.repeat_interleave(torch.arange(len(box), device=box.device), count)
-    start = torch.cumsum(count, 0) - count
-    k = torch.arange(len(sid), device=box.device) - start[sid]
-    w = nx[sid]
-    return sid, box[sid, 0] + k % w, y0[sid] + k // w
+    ny = torch.where(nx > 0, ny, torch.zeros_like(ny))
+    arange = torch.arange(len(box), device=box.device)
+    seg_splat = torch.repeat_interleave(arange, ny)
+    first = torch.cumsum(ny, 0) - ny
+    seg_y = torch.arange(len(seg_splat), device=box.device) + (y0 - first).index_select(0, seg_splat)
+    seg_nx = nx.index_select(0, seg_splat)
+    seg_x = box[:, 0].index_select(0, seg_splat) - (torch.cumsum(seg_nx, 0) - seg_nx)
+    sid = torch.repeat_interleave(seg_splat, seg_nx)
+    ix = torch.repeat_interleave(seg_x, seg_nx) + torch.arange(len(sid), device=box.device)
+    return sid, ix, torch.repeat_interleave(seg_y, seg_nx)
 
 
 def _visibility(hit: torch.Tensor, z: torch.Tensor, band: torch.Tensor, inside: torch.Tensor,
-                from_back: torch.Tensor, pixel: torch.Tensor, npix: int, options: DiffOptions) -> torch.Tensor:
+                from_back: torch.Tensor, pixel: torch.Tensor, npix: int,
+                options: DiffOptions) -> tuple[torch.Tensor, torch.Tensor]:
     """The soft depth test's factor of each pair (ray/plane distance ``hit``, fragment depth ``z``, epsilon
-    ``band``, ``inside`` its disk, the splat seen ``from_back``) against the nearest disk at its pixel."""
+    ``band``, ``inside`` its disk, the splat seen ``from_back``) against the nearest disk at its pixel, and
+    (npix,) whether a disk covers each pixel's centre."""
     dtype, device = hit.dtype, hit.device
     # Guennebaud 2003, sec. 5: the nearest disk's depth at the pixel, offset by epsilon along the ray
     # for each side of the splats (seen from the front, from the back) apart: the side the eye sees
-    # nearest is the pixel's (visibility.glsl's record), and with separate sides only it blends
-    offset_depth = hit + band
-    nearest = []
-    for side in (~from_back, from_back):
-        sel = inside & side
-        start = torch.full((npix,), float("inf"), dtype=dtype, device=device)
-        nearest.append(start.scatter_reduce(0, pixel[sel], offset_depth[sel], "amin", include_self=True))
+    # nearest is the pixel's (visibility.glsl's record), and with separate sides only it blends. One
+    # scatter over (pixel, side) of every pair, the pairs beyond their disks at infinity
+    offset_depth = torch.where(inside, hit + band, torch.full_like(hit, float("inf")))
+    start = torch.full((2 * npix,), float("inf"), dtype=dtype, device=device)
+    nearest = start.scatter_reduce(0, 2 * pixel + from_back.long(), offset_depth, "amin",
+                                   include_self=True).view(npix, 2).unbind(1)
     pixel_back = nearest[1] < nearest[0]
     nearest_depth = torch.minimum(nearest[0], nearest[1])
     covered = torch.isfinite(nearest_depth)
@@ -204,94 +231,111 @@ def _visibility(hit: torch.Tensor, z: torch.Tensor, band: torch.Tensor, inside: 
     vis = torch.where(inside, vis, vis * fringe)
     if options.separate_sides:
         vis = torch.where(pixel_back[pixel] == from_back, vis, torch.zeros_like(vis))
-    return torch.where(covered[pixel], vis, torch.ones_like(vis))
+    return torch.where(covered[pixel], vis, torch.ones_like(vis)), covered
 
 
 @torch.no_grad()
-def _visible_pairs(table: torch.Tensor, sid: torch.Tensor, ix: torch.Tensor, iy: torch.Tensor, pixel: torch.Tensor,
+def _visible_pairs(table: Table, sid: torch.Tensor, ix: torch.Tensor, iy: torch.Tensor, pixel: torch.Tensor,
                    npix: int, camera: DiffCamera, options: DiffOptions) -> torch.Tensor:
-    """Which pairs the differentiable pass keeps: the ray meets the splat's plane in front of the eye and the
-    soft depth test passes at least ``min_visibility``. The quantities of :func:`_pair_terms` that decide
-    it (ray/plane distance, disk coordinates, footprint depth), with their dot products taken per splat
-    (``n.ray = n_x x + n_y y - n_z`` for the ray ``(x, y, -1)``, ``s = (hit u.ray - u.p) / u.u``): one
-    gather of a column-major table and flat arithmetic, no (pairs, 3) temporaries."""
-    t = table.detach()
-    p, u, v, n = t[_P].T, t[3:6].T, t[6:9].T, t[_N].T
-    uu, vv = (u * u).sum(1), (v * v).sum(1)
-    columns = torch.stack([n[:, 0], n[:, 1], n[:, 2], (n * p).sum(1),
-                           u[:, 0] / uu, u[:, 1] / uu, u[:, 2] / uu, (p * u).sum(1) / uu,
-                           v[:, 0] / vv, v[:, 1] / vv, v[:, 2] / vv, (p * v).sum(1) / vv,
-                           p[:, 2], u[:, 2], v[:, 2], t[22], t[24]])
-    (nx, ny, nz, n_p, ux, uy, uz, u_p, vx, vy, vz, v_p, pz, uz_, vz_, radius, back) = columns.index_select(1, sid)
-    f = float(camera.focal.detach())
-    cx, cy = camera.principal
-    x = (ix.to(t.dtype) + 0.5 - cx) / f
-    y = (iy.to(t.dtype) + 0.5 - cy) / f
-    hit = n_p / (nx * x + ny * y - nz)
-    s = hit * (ux * x + uy * y - uz) - u_p
-    r = hit * (vx * x + vy * y - vz) - v_p
+    """Which pairs the differentiable pass keeps: drawn (``_drawn``) and the soft depth test passes at least
+    ``min_visibility``. The quantities of :func:`_pair_terms` that decide it (ray/plane distance, disk
+    coordinates, footprint depth), from the rows the visibility needs only."""
+    rows = _gather(_detached(table[_VISIBILITY]), sid)
+    x, y = _pixel_rays(ix, iy, camera, detach=True)
+    hit, s, r, z = ref.footprint_hits(rows, x, y)
     r2 = s * s + r * r
-    shrink = torch.rsqrt(torch.clamp(r2, min=1.0))   # fringe fragments: the nearest disk point's depth
-    z = -(pz + shrink * (s * uz_ + r * vz_))
-    band = options.depth_epsilon * radius * torch.rsqrt(x * x + y * y + 1.0)
+    band = options.depth_epsilon * rows[_RADIUS] * torch.rsqrt(x * x + y * y + 1.0)
     inside = (r2 <= 1.0) & (hit > 0)
-    vis = _visibility(hit, z, band, inside, back > 0.5, pixel, npix, options)
-    return torch.isfinite(hit) & (hit > 0) & (vis >= options.min_visibility)
+    vis = _visibility(hit, z, band, inside, rows[_BACK] > 0.5, pixel, npix, options)[0]
+    return _drawn(hit, options) & (vis >= options.min_visibility)
 
 
-def _pair_terms(table: torch.Tensor, sid: torch.Tensor, ix: torch.Tensor, iy: torch.Tensor, pixel: torch.Tensor,
+def _pixel_rays(ix: torch.Tensor, iy: torch.Tensor, camera: DiffCamera,
+                detach: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
+    """(x, y) of the rays ``(x, y, -1)`` through the centres of window pixels ``(ix, iy)`` (differentiable
+    with respect to the focal length unless ``detach``)."""
+    f = camera.focal.detach() if detach else camera.focal
+    cx, cy = camera.principal
+    return (ix.to(f.dtype) + (0.5 - cx)) / f, (iy.to(f.dtype) + (0.5 - cy)) / f
+
+
+def _drawn(hit: torch.Tensor, options: DiffOptions) -> torch.Tensor:
+    """Which pairs (ray/plane distance ``hit``) the accumulation draws: those whose ray meets the splat's
+    plane in front of the eye, and with edge coverage also those meeting it behind the eye (a fringe
+    fragment beyond the plane's horizon: splat_fragment.glsl's footprint_st), whose coverage counts."""
+    finite = torch.isfinite(hit)
+    return finite if options.edge_coverage else finite & (hit > 0)
+
+
+def _pair_terms(table: Table, sid: torch.Tensor, ix: torch.Tensor, iy: torch.Tensor, pixel: torch.Tensor,
                 npix: int, camera: DiffCamera, options: DiffOptions) -> dict[str, torch.Tensor]:
     """The per-pair terms of pairs (splat ``sid``, window pixel ``(ix, iy)``, band pixel index ``pixel``)."""
-    dtype = table.dtype
-    f, principal = camera.focal, camera.principal
-    # one gather and one split: their backward is one scatter and one concatenation; the vectors are made
-    # (pairs, 3) contiguous so that the formulas and the sums of their gradients run on one layout
-    rows = torch.index_select(table, 1, sid)
-    p, u, v, n, center, cxx, cxy, cyy, scale, color, opacity, radius, rho, back = (
-        c.T.contiguous() if len(c) > 1 else c.T for c in rows.split(_COLUMNS, dim=0))
-    pix = torch.stack([ix, iy], dim=1).to(dtype) + 0.5
-    offset = pix - center
-    beta = ref.conic_beta(cxx[:, 0], cxy[:, 0], cyy[:, 0], offset[:, 0], offset[:, 1])
-    rays = ref.rays_through(pix, f, principal)
-    hit = ref.ray_plane_distance(rays, p, n)
-    st = ref.splat_coordinates(rays, hit, p, u, v)
-    r2 = ref.dot(st, st)
-    z = ref.footprint_depth(st, p, u, v)
-    band = options.depth_epsilon * radius[:, 0] / ref.norm(rays)
+    rows = _gather(table[:_RIM.start], sid)   # flat arithmetic on (pairs,) rows
+    dtype = table[0].dtype
+    dx = ix.to(dtype) + 0.5 - rows[_CENTER_CONIC.start]
+    dy = iy.to(dtype) + 0.5 - rows[_CENTER_CONIC.start + 1]
+    beta = ref.conic_beta(rows[_CENTER_CONIC.start + 2], rows[_CENTER_CONIC.start + 3],
+                          rows[_CENTER_CONIC.start + 4], dx, dy)
+    x, y = _pixel_rays(ix, iy, camera)
+    hit, s, r, z = ref.footprint_hits(rows, x, y)
+    r2 = s * s + r * r
+    band = options.depth_epsilon * rows[_RADIUS] * torch.rsqrt(x * x + y * y + 1.0)
     with torch.no_grad():
         inside = (r2 <= 1.0) & (hit > 0)   # a ray meeting the plane behind the eye does not hit the disk
-        from_back = back[:, 0] > 0.5
-    vis = _visibility(hit, z, band, inside, from_back, pixel, npix, options)
-    return {"beta": beta, "r2": r2, "z": z, "vis": vis, "inside": inside, "scale": scale[:, 0],
-            "color": color, "opacity": opacity[:, 0], "rho": rho[:, 0], "hit": hit}
+        from_back = rows[_BACK] > 0.5
+    vis, covered = _visibility(hit, z, band, inside, from_back, pixel, npix, options)
+    return {"beta": beta, "r2": r2, "z": z, "vis": vis, "inside": inside, "scale": rows[_SCALE],
+            "color": rows[_COLOR], "opacity": rows[_OPACITY], "rho": rows[_RHO], "hit": hit, "covered": covered,
+            "dx": dx, "dy": dy}
 
 
-def _band(table: torch.Tensor, box: torch.Tensor, camera: DiffCamera, options: DiffOptions, row0: int,
+def _gather(rows: tuple[torch.Tensor, ...], index: torch.Tensor) -> tuple[torch.Tensor, ...]:
+    """The entries ``index`` of each of the (splats,) feature ``rows``."""
+    return tuple(torch.index_select(r, 0, index) for r in rows)
+
+
+def _detached(rows: tuple[torch.Tensor, ...]) -> tuple[torch.Tensor, ...]:
+    """The feature rows without their gradients."""
+    return tuple(r.detach() for r in rows)
+
+
+def _requires_grad(rows: tuple[torch.Tensor, ...]) -> bool:
+    """Whether any feature row requires gradients."""
+    return any(r.requires_grad for r in rows)
+
+
+def _select(keep: torch.Tensor, *columns: torch.Tensor) -> tuple[torch.Tensor, ...]:
+    """The entries of the (M,) integer ``columns`` where ``keep``: one nonzero and one gather for all."""
+    index = torch.nonzero(keep).squeeze(1)
+    return torch.stack(columns).index_select(1, index).unbind(0)
+
+
+def _band(table: Table, box: torch.Tensor, camera: DiffCamera, options: DiffOptions, row0: int,
           row1: int) -> torch.Tensor:
-    """Per-pixel sums of window rows [row0, row1): (rows * W, 6) = (sum w c, sum w, sum w z, sum log(1 - o m))."""
+    """Per-pixel sums of window rows [row0, row1): (rows * W, 6) = (sum w c, sum w, sum w z, sum log(1 - o m)),
+    and with edge coverage 5 more: the soft maxima's sums (reference.soft_maxima) and whether a disk covers the
+    pixel's centre."""
     width = camera.width
-    dtype, device = table.dtype, table.device
+    dtype, device = table[0].dtype, table[0].device
     npix = (row1 - row0) * width
-    differentiable = torch.is_grad_enabled() and table.requires_grad
+    differentiable = torch.is_grad_enabled() and _requires_grad(table)
     with torch.no_grad():
         # the pairs inside the cutoff ellipse whose ray meets the splat's plane in front of the eye, and
         # (those hidden far behind the nearest surface weigh nothing) whose soft depth test passes
         sid, ix, iy = _band_pairs(box, row0, row1)
-        t = table.detach()
-        rows = torch.index_select(t[12:17], 1, sid)   # centre and conic: one gather
+        t = _detached(table)
+        rows = _gather(t[_CENTER_CONIC], sid)   # centre and conic
         keep = ref.conic_beta(rows[2], rows[3], rows[4], ix.to(dtype) + 0.5 - rows[0],
                               iy.to(dtype) + 0.5 - rows[1]) <= options.cutoff
-        sid, ix, iy = sid[keep], ix[keep], iy[keep]
+        sid, ix, iy = _select(keep, sid, ix, iy)
         pixel = (iy - row0) * width + ix
         if options.min_visibility > 0 and differentiable:
             keep = _visible_pairs(t, sid, ix, iy, pixel, npix, camera, options)
         else:
-            rows = torch.index_select(t, 1, sid)
-            pix = torch.stack([ix, iy], dim=1).to(dtype) + 0.5
-            rays = ref.rays_through(pix, camera.focal.detach(), camera.principal)
-            hit = ref.ray_plane_distance(rays, rows[_P].T, rows[_N].T)
-            keep = torch.isfinite(hit) & (hit > 0)
-        sid, ix, iy, pixel = sid[keep], ix[keep], iy[keep], pixel[keep]
+            rows = _gather(t[:4], sid)   # the normal and n . p
+            x, y = _pixel_rays(ix, iy, camera, detach=True)
+            keep = _drawn(rows[3] / (rows[0] * x + rows[1] * y - rows[2]), options)
+        sid, ix, iy, pixel = _select(keep, sid, ix, iy, pixel)
     terms = _pair_terms(table, sid, ix, iy, pixel, npix, camera, options)
     opacity, r2 = terms["opacity"], terms["r2"]
     w = opacity * terms["scale"] * torch.exp(-terms["beta"]) * terms["vis"]
@@ -301,9 +345,41 @@ def _band(table: torch.Tensor, box: torch.Tensor, camera: DiffCamera, options: D
     else:
         m = terms["inside"].to(dtype)
     log_clear = torch.log1p(-torch.clamp(opacity * m, max=1.0 - 8.0 * torch.finfo(dtype).eps))
-    values = torch.cat([w[:, None] * terms["color"], w[:, None], (w * terms["z"])[:, None], log_clear[:, None]],
-                       dim=1)
-    return torch.zeros((npix, 6), dtype=dtype, device=device).index_add(0, pixel, values)
+    color = terms["color"]
+    columns = [w * color[0], w * color[1], w * color[2], w, w * terms["z"], log_clear]
+    sums = torch.zeros((npix, len(columns)), dtype=dtype, device=device).index_add(0, pixel,
+                                                                                  torch.stack(columns, dim=1))
+    if options.edge_coverage:
+        sums = torch.cat([sums, _edge_sums(table, sid, pixel, terms, camera, row0, row1)], dim=1)
+    return sums
+
+
+def _edge_sums(table: Table, sid: torch.Tensor, pixel: torch.Tensor, terms: dict[str, torch.Tensor],
+               camera: DiffCamera, row0: int, row1: int) -> torch.Tensor:
+    """(band pixels, 5): the soft maxima's sums of splat_fragment.glsl's out_cover (reference.soft_maxima),
+    each fragment weighted by its depth test, and whether a disk covers the pixel's centre. Only the
+    pixels whose alpha reads them are summed (reference.edge_alpha: those within one pixel of one that no
+    disk covers, and the band's first and last rows, whose neighbours lie in other bands); the others
+    are inside the surface and keep zeros."""
+    covered = terms["covered"]
+    dtype = table[0].dtype
+    with torch.no_grad():
+        uncovered = (~covered).to(dtype).reshape(1, 1, row1 - row0, camera.width)
+        near = torch.nn.functional.max_pool2d(uncovered, 3, stride=1, padding=1)[0, 0] > 0
+        if row0 > 0:
+            near[0] = True
+        if row1 < camera.height:
+            near[-1] = True
+        sub = torch.nonzero(near.reshape(-1)[pixel]).squeeze(1)
+    jxx, jxy, jyx, jyy = _gather(table[_RIM], sid[sub])
+    cover, d = ref.rim_coverage(jxx, jxy, jyx, jyy, terms["dx"][sub], terms["dy"][sub])
+    c = terms["opacity"][sub] * cover
+    vis = terms["vis"][sub]
+    e = vis * torch.exp(ref.COVER_SHARPNESS * (c - 1.0))
+    ed = vis * torch.exp(ref.DISTANCE_SHARPNESS * (d - ref.COVER_REACH))
+    sums = torch.zeros((len(covered), 4), dtype=dtype, device=covered.device)
+    sums = sums.index_add(0, pixel[sub], torch.stack([e, c * e, ed, d * ed], dim=1))
+    return torch.cat([sums, covered.to(dtype)[:, None]], dim=1)
 
 
 def _bands(box: torch.Tensor, height: int, max_pairs: int) -> list[tuple[int, int]]:
@@ -342,17 +418,21 @@ def render_frame(splats: Splats, camera: DiffCamera, *, lights: Lights | None = 
     bands = _bands(box, height, int(options.max_pairs))
     parts = []
     for row0, row1 in bands:   # one step per band of rows, not per splat
-        if len(bands) > 1 and table.requires_grad:
+        if len(bands) > 1 and _requires_grad(table):
             parts.append(checkpoint(_band, table, box, camera, options, row0, row1, use_reentrant=False))
         else:
             parts.append(_band(table, box, camera, options, row0, row1))
-    sums = torch.cat(parts, dim=0).reshape(height, width, 6).flip(0)   # window rows (y up) -> image rows
+    sums = torch.cat(parts, dim=0).reshape(height, width, -1).flip(0)   # window rows (y up) -> image rows
     weight = sums[..., 3]
     has = weight > 0
     safe = torch.where(has, weight, torch.ones_like(weight))
     color = torch.clamp(sums[..., :3] / safe[..., None], 0.0, 1.0)
     depth = torch.where(has, sums[..., 4] / safe, torch.zeros_like(weight))
-    alpha = torch.where(has, -torch.expm1(sums[..., 5]), torch.zeros_like(weight))
+    center = -torch.expm1(sums[..., 5])
+    if options.edge_coverage:
+        cover, distance, reached = ref.soft_maxima(sums[..., 6], sums[..., 7], sums[..., 8], sums[..., 9])
+        center = ref.edge_alpha(sums[..., 10].detach() > 0.5, cover, distance, reached, center=center)
+    alpha = torch.where(has, center, torch.zeros_like(weight))
     bg = torch.as_tensor(background, dtype=color.dtype, device=color.device)
     image = alpha[..., None] * color + (1.0 - alpha[..., None]) * bg
     return DiffFrame(color=image, alpha=alpha, depth=depth, weight=weight)
