@@ -3,7 +3,7 @@
 The model is loaded and prepared by the view plan (:class:`surfsplat.pipeline.View`), exactly as a render
 does: files read, raw points preprocessed, meshes sampled for the default camera, colours applied,
 hierarchies cut (at the default camera within the point budget, else their finest level). Its splats are
-quantized into the web format (:mod:`surfsplat.web.format`, 19 bytes a splat) and written with the
+quantized into the web format (:mod:`surfsplat.web.format`, 22 bytes a splat) and written with the
 viewer's page and scripts: ``index.html``, ``viewer.js``, ``shaders.js`` (the package's GLSL files composed
 for GLSL ES 3.00, :mod:`surfsplat.web.shaders`) and ``data.js`` (the streams as base64: a page opened
 from ``file://`` may load scripts but may not ``fetch`` files). An output ending in ``.html`` is one
@@ -57,8 +57,8 @@ class ExportResult:
     Attributes:
         path: the folder (or the ``.html`` file).
         splats: splats exported.
-        bytes: bytes of the splat streams (``splats * 19``, 8 more a splat for Phong splats' shading normals
-            and normal fields, and 16 for each splat with clip lines).
+        bytes: bytes of the splat streams (``splats * 22``, 8 more a splat for Phong splats' shading normals
+            and normal fields, and 16 for each splat with clip lines; 19 a streamed cell's splat).
         seconds: wall-clock time of the whole export.
         files: the files written.
     """
@@ -257,10 +257,13 @@ def export(source, output, *, technique: str = "ewa", background=defaults.BACKGR
                     target.parent.chmod(0o755)
                 target.write_text(text, encoding="utf-8")
         written.extend(path / name for name in files)
-    count = int(header["count"]) + sum(int(c["entries"]) for c in header["lod"]["streamed"]["cells"]) if cells \
-        else int(header["count"])
-    per_splat = web_format.BYTES_PER_SPLAT + (web_format.FIELD_BYTES if header.get("normal_fields") else 0)
-    size_bytes = count * per_splat + int(header.get("clip_lines", 0)) * CLIP_BYTES
+    streamed = sum(int(c["entries"]) for c in header["lod"]["streamed"]["cells"]) if cells else 0
+    count = int(header["count"]) + streamed
+    # the page's splats with 24-bit positions; streamed cells keep 16-bit ones (stream.py)
+    per_splat = (web_format.BYTES_PER_SPLAT + web_format.FINE_BYTES
+                 + (web_format.FIELD_BYTES if header.get("normal_fields") else 0))
+    size_bytes = (int(header["count"]) * per_splat + streamed * web_format.BYTES_PER_SPLAT
+                  + int(header.get("clip_lines", 0)) * CLIP_BYTES)
     return ExportResult(path, count, size_bytes, time.perf_counter() - start, tuple(written))
 
 

@@ -69,7 +69,9 @@ def web_order(cloud: SplatCloud) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def encoded(cloud: SplatCloud, order: np.ndarray) -> tuple[dict[str, np.ndarray], dict]:
-    """The web format's streams and header of the splats ``cloud[order]``: :func:`~surfsplat.io.splat_codec.encode`,
+    """The web format's streams and header of the splats ``cloud[order]``: :func:`~surfsplat.io.splat_codec.encode`
+    with 24-bit positions (``position_fine``: at 16 bits a coordinate the opaque techniques' silhouettes lose
+    5-17 dB on the bunny at 1024 x 768),
     and for Phong splats (a cloud with a linear normal field, whose shading normals may lean off the plane
     of ``u`` and ``v``) the plane's normal coded in ``normal`` and the ``shading`` normal (octahedral) and
     ``normal_field`` (float16, flipped with the decoded axes) streams beside it."""
@@ -79,7 +81,7 @@ def encoded(cloud: SplatCloud, order: np.ndarray) -> tuple[dict[str, np.ndarray]
     normals, u, v = cloud.normals[order], cloud.u[order], cloud.v[order]
     field = cloud.normal_field
     plane = web_format.plane_normals(normals, u, v) if field is not None else normals
-    streams, header = web_format.encode(cloud.positions[order], plane, colors[order], u, v)
+    streams, header = web_format.encode(cloud.positions[order], plane, colors[order], u, v, fine_positions=True)
     if field is not None:
         su, sv = web_format.axis_signs(streams, header, u, v)
         streams["shading"] = web_format.octahedral_encode(normals)
