@@ -65,7 +65,7 @@ def main() -> None:
         variants[f"16-bit, {name} exact"] = cloud({**decoded, **{k: exact[k] for k in keys}})
     for bits in (18, 20, 24):
         variants[f"positions alone in {bits} bits"] = cloud({**exact, "positions": positions(bits)})
-    variants["the page's splats (24-bit positions)"] = as_drawn(splats)
+    variants["a page exported with --position-bits 24"] = as_drawn(splats, fine_positions=True)
     reference = View(cloud(exact))
     rows = []
     for technique in args.techniques.split(","):

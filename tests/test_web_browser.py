@@ -652,7 +652,7 @@ def test_a_cad_part_page_cuts_its_splats_at_the_sharp_edges_as_the_desktop(brows
     cloud = view.sample(camera).points()
     cutting = int((np.abs(cloud.clip_lines[:, :, :2]).sum(axis=(1, 2)) > 0).sum())
     assert 0 < cutting < len(cloud)
-    assert result.bytes == 22 * len(cloud) + 16 * cutting   # the lines of the splats that cut, alone
+    assert result.bytes == 19 * len(cloud) + 16 * cutting   # the lines of the splats that cut, alone
     reference = view.render(camera, technique=technique, options=RenderOptions()).frame.image()
     page = opened(browser, file_url(out / "index.html", f"?ui=0&technique={technique}"))
     try:
