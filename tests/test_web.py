@@ -56,6 +56,22 @@ def test_positions_round_trip_within_half_a_step_of_the_box():
     assert (np.abs(back - p).max(axis=0) > 0.4 * step).all()   # the bound is tight: not a looser encoding
 
 
+def test_fine_positions_round_trip_within_half_a_24_bit_step_and_keep_the_16_bit_stream_s_meaning():
+    rng = np.random.default_rng(4)
+    p = rng.uniform(-3, 7, size=(50_000, 3)) * [1.0, 0.01, 100.0]
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    streams = wf.encode_positions(p, lo, hi, fine=True)
+    assert streams["position"].dtype == np.uint16 and streams["position_fine"].dtype == np.uint8
+    assert sum(a.nbytes for a in streams.values()) == (2 + 1) * p.size   # 3 bytes a splat more
+    back = wf.decode_positions(streams, {"lo": lo, "hi": hi})
+    step = (hi - lo) / wf.FINE_LEVELS
+    assert (np.abs(back - p) <= 0.5 * step * (1 + 1e-6)).all()
+    assert (np.abs(back - p).max(axis=0) > 0.4 * step).all()   # the bound is tight
+    # the high 16 bits alone (a reader that knows no position_fine) stay within a 16-bit step
+    coarse = wf.decode_positions({"position": streams["position"]}, {"lo": lo, "hi": hi})
+    assert (np.abs(coarse - p) <= (hi - lo) / 65535.0 * (1 + 1e-6)).all()
+
+
 def test_tangent_axes_round_trip():
     n = unit_vectors(20_000, seed=2)
     rng = np.random.default_rng(3)
@@ -146,10 +162,11 @@ def test_phong_splats_keep_their_plane_shading_normal_and_normal_field_through_t
     unit = lambda a: a / np.linalg.norm(a, axis=1, keepdims=True)   # noqa: E731
     for k, (axis, decoded) in enumerate(((u, du), (v, dv))):
         assert np.allclose(drawn.normal_field[:, k, None] * unit(decoded), field[:, k, None] * unit(axis), atol=1e-3)
-    # 8 bytes a splat more, and only for Phong splats
+    # 8 bytes a splat more, and only for Phong splats; 3 more with 24-bit positions
     result = export(cloud, tmp_path / "phong")
     assert result.bytes == len(cloud) * (19 + 8)
     assert export(cloud.replace(normal_field=None), tmp_path / "plain").bytes == len(cloud) * 19
+    assert export(cloud, tmp_path / "phong24", position_bits=24).bytes == len(cloud) * (22 + 8)
 
 
 def test_a_browser_lod_tree_marks_the_nodes_over_clip_lines_which_a_cut_always_refines():
@@ -355,10 +372,9 @@ def test_the_page_colours_are_colorize_s_from_compact_attributes(tmp_path):
            for k, v in streams.items()}
     tables = {k: np.frombuffer(base64.b64decode(v), np.uint8).reshape(256, 3) for k, v in color["tables"].items()}
     assert set(tables) == {"asprs", "viridis"}
-    positions = wf.dequantize_unit(raw["position"].reshape(-1, 3), header["lo"], header["hi"])
+    positions = wf.decode_positions({"position": raw["position"].reshape(-1, 3)}, header)
     order = np.lexsort(positions.T)   # the page's order to the cloud's: match rows by position
-    mine = np.lexsort(wf.dequantize_unit(wf.quantize_unit(cloud.positions, header["lo"], header["hi"]),
-                                         header["lo"], header["hi"]).T)
+    mine = np.lexsort(wf.decode_positions(wf.encode_positions(cloud.positions, header["lo"], header["hi"]), header).T)
     codes = {k: v[order] for k, v in raw.items() if k.startswith("attr_")}
     for name in ("classification", "intensity", "gps_time", "elevation"):
         page = page_colors({**color, "tables": tables}, codes, positions[order], name)
@@ -446,3 +462,23 @@ def test_the_non_planar_flag_is_exported_one_bit_a_splat_where_the_view_plan_dra
     for flag, present in (("--hybrid", True), ("--no-hybrid", False)):
         assert main(["export", str(source), "-o", str(tmp_path / flag), flag]) == 0
         assert ('"nonplanar":' in (tmp_path / flag / "data.js").read_text()) == present
+
+
+def test_a_page_exported_with_24_bit_positions_keeps_them(tmp_path):
+    from surfsplat.web.page import as_drawn, web_order
+    cloud = torus(60, 30)
+    drawn = as_drawn(cloud, fine_positions=True)   # in the page's order
+    step = np.ptp(cloud.positions.astype(np.float64), axis=0) / wf.FINE_LEVELS
+    err = np.abs(drawn.positions.astype(np.float64) - cloud.positions[web_order(cloud)[0]])
+    # half a 24-bit step of the box, and float32's rounding of the result (16-bit codes: 256 times more)
+    assert (err <= 0.5 * step + 4e-7).all()
+    assert err.max() < np.ptp(cloud.positions, axis=0).max() / 65535 / 8
+    coarse = np.abs(as_drawn(cloud).positions.astype(np.float64) - cloud.positions[web_order(cloud)[0]])
+    assert coarse.max() > 16 * err.max()   # the default: 16-bit positions
+    # from the command line: the page's streams, and a clear error for other precisions
+    assert main(["export", "demo:torus", "-o", str(tmp_path / "fine"), "--position-bits", "24"]) == 0
+    assert '"position_fine":' in (tmp_path / "fine" / "data.js").read_text()
+    assert main(["export", "demo:torus", "-o", str(tmp_path / "coarse")]) == 0
+    assert '"position_fine":' not in (tmp_path / "coarse" / "data.js").read_text()
+    with pytest.raises(InputError, match="position bits"):
+        export(cloud, tmp_path / "bad", position_bits=20)

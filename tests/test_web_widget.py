@@ -41,6 +41,7 @@ def test_the_widget_holds_the_page_data_and_the_viewer():
     assert isinstance(w, anywidget.AnyWidget)
     assert w.data["header"]["count"] == 128 and set(w.data["streams"]) == {"position", "normal", "angle", "radii",
                                                                           "color"}
+    assert w.data["header"]["supersample"] == 1
     assert w.shaders == json.loads(json.dumps(shader_bundle()))
     assert w.height == 300 and w.params == {"ui": "0"} and w.camera == {}
     assert "function surfsplatViewer(" in w._esm and "export default" in w._esm
@@ -48,6 +49,14 @@ def test_the_widget_holds_the_page_data_and_the_viewer():
         widget(torus(16, 8), height=0)
     with pytest.raises(InputError, match="not drawn by the web viewer"):
         widget(torus(16, 8), technique="sketch")
+
+
+def test_the_widget_takes_the_page_s_supersampling_as_export_does():
+    assert widget(torus(16, 8), supersample=3).data["header"]["supersample"] == 3
+    assert "position_fine" in widget(torus(16, 8), position_bits=24).data["streams"]
+    for bad in (0, 5, 2.0, "2"):
+        with pytest.raises(InputError, match="supersampling"):
+            widget(torus(16, 8), supersample=bad)
 
 
 @pytest.mark.browser

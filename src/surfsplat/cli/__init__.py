@@ -16,6 +16,7 @@ from .. import defaults, progress
 from ..version import __version__
 from ..errors import SurfsplatError
 from ..scenes import SCENES
+from ..web.format import POSITION_BITS
 from ..web.shaders import MAX_PAGE_SUPERSAMPLE, WEB_TECHNIQUES
 from . import chunked, commands
 from . import options as opt
@@ -189,6 +190,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--supersample", type=opt.number(int, low=1, high=MAX_PAGE_SUPERSAMPLE), default=1, metavar="K",
                    help=f"the page's first supersampling: K x K sub-pixels a pixel, as `surfsplat render "
                         f"--supersample K` (1 to {MAX_PAGE_SUPERSAMPLE}; ?supersample=K on the page; default 1)")
+    p.add_argument("--position-bits", type=int, choices=POSITION_BITS, default=16,
+                   help="the splat centres' precision in the page's box, bits a coordinate: 16 (19 bytes a splat, "
+                        "the default) or 24 (22 bytes a splat; draws the desktop's very silhouette pixels)")
     p.add_argument("--force", action="store_true",
                    help="replace an existing file or non-empty folder that surfsplat export did not write "
                         "(an earlier export is always replaced)")

@@ -421,6 +421,7 @@ def cmd_export(args) -> None:
                     source_options=opt.source_options(args), lod=opt.lod_options(args),
                     point_budget=args.point_budget, browser_lod=args.browser_lod, force=args.force,
                     format="copc" if copc else "web", size=tuple(args.size), supersample=args.supersample,
+                    position_bits=args.position_bits,
                     memory_budget=None if args.memory_budget is None else int(args.memory_budget * 2**20))
     if copc:
         progress.message(f"exported {result.splats:,} splats to COPC ({result.bytes / 1e6:.1f} MB, "

@@ -1,7 +1,8 @@
 """The browser viewer: ``surfsplat export`` writes a static page that draws a model in WebGL2 with the
 package's own shaders (``docs/guides/web.md``).
 
-- :mod:`~surfsplat.web.format`: the web format (19 bytes a splat) and its decoding, in NumPy;
+- :mod:`~surfsplat.web.format`: the web format (19 bytes a splat, 22 with a page's 24-bit positions) and its
+  decoding, in NumPy;
 - :mod:`~surfsplat.web.shaders`: the ``rendering/glsl`` files composed for GLSL ES 3.00;
 - :mod:`~surfsplat.web.framing`: the page's default view, as ``surfsplat render`` frames the model;
 - :mod:`~surfsplat.web.page`: what a page draws (the view plan's splats, in the desktop's order, quantized);

@@ -56,13 +56,14 @@ def tree_entries(h: Hierarchy) -> SplatCloud:
 
 
 def tree_data(plan: View, camera: Camera, technique: str, background, name: str,
-              budget: int | None = None) -> tuple[dict, dict]:
+              budget: int | None = None, fine_positions: bool = False) -> tuple[dict, dict]:
     """The header and streams of a page that cuts the view plan's hierarchy itself (a cloud's built)."""
     model = plan.tree(camera)
     h = model.data
     if not isinstance(h, Hierarchy):
         raise InputError(f"{name}: no hierarchy to cut in the browser")
-    header, streams = page_data(plan, camera, tree_entries(h), technique, background, name, ordered=False)
+    header, streams = page_data(plan, camera, tree_entries(h), technique, background, name, ordered=False,
+                                fine_positions=fine_positions)
     nodes = len(h)
     header["lod"] = {"nodes": nodes, "points": int(len(h.points)), "levels": int(h.levels),
                      "level_offsets": [int(x) for x in h.level_offsets], "budget": int(budget or DEFAULT_WEB_BUDGET),

@@ -64,12 +64,17 @@ def _widget_class():
 
 def widget(source, *, height: int = 480, technique: str = "ewa", background=defaults.BACKGROUND,
            source_options: SourceOptions | None = None, lod: LodOptions | None = None,
-           camera: CameraSpec | None = None, point_budget: int | None = None, ui: bool = True):
+           camera: CameraSpec | None = None, point_budget: int | None = None, supersample: int = 1,
+           position_bits: int = 16,
+           ui: bool = True):
     """A Jupyter widget drawing ``source`` with the browser viewer (WebGL2, in the notebook's browser).
 
     Args:
         source, technique, background, source_options, lod, camera, point_budget: as
             :func:`surfsplat.export` takes them (the model is prepared and quantized the same way).
+        supersample: K, the viewer's first supersampling (1 to 4, as :func:`surfsplat.export` takes it): every
+            pass drawn on K x K sub-pixels a pixel and reduced, as ``surfsplat render --supersample K`` draws.
+        position_bits: 16 or 24, the splat centres' precision (as :func:`surfsplat.export` takes it).
         height: the widget's height, CSS pixels (its width is the cell's).
         ui: show the controls and the HUD.
 
@@ -79,6 +84,7 @@ def widget(source, *, height: int = 480, technique: str = "ewa", background=defa
     if not (isinstance(height, int) and 16 <= height <= defaults.MAX_WINDOW_SIDE):
         raise InputError(f"height must be whole CSS pixels in 16..{defaults.MAX_WINDOW_SIDE}, got {height!r}")
     header, streams = page_payload(source, technique=technique, background=background, source_options=source_options,
-                                   lod=lod, camera=camera, point_budget=point_budget)
+                                   lod=lod, camera=camera, point_budget=point_budget, supersample=supersample,
+                                   position_bits=position_bits)
     return _widget_class()(data={"header": header, "streams": streams}, shaders=shader_bundle(), height=height,
                            params={} if ui else {"ui": "0"})

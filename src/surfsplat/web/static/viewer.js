@@ -90,12 +90,15 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
         v = new Float32Array(3 * m);
     var lo = H.lo, hi = H.hi, U16 = 65535;   // format.U16
     var w0 = hi[0] - lo[0], w1 = hi[1] - lo[1], w2 = hi[2] - lo[2];
+    // format.decode_positions: with position_fine, 24-bit codes (position the high 16 bits, position_fine the low 8)
+    var qf = s.position_fine ? code('position_fine') : null, PL = qf ? 16777215 : U16;   // format.FINE_LEVELS
+    function coord(q) { return qf ? qp[q] * 256 + qf[q] : qp[q]; }
     var l0 = H.log_radius[0], lw = H.log_radius[1] - H.log_radius[0];
     for (var r = 0; r < m; ++r) {
       var i = r * step, k = 3 * r, q = 3 * i;
-      pos[k] = lo[0] + qp[q] / U16 * w0;
-      pos[k + 1] = lo[1] + qp[q + 1] / U16 * w1;
-      pos[k + 2] = lo[2] + qp[q + 2] / U16 * w2;
+      pos[k] = lo[0] + coord(q) / PL * w0;
+      pos[k + 1] = lo[1] + coord(q + 1) / PL * w1;
+      pos[k + 2] = lo[2] + coord(q + 2) / PL * w2;
       var dn = octahedral(qn, i), x = dn[0], y = dn[1], z = dn[2];
       nrm[k] = x; nrm[k + 1] = y; nrm[k + 2] = z;
       // tangent_basis (Duff et al. 2017)
