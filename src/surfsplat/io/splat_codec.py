@@ -17,11 +17,11 @@ stream                    bytes  encoding
 ``color``                 3      3 x uint8: RGB in [0, 1], rounded as the renderer rounds its output
 ========================  =====  =====================================================================
 
-The web page adds ``position_fine`` (3 x uint8, 3 bytes a splat: 22 in all): the low byte of 24-bit position
-codes (``2^24 - 1`` steps, float32's precision over the box) whose high 16 bits are ``position``
-(``encode(..., fine_positions=True)``). 16-bit steps move the centre of a splat by about 1% of its radius on a
-model sampled for a 1024-pixel view, enough to flip the coverage or the nearest splat of a few hundred
-silhouette pixels of an opaque technique (``flat``, ``points``, Phong splats' depth pass).
+A page exported with 24-bit positions adds ``position_fine`` (3 x uint8, 3 bytes a splat: 22 in all): the low
+byte of 24-bit position codes (``2^24 - 1`` steps, float32's precision over the box) whose high 16 bits are
+``position`` (``encode(..., fine_positions=True)``). 16-bit steps move the centre of a splat by about 1% of
+its radius on a model sampled for a 1024-pixel view, enough to flip the coverage or the nearest splat of a few
+hundred silhouette pixels of an opaque technique (``flat``, ``points``, Phong splats' depth pass).
 
 ``v`` is rebuilt orthogonal to ``u`` in the plane of the normal (an ellipse in the plane normal to the
 shading normal). Clip lines (Zwicker 2004, sec. 5), where a model has them, travel

@@ -1,7 +1,7 @@
 """The browser viewer: ``surfsplat export`` writes a static page that draws a model in WebGL2 with the
 package's own shaders (``docs/guides/web.md``).
 
-- :mod:`~surfsplat.web.format`: the web format (19 bytes a splat, 22 with a page's 24-bit positions) and its
+- :mod:`~surfsplat.web.format`: the web format (19 bytes a splat, 22 with 24-bit positions) and its
   decoding, in NumPy;
 - :mod:`~surfsplat.web.shaders`: the ``rendering/glsl`` files composed for GLSL ES 3.00;
 - :mod:`~surfsplat.web.framing`: the page's default view, as ``surfsplat render`` frames the model;

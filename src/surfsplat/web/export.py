@@ -3,7 +3,7 @@
 The model is loaded and prepared by the view plan (:class:`surfsplat.pipeline.View`), exactly as a render
 does: files read, raw points preprocessed, meshes sampled for the default camera, colours applied,
 hierarchies cut (at the default camera within the point budget, else their finest level). Its splats are
-quantized into the web format (:mod:`surfsplat.web.format`, 22 bytes a splat) and written with the
+quantized into the web format (:mod:`surfsplat.web.format`, 19 bytes a splat) and written with the
 viewer's page and scripts: ``index.html``, ``viewer.js``, ``shaders.js`` (the package's GLSL files composed
 for GLSL ES 3.00, :mod:`surfsplat.web.shaders`) and ``data.js`` (the streams as base64: a page opened
 from ``file://`` may load scripts but may not ``fetch`` files). An output ending in ``.html`` is one
@@ -57,8 +57,8 @@ class ExportResult:
     Attributes:
         path: the folder (or the ``.html`` file).
         splats: splats exported.
-        bytes: bytes of the splat streams (``splats * 22``, 8 more a splat for Phong splats' shading normals
-            and normal fields, and 16 for each splat with clip lines; 19 a streamed cell's splat).
+        bytes: bytes of the splat streams (``splats * 19``, 3 more a splat with 24-bit positions, 8 more for
+            Phong splats' shading normals and normal fields, and 16 for each splat with clip lines).
         seconds: wall-clock time of the whole export.
         files: the files written.
     """
