@@ -48,7 +48,7 @@ import surfsplat  # noqa: E402
 from surfsplat import metrics  # noqa: E402
 from surfsplat.cloud import SplatCloud  # noqa: E402
 from surfsplat.camera import Camera  # noqa: E402
-from surfsplat.diff import DiffCamera, Splats, render  # noqa: E402
+from surfsplat.diff import DiffCamera, DiffOptions, Splats, render  # noqa: E402
 from surfsplat.diff.fit import FitOptions, FitView, fit, initial_cloud  # noqa: E402
 from surfsplat.geometry.sampling import sample_mesh  # noqa: E402
 from surfsplat.io import load_mesh  # noqa: E402
@@ -132,22 +132,32 @@ def geometry(model: Model, cloud) -> tuple[float, float]:
     return float(distance.mean() / model.diagonal), float(np.degrees(np.median(np.arccos(np.clip(cos, 0, 1)))))
 
 
-def held_out(model: Model, cloud) -> tuple[float, list]:
-    """Mean PSNR (dB) of the held-out views over white, and each view's mesh | splats picture."""
+#: The renderer with the papers' rims (no edge coverage): ``surfsplat render --no-edge-coverage``.
+PAPERS_RIMS = DiffOptions(edge_coverage=False)
+
+
+def held_out(model: Model, cloud, options: DiffOptions | None = None) -> tuple[float, list]:
+    """Mean PSNR (dB) of the held-out views over white, and each view's mesh | splats picture (``options``:
+    the renderer's, None: its defaults, which match ``surfsplat render``'s ``ewa``)."""
     splats = Splats.from_cloud(cloud)
     if cloud.attributes and "opacity" in cloud.attributes:
         splats.opacity = torch.as_tensor(cloud.attributes["opacity"])
     values, pictures = [], []
     for view in model.test:
         with torch.no_grad():
-            image = render(splats, DiffCamera.from_camera(view.camera), lights=UNLIT).numpy()
+            image = render(splats, DiffCamera.from_camera(view.camera), lights=UNLIT, options=options).numpy()
         target = view.image * view.alpha[..., None] + (1.0 - view.alpha[..., None])
         values.append(metrics.psnr(image, target))
         pictures.append(np.concatenate([target, image], axis=1))
     return float(np.mean(values)), pictures
 
 
-def fit_job(name: str, train: list, init: SplatCloud, iterations: int, seed: int, threads: int):
+#: The rims a fit trains with (``--training-rims``), before and while sharpening: edge coverage (the renderer's
+#: default) or the papers' (soft, all-or-nothing coverage).
+TRAINING_RIMS = {"coverage": (True, True), "papers": (False, False), "switch": (False, True)}
+
+
+def fit_job(name: str, train: list, init: SplatCloud, iterations: int, seed: int, threads: int, rims: str):
     """One fit (in a worker process): the fitted splats, wall-clock and CPU seconds, the load after it."""
     torch.set_num_threads(threads)
     start, cpu = time.perf_counter(), time.process_time()
@@ -157,7 +167,11 @@ def fit_job(name: str, train: list, init: SplatCloud, iterations: int, seed: int
             print(f"{name} seed {seed} step {step}: loss {loss:.4f}, {splats:,} splats, "
                   f"{time.perf_counter() - start:.0f} s", flush=True)
 
-    result = fit(train, init, options=FitOptions(iterations=iterations, max_splats=200_000, seed=seed), on_step=log)
+    first, last = TRAINING_RIMS[rims]
+    options = FitOptions(iterations=iterations, max_splats=200_000, seed=seed,
+                         render=DiffOptions(edge_softness=0.5, depth_softness=0.3, edge_coverage=first),
+                         sharpen_to=DiffOptions(edge_coverage=last))
+    result = fit(train, init, options=options, on_step=log)
     return result.cloud, time.perf_counter() - start, time.process_time() - cpu, os.getloadavg()[0]
 
 
@@ -173,31 +187,36 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=1, help="PyTorch threads per fit")
     parser.add_argument("--jobs", type=int, default=1, help="fits run at once (worker processes)")
     parser.add_argument("--pictures", type=Path, default=ROOT / "docs" / "images")
+    parser.add_argument("--training-rims", nargs="+", default=["switch"], choices=list(TRAINING_RIMS),
+                        help="the rims the fits train with: the papers' then edge coverage while sharpening "
+                             "(switch: FitOptions' default), edge coverage throughout, or the papers' throughout")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     models = [prepare(name, MODELS[name], args) for name in args.models]
-    jobs = [(m, seed) for m in models for seed in args.seeds]
+    jobs = [(m, seed, rims) for m in models for rims in args.training_rims for seed in args.seeds]
     # fits in worker processes (spawned: no OpenGL or thread pool inherited), --jobs at a time
     with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
-        futures = [pool.submit(fit_job, m.name, m.train, m.init, args.iterations, seed, args.threads)
-                   for m, seed in jobs]
+        futures = [pool.submit(fit_job, m.name, m.train, m.init, args.iterations, seed, args.threads, rims)
+                   for m, seed, rims in jobs]
         fitted = [f.result() for f in futures]
     rows, loads = [], []
     for m in models:
         psnr0, _ = held_out(m, m.init)
+        papers0, _ = held_out(m, m.init, PAPERS_RIMS)
         d0, a0 = geometry(m, m.init)
-        rows.append([m.name, "initial (noisy points)", len(m.init), round(psnr0, 2), round(100 * d0, 3), round(a0, 2),
-                     0.0, 0.0])
+        rows.append([m.name, "initial (noisy points)", len(m.init), round(psnr0, 2), round(papers0, 2),
+                     round(100 * d0, 3), round(a0, 2), 0.0, 0.0])
         picture = None
-        for (model, seed), (cloud, seconds, cpu, load) in zip(jobs, fitted):
+        for (model, seed, rims), (cloud, seconds, cpu, load) in zip(jobs, fitted):
             if model is not m:
                 continue
             psnr1, pictures = held_out(m, cloud)
+            papers1, _ = held_out(m, cloud, PAPERS_RIMS)
             d1, a1 = geometry(m, cloud)
             loads.append(load)
             rows.append([m.name, f"fitted ({args.iterations} steps, {args.views} views {args.size}x{args.size}, "
-                         f"seed {seed})", len(cloud), round(psnr1, 2), round(100 * d1, 3), round(a1, 2),
-                         round(seconds, 1), round(cpu, 1)])
+                         f"{rims} rims, seed {seed})", len(cloud), round(psnr1, 2), round(papers1, 2),
+                         round(100 * d1, 3), round(a1, 2), round(seconds, 1), round(cpu, 1)])
             print(rows[-1], flush=True)
             if picture is None:
                 strip = np.concatenate(pictures[:2], axis=0)
@@ -206,7 +225,8 @@ def main() -> None:
         args.pictures.mkdir(parents=True, exist_ok=True)
         assert picture is not None
         Image.fromarray(picture).save(args.pictures / f"diff_fit_{m.name}.png", optimize=True)
-    columns = ["model", "stage", "splats", "held-out PSNR dB", "centre distance / diagonal %",
+    columns = ["model", "stage", "splats", "held-out PSNR dB (edge coverage)", "held-out PSNR dB (papers' rims)",
+               "centre distance / diagonal %",
                "normal error median deg", "wall s", "CPU s"]
     machine = (machine_description() + f", torch {torch.__version__}, {args.threads} thread(s) per fit, {args.jobs} "
                f"fit(s) at once, load average after the fits {min(loads):.1f} to {max(loads):.1f}")
