@@ -47,7 +47,7 @@ def add_fit_command(subparsers) -> argparse.ArgumentParser:
                         "which then keeps sharp edges (default 20; 0: all weigh alike)")
     p.add_argument("--max-radius", type=opt.number(float, low=0), default=None, metavar="F",
                    help="largest splat radius, as a multiple of the mean distance to its 8 nearest splats "
-                        "(default 1.5; 0: no limit)")
+                        "(default 0.7; 0: no limit)")
     p.add_argument("--seed", type=opt.number(int, low=0, high=2**63 - 1), default=0, help="random seed (default 0)")
     p.add_argument("--device", default=None, help="PyTorch device: cpu (default), cuda, mps")
     p.add_argument("--loss", metavar="FILE.json", help="where to write the loss curve (default: OUTPUT.loss.json)")

@@ -109,7 +109,7 @@ class FitOptions:
     plane_weight: float = 0.2
     neighbours: int = 8
     crease_angle: float = 20.0
-    max_radius: float = 1.5
+    max_radius: float = 0.7
     coarse_fraction: float = 0.5
     render: DiffOptions = field(default_factory=lambda: DiffOptions(edge_softness=0.5, depth_softness=0.3,
                                                                     edge_coverage=False))
