@@ -66,6 +66,20 @@ def test_first_picture_samples_what_faces_the_eye_and_another_camera_the_whole_s
     assert first.render(eye, width=96, height=80).splats == b.splats   # kept for every later view
 
 
+def test_a_hierarchy_built_after_a_facing_picture_holds_the_whole_surface():
+    """A hierarchy serves every view: built after a picture that sampled only the faces its eye sees,
+    it holds the whole surface's splats, as one built without that picture."""
+    mesh = box()
+    eye = CameraSpec(eye=EYE, target=(0.0, 0.0, 0.0))
+    first = surfsplat.prepare(mesh)
+    facing = first.render(eye, width=96, height=80).splats
+    whole = surfsplat.prepare(mesh)
+    camera = whole.camera(eye, 96, 80)
+    expected = len(whole.sample(camera).points())
+    assert facing < 0.7 * expected
+    assert len(first.tree(first.camera(eye, 96, 80)).data.points) == expected
+
+
 @pytest.mark.parametrize("technique, options", [("phong", None), ("ewa", RenderOptions(
     visibility=VisibilityOptions(cull_backfaces=False)))])
 def test_pictures_that_keep_back_faces_sample_the_whole_surface(technique, options):

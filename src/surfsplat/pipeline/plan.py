@@ -215,9 +215,10 @@ class View:
                                  fringe=get_technique(technique).edge_fringe)
 
     def tree(self, camera: Camera | None = None) -> Model:
-        """The model as a hierarchy (built once over :meth:`sample` for a cloud)."""
+        """The model as a hierarchy (built once over :meth:`sample` for a cloud: the whole surface of a
+        mesh, never a single view's facing samples, as the hierarchy serves every view)."""
         if self._tree is None:
-            self._tree = self.sample(camera).tree()
+            self._tree = self.sample(camera, facing=False).tree()
         return self._tree
 
     def culls(self, camera: Camera, options: RenderOptions | None = None, technique: TechniqueName = "ewa") -> bool:
