@@ -35,6 +35,7 @@ from .reference_edges import (
     disk_coverage as disk_coverage,
     rim_coverage as rim_coverage,
     soft_maxima as soft_maxima,
+    soft_maximum_terms as soft_maximum_terms,
     edge_alpha as edge_alpha,
 )
 

@@ -148,6 +148,17 @@ def _shifted(a, dy: int, dx: int, fill) -> Any:
     return out
 
 
+def soft_maximum_terms(cover, distance, weight) -> tuple[Any, Any, Any, Any]:
+    """One fragment's four terms of the sums :func:`soft_maxima` reads (splat_fragment.glsl's
+    ``out_cover``), each times ``weight`` (its depth test): ``e^(S (c - 1))``, ``c e^(S (c - 1))``,
+    ``e^(S_d (d - R))`` and ``d e^(S_d (d - R))`` of its pixel coverage ``cover`` and rim distance
+    ``distance`` (pixels)."""
+    xp = array_namespace(cover, distance)
+    e = weight * xp.exp(COVER_SHARPNESS * (cover - 1.0))
+    ed = weight * xp.exp(DISTANCE_SHARPNESS * (distance - COVER_REACH))
+    return e, cover * e, ed, distance * ed
+
+
 def soft_maxima(sum_e, sum_ce, sum_ed, sum_dd) -> tuple[Any, Any, Any]:
     """A pixel's largest coverage by one disk and largest rim distance from the accumulated soft-maximum
     sums (``sum e^(S (c - 1))``, ``sum c e^(S (c - 1))``, ``sum e^(S_d (d - R))``, ``sum d e^(S_d (d - R))``,

@@ -373,12 +373,9 @@ def _edge_sums(table: Table, sid: torch.Tensor, pixel: torch.Tensor, terms: dict
         sub = torch.nonzero(near.reshape(-1)[pixel]).squeeze(1)
     jxx, jxy, jyx, jyy = _gather(table[_RIM], sid[sub])
     cover, d = ref.rim_coverage(jxx, jxy, jyx, jyy, terms["dx"][sub], terms["dy"][sub])
-    c = terms["opacity"][sub] * cover
-    vis = terms["vis"][sub]
-    e = vis * torch.exp(ref.COVER_SHARPNESS * (c - 1.0))
-    ed = vis * torch.exp(ref.DISTANCE_SHARPNESS * (d - ref.COVER_REACH))
+    fragment = ref.soft_maximum_terms(terms["opacity"][sub] * cover, d, terms["vis"][sub])
     sums = torch.zeros((len(covered), 4), dtype=dtype, device=covered.device)
-    sums = sums.index_add(0, pixel[sub], torch.stack([e, c * e, ed, d * ed], dim=1))
+    sums = sums.index_add(0, pixel[sub], torch.stack(fragment, dim=1))
     return torch.cat([sums, covered.to(dtype)[:, None]], dim=1)
 
 
