@@ -346,13 +346,21 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     for (var i = 0; i < count; ++i) for (var r = 0; r < 6; ++r) for (var c = 0; c < width; ++c) out[(6 * i + r) * width + c] = array[i * width + c];
     return out;
   }
+  // the attributes every splat has (position, normal, colour, u, v) into the bound vertex array: their buffers
+  function splatAttributes(decoded) {
+    return [attribute(1, decoded.position, 3, gl.FLOAT, false), attribute(2, decoded.normal, 3, gl.FLOAT, false),
+            attribute(3, decoded.color, 3, gl.UNSIGNED_BYTE, true), attribute(4, decoded.u, 3, gl.FLOAT, false),
+            attribute(5, decoded.v, 3, gl.FLOAT, false)];
+  }
+  // no vertex array bound, and the constant values of the attributes a points vertex array leaves unbound
+  function unbindSplats() {
+    gl.bindVertexArray(null);
+    gl.vertexAttrib2f(0, 0, 0);   // a point has no corner
+    for (var j = 6; j < ATTRIBUTES.length; ++j) gl.vertexAttrib4f(j, 0, 0, 0, 0);   // no clip lines, no normal field
+  }
   function upload(decoded) {
     gl.bindVertexArray(pointsVao);
-    attribute(1, decoded.position, 3, gl.FLOAT, false);
-    attribute(2, decoded.normal, 3, gl.FLOAT, false);
-    colorBuffers = [attribute(3, decoded.color, 3, gl.UNSIGNED_BYTE, true)];
-    attribute(4, decoded.u, 3, gl.FLOAT, false);
-    attribute(5, decoded.v, 3, gl.FLOAT, false);
+    colorBuffers = [splatAttributes(decoded)[2]];
     if (decoded.nonplanar) attribute(NONPLANAR, decoded.nonplanar, 1, gl.UNSIGNED_BYTE, false);
     if (decoded.normalField) attribute(NORMAL_FIELD, decoded.normalField, 2, gl.HALF_FLOAT, false);
     if (decoded.clip0) {   // in_clip0, in_clip1 (Zwicker 2004, sec. 5)
@@ -362,9 +370,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
     if (H.lod) {   // the drawn entries: an index list chosen per view (selectCut)
       elements = gl.createBuffer();
       gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, elements);
-      gl.bindVertexArray(null);
-      gl.vertexAttrib2f(0, 0, 0);
-      for (var j = 6; j < ATTRIBUTES.length; ++j) gl.vertexAttrib4f(j, 0, 0, 0, 0);
+      unbindSplats();
       return;
     }
     quadCount = Math.min(H.count, QUAD_CAPACITY);
@@ -383,9 +389,7 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
       attribute(6, repeated(decoded.clip0, 3, quadCount, Uint16Array), 3, gl.HALF_FLOAT, false);
       attribute(7, repeated(decoded.clip1, 3, quadCount, Uint16Array), 3, gl.HALF_FLOAT, false);
     }
-    gl.bindVertexArray(null);
-    gl.vertexAttrib2f(0, 0, 0);   // a point has no corner
-    for (i = 6; i < ATTRIBUTES.length; ++i) gl.vertexAttrib4f(i, 0, 0, 0, 0);   // unbound: no clip lines, no normal field
+    unbindSplats();
   }
 
   // The decimated first preview of a large page: every step-th splat (a spatially even subset: each radius
@@ -402,12 +406,8 @@ function surfsplatViewer(root, SHADERS, DATA, options) {
   function uploadPreview(d, step) {
     var vao = gl.createVertexArray();
     gl.bindVertexArray(vao);
-    var buffers = [attribute(1, d.position, 3, gl.FLOAT, false), attribute(2, d.normal, 3, gl.FLOAT, false),
-                   attribute(3, d.color, 3, gl.UNSIGNED_BYTE, true), attribute(4, d.u, 3, gl.FLOAT, false),
-                   attribute(5, d.v, 3, gl.FLOAT, false)];
-    gl.bindVertexArray(null);
-    gl.vertexAttrib2f(0, 0, 0);
-    for (var j = 6; j < ATTRIBUTES.length; ++j) gl.vertexAttrib4f(j, 0, 0, 0, 0);
+    var buffers = splatAttributes(d);
+    unbindSplats();
     return {vao: vao, buffers: buffers, count: d.count, step: step};
   }
   // the page's splats decoded and uploaded (after the preview where there is one)
