@@ -480,5 +480,6 @@ def test_a_page_exported_with_24_bit_positions_keeps_them(tmp_path):
     assert '"position_fine":' in (tmp_path / "fine" / "data.js").read_text()
     assert main(["export", "demo:torus", "-o", str(tmp_path / "coarse")]) == 0
     assert '"position_fine":' not in (tmp_path / "coarse" / "data.js").read_text()
-    with pytest.raises(InputError, match="position bits"):
-        export(cloud, tmp_path / "bad", position_bits=20)
+    for bad in (20, 24.0, "24", True, None):
+        with pytest.raises(InputError, match="position bits"):
+            export(cloud, tmp_path / "bad", position_bits=bad)

@@ -168,7 +168,8 @@ def _payload(source, technique, background, source_options, lod, camera, point_b
     if not (isinstance(supersample, (int, np.integer)) and 1 <= supersample <= MAX_PAGE_SUPERSAMPLE):
         raise InputError(f"the page's supersampling must be a whole number of sub-pixels from 1 to "
                          f"{MAX_PAGE_SUPERSAMPLE}, got {supersample!r}")
-    if position_bits not in web_format.POSITION_BITS or isinstance(position_bits, bool):
+    if not isinstance(position_bits, (int, np.integer)) or isinstance(position_bits, bool) \
+            or position_bits not in web_format.POSITION_BITS:
         raise InputError(f"the page's position bits must be one of {', '.join(map(str, web_format.POSITION_BITS))}, "
                          f"got {position_bits!r}")
     fine = position_bits == 24
