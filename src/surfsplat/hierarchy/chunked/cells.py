@@ -32,7 +32,7 @@ from ...geometry.preprocess import preprocess
 from ..lod import uniform_cut
 from ..model import Hierarchy
 from ..octree import build_hierarchy
-from .layout import CELLS, COARSE, NODE_FILES, NODES
+from .layout import CELLS, COARSE, NODE_FILES, NODES, load_npy
 
 #: The halo reaches this many times the cell's 99th percentile k-th-neighbour distance.
 HALO_SPACINGS = 4.0
@@ -168,16 +168,16 @@ def orientation_votes(work: str, key: str, index: int, keys: list) -> list:
     being the sum over the shared points of the dot product of this cell's normal and the
     neighbour's own normal (> 0: same orientation)."""
     pre = Path(work) / "pre"
-    cells = np.load(pre / key / "halo_cell.npy")
-    rows = np.load(pre / key / "halo_row.npy")
-    normals = np.load(pre / key / "halo_normals.npy")
+    cells = load_npy(pre / key / "halo_cell.npy")
+    rows = load_npy(pre / key / "halo_row.npy")
+    normals = load_npy(pre / key / "halo_normals.npy")
     votes = []
     for other in np.unique(cells):
         sel = cells == other
-        their_rows = np.load(pre / keys[other] / "rows.npy", mmap_mode="r")
+        their_rows = load_npy(pre / keys[other] / "rows.npy", mmap_mode="r")
         if len(their_rows) == 0:  # a cell whose points were all outliers
             continue
-        their_normals = np.load(pre / keys[other] / "normals.npy", mmap_mode="r")
+        their_normals = load_npy(pre / keys[other] / "normals.npy", mmap_mode="r")
         pos = np.searchsorted(their_rows, rows[sel])
         pos = np.minimum(pos, len(their_rows) - 1)
         found = np.asarray(their_rows[pos]) == rows[sel]
@@ -198,13 +198,13 @@ def build_cell(work: str, out: str, key: str, flip: bool, leaf_capacity: int, pr
     nodes (arrays, for the driver's preview file), and ``samples``: the attributes of ``preview``
     points drawn at random (for their value ranges over the whole cloud)."""
     pre = Path(work) / "pre" / key
-    arrays = {name: np.load(pre / f"{name}.npy") for name in ("positions", "normals", "u", "v", "ids")}
+    arrays = {name: load_npy(pre / f"{name}.npy") for name in ("positions", "normals", "u", "v", "ids")}
     colors = pre / "colors.npy"
-    arrays["colors"] = np.load(colors) if colors.is_file() else None
+    arrays["colors"] = load_npy(colors) if colors.is_file() else None
     if flip:
         arrays["normals"] *= -1.0
         arrays["v"] *= -1.0  # keep u x v along the normal
-    values = {name: np.load(pre / f"attribute_{i}.npy") for i, name in enumerate(attributes)}
+    values = {name: load_npy(pre / f"attribute_{i}.npy") for i, name in enumerate(attributes)}
     cloud = SplatCloud(positions=arrays["positions"], normals=arrays["normals"], colors=arrays["colors"],
                        u=arrays["u"], v=arrays["v"], attributes=values or None)
     h = build_hierarchy(cloud, leaf_capacity, source=f"cell {key}")

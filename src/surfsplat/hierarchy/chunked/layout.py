@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import math
+import threading
 import zipfile
 from pathlib import Path
 
@@ -26,6 +27,17 @@ import numpy as np
 from ...cloud import checked_up
 from ...errors import InputError
 from ...io.npz import npz_names, read_npz
+
+#: Serializes :func:`load_npy`: NumPy parses a ``.npy`` header with ``ast.literal_eval``, which CPython 3.11
+#: (3.11.7 here) can break with "SystemError: AST constructor recursion depth mismatch" when two threads
+#: parse at once, as a build's tasks do on threaded Dask workers.
+_NPY_LOCK = threading.Lock()
+
+
+def load_npy(path, mmap_mode=None) -> np.ndarray:
+    """``np.load`` of one ``.npy`` file (no pickles), one thread at a time (:data:`_NPY_LOCK`)."""
+    with _NPY_LOCK:
+        return np.load(path, mmap_mode=mmap_mode, allow_pickle=False)
 
 #: Value of the manifest's ``format``.
 FORMAT = "surfsplat-chunked-hierarchy"
@@ -163,7 +175,7 @@ def open_points(path: Path, name: str, count: int, dtype=None) -> np.ndarray:
     else:
         columns = None
     try:
-        array = np.load(path, mmap_mode="r", allow_pickle=False)
+        array = load_npy(path, mmap_mode="r")
     except (OSError, ValueError, EOFError) as exc:
         raise InputError(f"{path}: corrupt chunk file ({exc})") from None
     want = (count,) if columns is None else (count, columns)
